@@ -1,0 +1,122 @@
+"""Typed, validated settings: the world (SPEC §1) and the GA (SPEC §1, "GA parameters").
+
+Every number the report gives is a default here; every choice the report leaves
+open is marked *(ours)* in its description and can be overridden.  Settings are
+frozen pydantic models: invalid values fail at construction with a
+:class:`~coevo.errors.ConfigError` that names the field and the value.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal, TypeVar
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from coevo.errors import ConfigError
+
+__all__ = ["WorldConfig", "GAConfig", "build"]
+
+_M = TypeVar("_M", bound=BaseModel)
+
+
+class _Settings(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+class WorldConfig(_Settings):
+    """The tracking-under-fuel task (report Appendix A §4, §6)."""
+
+    arena: float = Field(300.0, gt=50, description="side of the square arena, inches")
+    step_seconds: float = Field(0.5, gt=0, description="simulated time per step, s")
+    episode_steps: int = Field(60, ge=1, le=10_000, description="max steps per episode")
+    epoch_episodes: int = Field(10, ge=1, le=1_000, description="max episodes per epoch")
+    tracking_min: float = Field(40.0, ge=0, description="tracking range lower bound, inches")
+    tracking_max: float = Field(60.0, gt=0, description="tracking range upper bound, inches")
+    towing_penalty: int = Field(50, ge=0, description="steps added to the epoch denominator on running dry")
+    initial_fuel: float = Field(0.5, gt=0, le=1, description="tank fraction at each epoch start")
+    robot_radius: float = Field(9.0, gt=0, description="(ours) robot radius, inches (a Nomad 200 is ~18 in wide)")
+    target_radius: float = Field(9.0, gt=0, description="(ours) target radius, inches")
+    target_speed: float = Field(2.0, ge=0, le=16, description="(ours) target random-walk speed, ips")
+    target_turn_sd: float = Field(20.0, ge=0, description="(ours) s.d. of the target's heading change per step, deg")
+    target_avoid: float = Field(30.0, ge=0, description="(ours) distance at which the target turns away from walls/dock, inches")
+    fuel_idle: float = Field(1 / 480, gt=0, description="tank fraction used per step standing still (full tank ~8 episodes)")
+    fuel_per_ips: float = Field(1 / 1920, ge=0, description="extra tank fraction per step per inch/s (4 ips: full tank ~4 episodes)")
+    fuel_per_dps: float = Field(1 / 11520, ge=0, description="(ours) extra tank fraction per step per deg/s of turn")
+    dock_width: float = Field(30.0, gt=0, description="(ours) width of the dock's front face, inches")
+    dock_depth: float = Field(10.0, gt=0, description="(ours) depth of the dock from the south wall, inches")
+    dock_max_speed: float = Field(4.0, ge=0, description="fastest accepted docking speed, ips")
+    dock_max_angle: float = Field(15.0, ge=0, le=90, description="largest accepted angle off head-on, deg")
+    spawn_margin: float = Field(20.0, ge=0, description="(ours) min clearance from walls/dock for random placements, inches")
+    spawn_separation: float = Field(40.0, ge=0, description="(ours) min robot-target distance at epoch start, inches")
+    hash_cell: float = Field(100.0, gt=0, description="(ours, speed only) pymunk spatial-hash cell size")
+
+    @model_validator(mode="after")
+    def _check(self) -> WorldConfig:
+        if self.tracking_min >= self.tracking_max:
+            raise ValueError(f"tracking_min ({self.tracking_min}) must be below tracking_max ({self.tracking_max})")
+        if self.dock_width >= self.arena / 2:
+            raise ValueError(f"dock_width ({self.dock_width}) must be under half the arena ({self.arena})")
+        if 2 * (self.spawn_margin + self.robot_radius) + self.spawn_separation >= self.arena:
+            raise ValueError("spawn_margin/spawn_separation leave no room in the arena")
+        return self
+
+
+class GAConfig(_Settings):
+    """The generational GA (report Appendix A §6.2; operators after SAMUEL, Appendix C §7)."""
+
+    generations: int = Field(50, ge=1, le=100_000)
+    population: int = Field(50, ge=2, le=10_000)
+    episodes: int = Field(90, ge=1, le=100_000, description="evaluation episodes per individual")
+    best_episodes: int = Field(120, ge=1, le=100_000, description="episodes re-evaluating each generation's best")
+    lane_episodes: int = Field(10, ge=1, le=1_000, description="(ours) episodes played in sequence per lane (one epoch's worth)")
+    parents_fraction: float = Field(0.5, gt=0, le=1, description="(ours) the top fraction that reproduces, two offspring each pair")
+    elite: int = Field(1, ge=0, description="(ours) best individuals copied unchanged")
+    initial_rules: int = Field(16, ge=1, le=64, description="(ours) rules per random initial policy")
+    max_rules: int = Field(48, ge=1, le=64, description="(ours) most rules a policy may hold (matching packs rules in 64 bits)")
+    crossover_rate: float = Field(0.8, ge=0, le=1, description="(ours) chance a pair is recombined")
+    high_payoff_quantile: float = Field(0.5, ge=0, le=1, description="(ours) episodes above this payoff quantile count as 'high payoff'")
+    mutation_rate: float = Field(0.1, ge=0, le=1, description="(ours) per-rule mutation probability (FM model)")
+    specialise_rate: float = Field(0.3, ge=0, le=1, description="(ours) chance per offspring of a specialisation")
+    generalise_rate: float = Field(0.1, ge=0, le=1, description="(ours) chance per offspring of a generalisation")
+    cover_rate: float = Field(0.3, ge=0, le=1, description="(ours) chance per offspring of covering an unmatched state")
+    delete_rate: float = Field(0.3, ge=0, le=1, description="(ours) chance per offspring of deleting a rule that never fired")
+    strength_rate: float = Field(0.3, gt=0, le=1, description="(ours) step size of strength updates towards episode payoffs")
+    low_strength: float = Field(0.3, ge=0, le=1, description="(ours) below this a rule counts as weak (specialisation trigger)")
+    conflict: Literal["strongest", "proportional"] = Field(
+        "strongest", description="(ours) conflict resolution: highest strength, or strength-proportional draw"
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> GAConfig:
+        if self.initial_rules > self.max_rules:
+            raise ValueError(f"initial_rules ({self.initial_rules}) exceeds max_rules ({self.max_rules})")
+        if self.elite >= self.population:
+            raise ValueError(f"elite ({self.elite}) must be smaller than population ({self.population})")
+        if int(self.population * self.parents_fraction) < 1:
+            raise ValueError(f"parents_fraction ({self.parents_fraction}) leaves no parent in a population of {self.population}")
+        return self
+
+    @property
+    def lanes(self) -> int:
+        """Lanes per individual: ``episodes`` split into runs of ``lane_episodes``."""
+        return -(-self.episodes // self.lane_episodes)
+
+
+def build(model: type[_M], values: dict[str, Any] | None = None, **overrides: Any) -> _M:
+    """Construct a settings model, turning validation failures into :class:`ConfigError`.
+
+    The message names every bad field and the value it got, e.g.
+    ``GAConfig: population=0: Input should be greater than or equal to 2``.
+    """
+    data = dict(values or {})
+    data.update(overrides)
+    try:
+        return model(**data)
+    except ValidationError as exc:
+        parts = []
+        for err in exc.errors():
+            field = ".".join(str(p) for p in err["loc"]) or "(settings)"
+            value = data.get(str(err["loc"][0])) if err["loc"] else None
+            shown = f"{field}={value!r}" if err["loc"] else field
+            parts.append(f"{shown}: {err['msg']}")
+        raise ConfigError(f"{model.__name__}: " + "; ".join(parts)) from exc

@@ -1,0 +1,144 @@
+"""Batched rule matching and conflict resolution for many policies at once.
+
+A population of ``P`` rule sets is compiled once into bit tables: rules are ranked
+by strength (rank 0 = strongest) and ``table[p, s, b]`` is a uint64 whose bit ``k``
+is set when the rank-``k`` rule of policy ``p`` accepts bin ``b`` of sensor ``s``.
+Matching ``n`` situations is then ``S`` gathers and ``S-1`` ANDs on uint64 arrays,
+and conflict resolution by strength is "lowest set bit".
+
+When no rule matches, the best partial match fires *(ours)*: the rule satisfying
+the most conditions, ties to the strongest.  It is found with a bit-sliced counter
+of satisfied conditions per rule and an MSB-first maximum over the counter planes,
+so it too stays on whole-batch uint64 operations.
+
+``conflict="proportional"`` draws among the matching rules with probability
+proportional to strength (SAMUEL's bidding) instead of taking the strongest.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from coevo.behaviours import Schema
+from coevo.errors import ConfigError
+from coevo.policy.rules import RuleSet
+
+__all__ = ["CompiledPolicies", "lowest_bit"]
+
+_ONE = np.uint64(1)
+
+
+def lowest_bit(mask: np.ndarray) -> np.ndarray:
+    """Index of the lowest set bit of each uint64 (undefined for 0)."""
+    iso = mask & (~mask + _ONE)
+    return np.bitwise_count(iso - _ONE).astype(np.int64)
+
+
+class CompiledPolicies:
+    """Match tables for a list of rule sets of one behaviour."""
+
+    def __init__(self, policies: Sequence[RuleSet]) -> None:
+        if not policies:
+            raise ConfigError("CompiledPolicies needs at least one rule set")
+        behaviours = {p.behaviour for p in policies}
+        if len(behaviours) != 1:
+            raise ConfigError(f"cannot compile rule sets of several behaviours together: {sorted(map(str, behaviours))}")
+        self.policies = list(policies)
+        self.schema: Schema = policies[0].schema
+        sch = self.schema
+        P, S, B, K = len(policies), sch.n_sensors, sch.max_bins, 64
+        A = len(sch.actions)
+        self.n_rules = np.array([len(p) for p in policies], dtype=np.int64)
+        self.rank_to_rule = np.zeros((P, K), dtype=np.int64)
+        self.actions = np.zeros((P, K, A), dtype=np.int64)
+        self.strength = np.zeros((P, K), dtype=np.float64)
+        lo = np.zeros((P, K, S), dtype=np.int64)
+        hi = np.zeros((P, K, S), dtype=np.int64)
+        valid = np.zeros((P, K), dtype=bool)
+        for p, rs in enumerate(policies):
+            order = np.argsort(-rs.strength, kind="stable")
+            r = len(rs)
+            self.rank_to_rule[p, :r] = order
+            self.actions[p, :r] = rs.action[order]
+            self.strength[p, :r] = rs.strength[order]
+            lo[p, :r] = rs.lo[order]
+            hi[p, :r] = rs.hi[order]
+            valid[p, :r] = True
+        b = np.arange(B)[None, None, None, :]
+        lo4, hi4 = lo[..., None], hi[..., None]
+        member = np.where(lo4 <= hi4, (b >= lo4) & (b <= hi4), (b >= lo4) | (b <= hi4)) & valid[:, :, None, None]
+        # (P, K, S, B) -> (P, S, B, K) -> pack the K=64 rule bits little-endian into one uint64.
+        packed = np.packbits(member.transpose(0, 2, 3, 1), axis=-1, bitorder="little")
+        self.table = np.ascontiguousarray(packed).view("<u8")[..., 0].astype(np.uint64)  # (P, S, B)
+        weights = (_ONE << np.arange(K, dtype=np.uint64))[None, :]
+        self.valid = np.bitwise_or.reduce(np.where(valid, weights, np.uint64(0)), axis=1).astype(np.uint64)
+        self._flat = self.table.reshape(-1)
+        self._stride = S * B
+        self._offsets = np.arange(S, dtype=np.int64) * B
+        self._planes = int(S).bit_length()
+
+    def __len__(self) -> int:
+        return len(self.policies)
+
+    def decide(
+        self,
+        policy: np.ndarray,
+        bins: np.ndarray,
+        *,
+        conflict: str = "strongest",
+        rng: np.random.Generator | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Choose a rule for each situation.
+
+        ``policy`` (n,) indexes the compiled policies, ``bins`` (n, S) are sensor bins.
+        Returns ``(rank, full)``: the winning rule's strength rank per situation and
+        whether it matched fully (False: it was the best partial match).
+        """
+        base = np.asarray(policy, dtype=np.int64) * self._stride
+        per = [self._flat.take(base + (off + bins[:, s])) for s, off in enumerate(self._offsets)]
+        match = per[0].copy()
+        for m in per[1:]:
+            match &= m
+        full = match != 0
+        if not full.all():
+            miss = np.flatnonzero(~full)
+            match[miss] = self._best_partial([m[miss] for m in per], self.valid[policy[miss]])
+        if conflict == "strongest":
+            return lowest_bit(match), full
+        if conflict == "proportional":
+            if rng is None:
+                raise ConfigError("conflict='proportional' needs an rng")
+            return self._draw(policy, match, rng), full
+        raise ConfigError(f"unknown conflict resolution {conflict!r} (use 'strongest' or 'proportional')")
+
+    def _best_partial(self, per: list[np.ndarray], valid: np.ndarray) -> np.ndarray:
+        """Mask of the rules that satisfy the most conditions (bit-sliced count, MSB-first max)."""
+        planes = [np.zeros_like(valid) for _ in range(self._planes)]
+        for m in per:
+            carry = m & valid
+            for i in range(self._planes):
+                nxt = planes[i] & carry
+                planes[i] ^= carry
+                carry = nxt
+        cand = valid.copy()
+        for plane in reversed(planes):
+            narrowed = cand & plane
+            cand = np.where(narrowed != 0, narrowed, cand)
+        return cand
+
+    def _draw(self, policy: np.ndarray, match: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        bits = ((match[:, None] >> np.arange(64, dtype=np.uint64)[None, :]) & _ONE).astype(bool)
+        w = np.where(bits, self.strength[policy] + 1e-6, 0.0)
+        c = np.cumsum(w, axis=1)
+        u = rng.random(len(match)) * c[:, -1]
+        return np.minimum((c < u[:, None]).sum(axis=1), 63)
+
+    def action_values(self, policy: np.ndarray, rank: np.ndarray) -> np.ndarray:
+        """(n, A) action indices of the chosen rules."""
+        return self.actions[policy, rank]
+
+    def rule_index(self, policy: np.ndarray, rank: np.ndarray) -> np.ndarray:
+        """Original rule indices of ranks."""
+        return self.rank_to_rule[policy, rank]

@@ -1,0 +1,185 @@
+"""Rule sets: SAMUEL-style policies of condition-action rules with strengths.
+
+A rule set holds ``R`` rules over a behaviour's ``S`` sensors and ``A`` actions as
+arrays (bin and value indices), which is what the batched matcher and the GA
+operators work on::
+
+    lo, hi     (R, S) uint8   inclusive interval of bins; on a circular sensor
+                              lo > hi means the interval wraps through 0
+    action     (R, A) uint8   index into each action's values
+    strength   (R,)   float64 in [0, 1]
+
+Rule sets are immutable values: operators return new ones.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from coevo.behaviours import Behaviour, Schema, schema
+from coevo.errors import RuleSetError
+
+__all__ = ["RuleSet", "MAX_RULES", "random_ruleset", "interval_width"]
+
+MAX_RULES = 64  # matching packs one rule per bit of a uint64
+
+
+@dataclass(frozen=True, eq=False)
+class RuleSet:
+    behaviour: Behaviour
+    lo: np.ndarray
+    hi: np.ndarray
+    action: np.ndarray
+    strength: np.ndarray
+    _schema: Schema = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "behaviour", Behaviour(self.behaviour))
+        sch = schema(self.behaviour)
+        object.__setattr__(self, "_schema", sch)
+        lo = np.asarray(self.lo)
+        hi = np.asarray(self.hi)
+        act = np.asarray(self.action)
+        st = np.asarray(self.strength, dtype=np.float64)
+        r = lo.shape[0] if lo.ndim == 2 else -1
+        if lo.ndim != 2 or lo.shape != hi.shape or lo.shape[1] != sch.n_sensors:
+            raise RuleSetError(f"{self.behaviour} rule conditions must have shape (rules, {sch.n_sensors}); got {lo.shape} and {hi.shape}")
+        if act.shape != (r, len(sch.actions)) or st.shape != (r,):
+            raise RuleSetError(f"{self.behaviour} actions/strengths must have shapes ({r}, {len(sch.actions)}) and ({r},); got {act.shape}, {st.shape}")
+        if not 1 <= r <= MAX_RULES:
+            raise RuleSetError(f"a rule set holds 1 to {MAX_RULES} rules; got {r}")
+        bins = np.array([s.bins for s in sch.sensors])
+        if (lo < 0).any() or (hi < 0).any() or (lo >= bins).any() or (hi >= bins).any():
+            i, j = np.argwhere((lo < 0) | (hi < 0) | (lo >= bins) | (hi >= bins))[0]
+            s = sch.sensors[j]
+            raise RuleSetError(f"rule {i}: {s.name} interval [{lo[i, j]}, {hi[i, j]}] (bins) is outside 0..{s.bins - 1}")
+        circular = np.array([s.circular for s in sch.sensors])
+        empty = (lo > hi) & ~circular
+        if empty.any():
+            i, j = np.argwhere(empty)[0]
+            s = sch.sensors[j]
+            raise RuleSetError(
+                f"rule {i}: {s.name} = [{s.label(int(lo[i, j]))}, {s.label(int(hi[i, j]))}] is empty (lower bound above upper)"
+            )
+        # Canonical form: a wrapped interval that covers every bin is [0, bins-1].
+        full_wrap = circular & (lo.astype(np.int64) == hi.astype(np.int64) + 1)
+        if full_wrap.any():
+            lo = np.where(full_wrap, 0, lo)
+            hi = np.where(full_wrap, bins - 1, hi)
+        nvals = np.array([len(a.values) for a in sch.actions])
+        if (act < 0).any() or (act >= nvals).any():
+            i, j = np.argwhere((act < 0) | (act >= nvals))[0]
+            raise RuleSetError(f"rule {i}: {sch.actions[j].name} index {act[i, j]} is outside 0..{nvals[j] - 1}")
+        if not np.isfinite(st).all() or (st < 0).any() or (st > 1).any():
+            i = int(np.argwhere(~np.isfinite(st) | (st < 0) | (st > 1))[0][0])
+            raise RuleSetError(f"rule {i}: strength {st[i]} is not in [0, 1]")
+        for name, arr, dt in (("lo", lo, np.uint8), ("hi", hi, np.uint8), ("action", act, np.uint8), ("strength", st, np.float64)):
+            a = np.array(arr, dtype=dt)
+            a.flags.writeable = False
+            object.__setattr__(self, name, a)
+
+    @property
+    def schema(self) -> Schema:
+        return self._schema
+
+    def __len__(self) -> int:
+        return int(self.lo.shape[0])
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, RuleSet):
+            return NotImplemented
+        return (
+            self.behaviour == other.behaviour
+            and np.array_equal(self.lo, other.lo)
+            and np.array_equal(self.hi, other.hi)
+            and np.array_equal(self.action, other.action)
+            and np.array_equal(self.strength, other.strength)
+        )
+
+    def __hash__(self) -> int:
+        return hash((self.behaviour, self.lo.tobytes(), self.hi.tobytes(), self.action.tobytes(), self.strength.tobytes()))
+
+    def replace(self, **arrays: np.ndarray) -> RuleSet:
+        """A copy with some arrays replaced (validated again)."""
+        kw = {k: getattr(self, k) for k in ("lo", "hi", "action", "strength")}
+        kw.update(arrays)
+        return RuleSet(self.behaviour, **kw)
+
+    def take(self, idx: np.ndarray | list[int]) -> RuleSet:
+        """The rules at ``idx``, in that order."""
+        idx = np.asarray(idx, dtype=np.int64)
+        return RuleSet(self.behaviour, self.lo[idx], self.hi[idx], self.action[idx], self.strength[idx])
+
+    @staticmethod
+    def concat(behaviour: Behaviour, parts: list[RuleSet]) -> RuleSet:
+        return RuleSet(
+            behaviour,
+            np.concatenate([p.lo for p in parts]),
+            np.concatenate([p.hi for p in parts]),
+            np.concatenate([p.action for p in parts]),
+            np.concatenate([p.strength for p in parts]),
+        )
+
+    def matches(self, bins: np.ndarray) -> np.ndarray:
+        """Reference matcher, (n, S) sensor bins -> (n, R) bool; the batched one must agree."""
+        b = np.asarray(bins)[:, None, :]
+        inside = (b >= self.lo) & (b <= self.hi)
+        wrapped = (self.lo > self.hi) & ((b >= self.lo) | (b <= self.hi))
+        return (inside | wrapped).all(axis=2)
+
+    def to_dict(self) -> dict[str, object]:
+        """Plain lists, for msgpack/JSON; :meth:`from_dict` validates on the way back."""
+        return {
+            "behaviour": self.behaviour.value,
+            "lo": self.lo.tolist(),
+            "hi": self.hi.tolist(),
+            "action": self.action.tolist(),
+            "strength": self.strength.tolist(),
+        }
+
+    @staticmethod
+    def from_dict(d: dict[str, object]) -> RuleSet:
+        try:
+            behaviour = Behaviour(d["behaviour"])
+            arrays = {k: np.asarray(d[k]) for k in ("lo", "hi", "action", "strength")}
+        except (KeyError, ValueError, TypeError) as exc:
+            raise RuleSetError(f"not a rule set: {exc!r}") from exc
+        for k in ("lo", "hi", "action"):
+            a = arrays[k]
+            if a.size and (a.dtype.kind not in "iu"):
+                raise RuleSetError(f"rule set field {k!r} must hold integers, got {a.dtype}")
+            if a.size and ((a < 0).any() or (a > 255).any()):
+                raise RuleSetError(f"rule set field {k!r} holds a value outside 0..255")
+        if arrays["strength"].dtype.kind not in "iuf":
+            raise RuleSetError(f"rule set strengths must be numbers, got {arrays['strength'].dtype}")
+        return RuleSet(behaviour, **arrays)
+
+
+def interval_width(rs: RuleSet) -> np.ndarray:
+    """Number of bins each condition covers, (R, S)."""
+    bins = np.array([s.bins for s in rs.schema.sensors])
+    lo = rs.lo.astype(np.int64)
+    hi = rs.hi.astype(np.int64)
+    return np.where(lo <= hi, hi - lo + 1, bins - lo + hi + 1)
+
+
+def random_ruleset(behaviour: Behaviour | str, n_rules: int, rng: np.random.Generator) -> RuleSet:
+    """A random policy: each condition a random interval, often the full range (SAMUEL-like generality)."""
+    sch = schema(behaviour)
+    bins = np.array([s.bins for s in sch.sensors])
+    circular = np.array([s.circular for s in sch.sensors])
+    S = sch.n_sensors
+    width = np.maximum(1, np.ceil(rng.uniform(0.1, 1.0, (n_rules, S)) * bins)).astype(np.int64)
+    full = rng.random((n_rules, S)) < 0.5  # half the conditions say "any"
+    width = np.where(full, bins, width)
+    start = np.floor(rng.random((n_rules, S)) * bins).astype(np.int64)
+    start = np.where(circular, start, np.minimum(start, bins - width))
+    start = np.where(full, 0, start)
+    lo = start
+    hi = np.where(circular, (start + width - 1) % bins, start + width - 1)
+    nvals = np.array([len(a.values) for a in sch.actions])
+    action = np.floor(rng.random((n_rules, len(sch.actions))) * nvals).astype(np.int64)
+    strength = np.full(n_rules, 0.5)
+    return RuleSet(sch.behaviour, lo, hi, action, strength)
