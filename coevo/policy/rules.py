@@ -113,14 +113,13 @@ class RuleSet:
         return RuleSet(self.behaviour, self.lo[idx], self.hi[idx], self.action[idx], self.strength[idx])
 
     @staticmethod
-    def concat(behaviour: Behaviour, parts: list[RuleSet]) -> RuleSet:
-        return RuleSet(
-            behaviour,
-            np.concatenate([p.lo for p in parts]),
-            np.concatenate([p.hi for p in parts]),
-            np.concatenate([p.action for p in parts]),
-            np.concatenate([p.strength for p in parts]),
-        )
+    def concat(behaviour: Behaviour, parts: list[RuleSet], max_rules: int = MAX_RULES) -> RuleSet:
+        """The rules of ``parts`` in order; past ``max_rules`` only the strongest stay (order kept)."""
+        lo, hi, action, strength = (np.concatenate([getattr(p, k) for p in parts]) for k in ("lo", "hi", "action", "strength"))
+        if len(strength) > max_rules:
+            keep = np.sort(np.argsort(-strength, kind="stable")[:max_rules])
+            lo, hi, action, strength = lo[keep], hi[keep], action[keep], strength[keep]
+        return RuleSet(behaviour, lo, hi, action, strength)
 
     def matches(self, bins: np.ndarray) -> np.ndarray:
         """Reference matcher, (n, S) sensor bins -> (n, R) bool; the batched one must agree."""

@@ -221,6 +221,30 @@ class BatchWorld:
             self.ty[lanes[clash]] += 3 * (c.robot_radius + c.target_radius)
         self._push_positions()
 
+    def set_state(
+        self,
+        lanes: np.ndarray | list[int],
+        *,
+        robot: tuple[float, float] | None = None,
+        heading: float | None = None,
+        target: tuple[float, float] | None = None,
+        target_heading: float | None = None,
+        fuel: float | None = None,
+    ) -> None:
+        """Put lanes into a given state (arena coordinates, degrees): for tests and tools."""
+        lanes = np.asarray(lanes, dtype=np.int64)
+        if robot is not None:
+            self.rx[lanes], self.ry[lanes] = robot
+        if heading is not None:
+            self.rh[lanes] = np.radians(heading)
+        if target is not None:
+            self.tx[lanes], self.ty[lanes] = target
+        if target_heading is not None:
+            self.th[lanes] = np.radians(target_heading)
+        if fuel is not None:
+            self.fuel[lanes] = fuel
+        self._push_positions()
+
     def _write(self, col: int, values: np.ndarray) -> None:
         if self._in_order:
             self._io[:, col] = values

@@ -1,0 +1,178 @@
+"""The ``coevo`` command line.
+
+Every sub-command catches :class:`~coevo.errors.CoevoError`, prints
+``ErrorType: message`` to stderr and exits with status 2; a bug still shows its
+traceback.  Logging handlers are configured here and nowhere else.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from coevo.behaviours import Behaviour
+from coevo.config import GAConfig, WorldConfig, build
+from coevo.errors import CoevoError, ConfigError, RuleSetError
+
+__all__ = ["main"]
+
+EXIT_ERROR = 2
+
+
+def _read_rules(path: str | None, behaviour: Behaviour) -> Any:
+    if path is None:
+        return None
+    from coevo.policy.text import parse_ruleset
+
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"cannot read rule file {path!r}: {exc.strerror}") from exc
+    try:
+        return parse_ruleset(text, behaviour)
+    except RuleSetError as exc:
+        raise RuleSetError(f"{path}: {exc}") from exc
+
+
+def _settings(values: list[str] | None, model: type) -> dict[str, Any]:
+    """``--set name=value`` pairs for a settings model (values parsed as JSON when they can be)."""
+    out: dict[str, Any] = {}
+    for item in values or []:
+        if "=" not in item:
+            raise ConfigError(f"--{'world' if model is WorldConfig else 'ga'} {item!r}: expected name=value")
+        k, v = item.split("=", 1)
+        try:
+            out[k.strip()] = json.loads(v)
+        except json.JSONDecodeError:
+            out[k.strip()] = v
+    return out
+
+
+def _configs(args: argparse.Namespace) -> tuple[WorldConfig, GAConfig]:
+    world = build(WorldConfig, _settings(args.world, WorldConfig))
+    ga_over = _settings(args.ga, GAConfig)
+    for name in ("generations", "population", "episodes"):
+        if getattr(args, name, None) is not None:
+            ga_over[name] = getattr(args, name)
+    return world, build(GAConfig, ga_over)
+
+
+def _add_settings(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--generations", type=int, help="generations (default 50)")
+    p.add_argument("--population", type=int, help="population size (default 50)")
+    p.add_argument("--episodes", type=int, help="evaluation episodes per individual (default 90)")
+    p.add_argument("--world", action="append", metavar="NAME=VALUE", help="world setting, e.g. target_speed=3 (repeatable)")
+    p.add_argument("--ga", action="append", metavar="NAME=VALUE", help="GA setting, e.g. mutation_rate=0.05 (repeatable)")
+
+
+def cmd_learn(args: argparse.Namespace) -> int:
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from coevo.learn import learn
+
+    behaviour = Behaviour(args.behaviour)
+    world, ga = _configs(args)
+    tracking = _read_rules(args.tracking, Behaviour.TRACKING)
+    docking = _read_rules(args.docking, Behaviour.DOCKING)
+    seed_policy = _read_rules(args.seed_policy, behaviour)
+    if behaviour is Behaviour.EXECUTIVE and (tracking is None or docking is None):
+        raise ConfigError("--behaviour executive needs --tracking FILE and --docking FILE (best.rules of earlier learn runs)")
+    if args.measure_epochs < 1:
+        raise ConfigError(f"--measure-epochs must be at least 1, got {args.measure_epochs}")
+    out = Path(args.out) if args.out else Path("runs") / f"learn-{behaviour.value}-seed{args.seed}-{time.strftime('%Y%m%d-%H%M%S')}"
+    columns = (
+        TextColumn(f"[bold]{behaviour.value}[/]"), BarColumn(), TextColumn("gen {task.completed}/{task.total}"),
+        TextColumn("{task.fields[info]}"), TimeElapsedColumn(), TimeRemainingColumn(),
+    )
+    with Progress(*columns, disable=args.quiet, transient=False) as bar:
+        task = bar.add_task("learn", total=ga.generations, info="")
+
+        def show(rep: Any) -> None:
+            info = f"best {rep.best_fitness:.3f} (so far {rep.best_so_far:.3f}) mean {rep.population_mean:.3f}"
+            bar.update(task, advance=1, info=info)
+
+        res = learn(
+            behaviour, world=world, ga=ga, seed=args.seed, out_dir=out, tracking=tracking, docking=docking,
+            seed_policy=seed_policy, measure_epochs=args.measure_epochs, on_generation=show,
+        )
+    m = res.measures
+    print(f"run directory: {res.out_dir}")
+    print(f"time: {res.seconds:.1f} s; best fitness {m['best_fitness']:.3f}")
+    keys = ["quality_tracking", "successful_docking", "docking_success_rate", "average_epoch_length", "dock_choice"]
+    if "docking_from_random_starts" in m:
+        keys.append("docking_from_random_starts")
+    print("measures: " + ", ".join(f"{k} {m[k]:.1f}" for k in keys))
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from coevo.bench import bench
+
+    world = build(WorldConfig, _settings(args.world, WorldConfig))
+    if args.lanes < 1 or args.rules < 1 or args.rules > 64 or args.repeats < 1:
+        raise ConfigError(f"need lanes >= 1, 1 <= rules <= 64, repeats >= 1; got lanes={args.lanes} rules={args.rules} repeats={args.repeats}")
+    behaviour = Behaviour(args.behaviour)
+    policy = _read_rules(args.policy, behaviour)
+    res = bench(world=world, behaviour=behaviour, lanes=args.lanes, rules=args.rules, repeats=args.repeats,
+                baseline_seconds=args.baseline_seconds, seed=args.seed, policy=policy)
+    if args.json:
+        print(json.dumps(res.as_dict(), indent=2))
+    else:
+        print(f"batched ({res.lanes} lanes, {res.rules_per_policy} rules): {res.batched_steps_per_s / 1e6:.3f} M robot-steps/s")
+        print(f"plain one-episode loop:                {res.baseline_steps_per_s / 1e6:.3f} M robot-steps/s")
+        print(f"ratio {res.ratio:.1f}x; batch peak {res.batch_peak_mb:.0f} MB (tracemalloc), process max RSS {res.max_rss_mb:.0f} MB")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="coevo", description="Co-evolve robot behaviours with SAMUEL-style rule GAs.")
+    parser.add_argument("--log-level", default="WARNING", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("learn", help="one behaviour learns offline (no network)")
+    p.add_argument("--behaviour", required=True, choices=[b.value for b in Behaviour])
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", help="run directory to create (default runs/learn-BEHAVIOUR-seedN-TIME)")
+    p.add_argument("--tracking", help="Tracking rule file (for --behaviour executive)")
+    p.add_argument("--docking", help="Docking rule file (for --behaviour executive)")
+    p.add_argument("--seed-policy", help="start the population from this rule file instead of random rules")
+    p.add_argument("--measure-epochs", type=int, default=100, help="fresh epochs for the final measures")
+    p.add_argument("--quiet", action="store_true", help="no progress display")
+    _add_settings(p)
+    p.set_defaults(func=cmd_learn)
+
+    p = sub.add_parser("bench", help="robot-steps/s of the batched world vs a plain one-episode pymunk loop")
+    p.add_argument("--behaviour", default="tracking", choices=["tracking", "docking"])
+    p.add_argument("--lanes", type=int, default=4500, help="episodes run at once (default 50 x 90)")
+    p.add_argument("--rules", type=int, default=32, help="rules per policy (evolved size)")
+    p.add_argument("--policy", help="a rule file to drive every lane instead of random rule sets")
+    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--baseline-seconds", type=float, default=3.0)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--world", action="append", metavar="NAME=VALUE")
+    p.add_argument("--json", action="store_true", help="print both figures and their ratio as JSON")
+    p.set_defaults(func=cmd_bench)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    try:
+        return int(args.func(args))
+    except CoevoError as exc:
+        print(f"{type(exc).__name__}: {exc}", file=sys.stderr)
+        return EXIT_ERROR
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

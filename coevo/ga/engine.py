@@ -1,0 +1,162 @@
+"""The generational GA of one behaviour: evaluate, learn strengths, select, recombine, mutate.
+
+One :meth:`GA.generation` call is one generation of the report's GA (Appendix A
+§6.2): every individual is evaluated on ``episodes`` episodes against the current
+partner models; rule strengths are updated from the payoffs (Lamarckian: offspring
+inherit them); the generation's best is re-evaluated on ``best_episodes`` episodes
+for the learning curve; the best so far is kept; the next population is bred.
+
+The partner models are an argument of every generation, so an asynchronous worker
+can swap in new partner policies between generations without the GA knowing.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from coevo.behaviours import Behaviour
+from coevo.config import GAConfig, WorldConfig
+from coevo.errors import ConfigError
+from coevo.ga.evaluate import Evaluation, Evaluator, Partners
+from coevo.ga.mutation import FixedRate, MutationModel
+from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise, trim
+from coevo.policy.rules import RuleSet, random_ruleset
+from coevo.policy.strength import update_strengths
+
+__all__ = ["GA", "GenerationReport"]
+
+
+@dataclass(frozen=True)
+class GenerationReport:
+    """One point of the learning curve."""
+
+    generation: int  # 1-based
+    best_fitness: float  # this generation's best, re-evaluated on best_episodes
+    population_best: float  # its fitness in the population evaluation
+    population_mean: float
+    best_so_far: float  # the best re-evaluated fitness so far
+    improved: bool  # the best so far changed this generation
+    starved: int  # individuals that controlled no episode at all
+    quality_tracking: float
+    successful_docking: float
+    dock_choice: float
+    docking_success_rate: float
+    average_epoch_length: float
+    seconds: float
+
+    def as_dict(self) -> dict[str, float | int | bool]:
+        return asdict(self)
+
+
+class GA:
+    """A population of rule sets for one behaviour and its generational loop."""
+
+    def __init__(
+        self,
+        behaviour: Behaviour | str,
+        *,
+        world: WorldConfig,
+        ga: GAConfig,
+        seed: int,
+        mutation: MutationModel | None = None,
+        seed_policy: RuleSet | None = None,
+    ) -> None:
+        self.behaviour = Behaviour(behaviour)
+        self.world_cfg = world
+        self.cfg = ga
+        self.rng = np.random.default_rng(seed)
+        self.mutation = mutation or FixedRate(ga.mutation_rate)
+        self.evaluator = Evaluator(self.behaviour, world, ga)
+        if seed_policy is not None:
+            if seed_policy.behaviour is not self.behaviour:
+                raise ConfigError(f"seed policy is a {seed_policy.behaviour} rule set, not {self.behaviour}")
+            seed_policy = trim(seed_policy, ga.max_rules)
+            self.population = [seed_policy] + [
+                self.mutation.mutate(seed_policy, self.rng, generation=0) for _ in range(ga.population - 1)
+            ]
+        else:
+            self.population = [random_ruleset(self.behaviour, ga.initial_rules, self.rng) for _ in range(ga.population)]
+        self.generation_no = 0
+        self.best: RuleSet | None = None
+        self.best_fitness = -np.inf
+        self.last: Evaluation | None = None
+
+    def _child_rng(self) -> np.random.Generator:
+        return np.random.default_rng(int(self.rng.integers(2**63)))
+
+    def generation(self, partners: Partners) -> GenerationReport:
+        """Run one generation against ``partners`` and breed the next population."""
+        t0 = time.perf_counter()
+        cfg = self.cfg
+        ev = self.evaluator.evaluate(self.population, partners, self._child_rng())
+        self.last = ev
+        learned = [
+            update_strengths(p, e.fired, e.payoff, cfg.strength_rate) for p, e in zip(self.population, ev.experience)
+        ]
+        top = int(np.argmax(ev.fitness))
+        check = self.evaluator.evaluate([learned[top]], partners, self._child_rng(), episodes=cfg.best_episodes)
+        best_fit = float(check.fitness[0])
+        improved = best_fit > self.best_fitness
+        if improved:
+            self.best, self.best_fitness = learned[top], best_fit
+        m = check.measures(self.world_cfg.episode_steps)
+        self.generation_no += 1
+        self.population = self._breed(learned, ev.fitness, ev.experience)
+        return GenerationReport(
+            generation=self.generation_no,
+            best_fitness=best_fit,
+            population_best=float(ev.fitness[top]),
+            population_mean=float(ev.fitness.mean()),
+            best_so_far=float(self.best_fitness),
+            improved=improved,
+            starved=int((ev.episodes == 0).sum()),
+            quality_tracking=m.quality_tracking,
+            successful_docking=m.successful_docking,
+            dock_choice=m.dock_choice,
+            docking_success_rate=m.docking_success_rate,
+            average_epoch_length=m.average_epoch_length,
+            seconds=time.perf_counter() - t0,
+        )
+
+    def _breed(self, pop: list[RuleSet], fitness: np.ndarray, exps: list[Experience]) -> list[RuleSet]:
+        cfg, rng = self.cfg, self.rng
+        order = np.argsort(-fitness, kind="stable")
+        children: list[RuleSet] = [pop[i] for i in order[: cfg.elite]]
+        parents = select_parents(fitness, cfg.parents_fraction, rng)
+        while len(children) < cfg.population:
+            for i in parents:
+                others = parents[parents != i]
+                j = int(rng.choice(others)) if others.size else int(i)
+                if rng.random() < cfg.crossover_rate:
+                    pair = crossover(pop[i], exps[i], pop[j], exps[j], rng)
+                else:
+                    pair = tuple((pop[x], ~exps[x].fired_rules(len(pop[x]))) for x in (i, j))
+                for (child, idle), src in zip(pair, (i, j)):
+                    children.append(self._vary(child, idle, pop[src], exps[src]))
+                if len(children) >= cfg.population:
+                    break
+        return children[: cfg.population]
+
+    def _vary(self, child: RuleSet, idle: np.ndarray, parent: RuleSet, exp: Experience) -> RuleSet:
+        """Lamarckian operators from the parent's experience, then mutation, then the size cap."""
+        cfg, rng = self.cfg, self.rng
+        extra: list[RuleSet] = []
+        if rng.random() < cfg.delete_rate:
+            child, idle = delete(child, idle)
+        if rng.random() < cfg.specialise_rate:
+            r = specialise(parent, exp, rng, low_strength=cfg.low_strength)
+            if r is not None:
+                extra.append(r)
+        if rng.random() < cfg.generalise_rate:
+            extra.append(generalise(parent, exp, rng))
+        if rng.random() < cfg.cover_rate:
+            r = cover(parent, exp, rng)
+            if r is not None:
+                extra.append(r)
+        if extra:
+            child = RuleSet.concat(child.behaviour, [child, *extra])
+        child = self.mutation.mutate(child, rng, generation=self.generation_no)
+        return trim(child, cfg.max_rules)

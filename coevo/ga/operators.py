@@ -1,0 +1,221 @@
+"""GA operators on whole policies (report Appendix A §2, Appendix C §7).
+
+Each operator is a small function of its inputs and an ``np.random.Generator``:
+
+- :func:`select_parents`: the top fraction of the population reproduces *(ours)*.
+- :func:`crossover`: SAMUEL's rule exchange. Rules that fired together in one of a
+  parent's high-payoff episodes form a cluster and travel to the same offspring;
+  the other rules go to either offspring at random.
+- Lamarckian operators, driven by a parent's recorded experience, each returning
+  one new rule for an offspring: :func:`specialise` (a weak, general rule that fired
+  in a high-payoff episode gets a narrowed copy around the sensor values it fired
+  on, strength = that payoff), :func:`generalise` (a strong rule gets a widened
+  copy), :func:`cover` (a state no rule matched gets a rule of its own); and
+  :func:`delete`, which drops a rule that never fired.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from coevo.policy.rules import MAX_RULES, RuleSet, interval_width
+from coevo.policy.strength import fired_matrix
+
+__all__ = [
+    "Experience",
+    "select_parents",
+    "crossover",
+    "specialise",
+    "generalise",
+    "cover",
+    "delete",
+    "trim",
+]
+
+
+@dataclass
+class Experience:
+    """What one individual did during its evaluation.
+
+    ``fired`` (m,) uint64 and ``payoff`` (m,) per episode it controlled; the
+    decision log ``bins`` (N, S), ``rule`` (N,), ``full`` (N,) and ``episode`` (N,)
+    (index into the per-episode arrays).
+    """
+
+    fired: np.ndarray
+    payoff: np.ndarray
+    bins: np.ndarray
+    rule: np.ndarray
+    full: np.ndarray
+    episode: np.ndarray
+    high_quantile: float = 0.5
+
+    @property
+    def high(self) -> np.ndarray:
+        """Episodes counted as high payoff: above the quantile and above zero."""
+        if self.payoff.size == 0:
+            return np.zeros(0, dtype=bool)
+        cut = np.quantile(self.payoff, self.high_quantile)
+        return (self.payoff >= cut) & (self.payoff > 0)
+
+    def fired_rules(self, n_rules: int) -> np.ndarray:
+        """(n_rules,) bool: rules that fired at least once."""
+        if self.fired.size == 0:
+            return np.zeros(n_rules, dtype=bool)
+        return fired_matrix(np.bitwise_or.reduce(self.fired, keepdims=True), n_rules)[0]
+
+    @staticmethod
+    def empty(n_sensors: int) -> Experience:
+        z = np.zeros(0, dtype=np.int64)
+        return Experience(np.zeros(0, np.uint64), np.zeros(0), np.zeros((0, n_sensors), np.uint8), z, np.zeros(0, bool), z)
+
+
+def select_parents(fitness: np.ndarray, fraction: float, rng: np.random.Generator) -> np.ndarray:
+    """Indices of the top ``fraction`` by fitness (ties broken at random)."""
+    n = max(1, int(len(fitness) * fraction))
+    jitter = rng.random(len(fitness))
+    order = np.lexsort((jitter, -np.asarray(fitness)))
+    return order[:n]
+
+
+def _units(rs: RuleSet, exp: Experience, rng: np.random.Generator) -> list[np.ndarray]:
+    """Partition a parent's rules into clusters (fired together in a high-payoff episode) and singletons."""
+    n = len(rs)
+    assigned = np.zeros(n, dtype=bool)
+    units: list[np.ndarray] = []
+    high = np.flatnonzero(exp.high)
+    if high.size:
+        f = fired_matrix(exp.fired[high], n)
+        for e in high[np.argsort(-exp.payoff[high], kind="stable")]:
+            row = f[np.searchsorted(high, e)] & ~assigned
+            if row.any():
+                units.append(np.flatnonzero(row))
+                assigned |= row
+    units += [np.array([i]) for i in np.flatnonzero(~assigned)]
+    return units
+
+
+def crossover(
+    a: RuleSet, ea: Experience, b: RuleSet, eb: Experience, rng: np.random.Generator
+) -> tuple[tuple[RuleSet, np.ndarray], tuple[RuleSet, np.ndarray]]:
+    """Two offspring exchanging rule clusters of ``a`` and ``b`` (each gets at least one rule).
+
+    Each offspring comes with a bool mask of its rules that never fired in their
+    parent's evaluation (for :func:`delete`).
+    """
+    pools: list[list[tuple[RuleSet, np.ndarray]]] = [[], []]
+    for rs, exp in ((a, ea), (b, eb)):
+        idle = ~exp.fired_rules(len(rs))
+        for unit in _units(rs, exp, rng):
+            pools[int(rng.integers(2))].append((rs.take(unit), idle[unit]))
+    for side in (0, 1):
+        if not pools[side]:  # steal one unit so neither child is empty
+            other = pools[1 - side]
+            pools[side].append(other.pop(int(rng.integers(len(other)))))
+    children = []
+    for pool in pools:
+        idle = np.concatenate([p[1] for p in pool])
+        if len(idle) > MAX_RULES:  # concat keeps the strongest, in order: keep the same flags
+            strength = np.concatenate([p[0].strength for p in pool])
+            idle = idle[np.sort(np.argsort(-strength, kind="stable")[:MAX_RULES])]
+        children.append((RuleSet.concat(a.behaviour, [p[0] for p in pool]), idle))
+    return children[0], children[1]
+
+
+def _states_of(exp: Experience, rule: int, episodes: np.ndarray) -> np.ndarray:
+    sel = (exp.rule == rule) & np.isin(exp.episode, episodes)
+    return exp.bins[sel]
+
+
+def specialise(rs: RuleSet, exp: Experience, rng: np.random.Generator, *, low_strength: float) -> RuleSet | None:
+    """A narrowed copy of a weak general rule of ``rs`` that fired in a high-payoff episode, or None."""
+    high = np.flatnonzero(exp.high)
+    if high.size == 0:
+        return None
+    width = interval_width(rs)
+    bins = np.array([s.bins for s in rs.schema.sensors])
+    general = (width / bins).mean(axis=1) > 0.25
+    fired_high = fired_matrix(exp.fired[high], len(rs))
+    cand = np.flatnonzero((rs.strength < low_strength) & general & fired_high.any(axis=0))
+    if cand.size == 0:
+        return None
+    r = int(rng.choice(cand))
+    e = int(rng.choice(high[fired_high[:, r]]))
+    states = exp.bins[(exp.rule == r) & (exp.episode == e)]
+    if states.shape[0] == 0:
+        return None
+    v = states[int(rng.integers(states.shape[0]))].astype(np.int64)
+    lo, hi = _interval_around(rs, v, width[r] // 4)  # about half as wide, centred on what was seen
+    return RuleSet(rs.behaviour, lo[None], hi[None], rs.action[r][None], np.array([exp.payoff[e]]).clip(0, 1))
+
+
+def generalise(rs: RuleSet, exp: Experience, rng: np.random.Generator) -> RuleSet:
+    """A widened copy of one of the strongest rules of ``rs``."""
+    top = np.flatnonzero(rs.strength >= np.quantile(rs.strength, 0.75))
+    r = int(rng.choice(top))
+    width = interval_width(rs)[r]
+    lo = rs.lo[r].astype(np.int64)
+    hi = rs.hi[r].astype(np.int64)
+    for j, s in enumerate(rs.schema.sensors):
+        grow = int(rng.integers(1, max(2, s.bins // 10) + 1))
+        if s.circular:
+            if width[j] + 2 * grow >= s.bins:
+                lo[j], hi[j] = 0, s.bins - 1
+            else:
+                lo[j], hi[j] = (lo[j] - grow) % s.bins, (hi[j] + grow) % s.bins
+        else:
+            lo[j], hi[j] = max(0, lo[j] - grow), min(s.bins - 1, hi[j] + grow)
+    return RuleSet(rs.behaviour, lo[None], hi[None], rs.action[r][None], rs.strength[r][None])
+
+
+def cover(rs: RuleSet, exp: Experience, rng: np.random.Generator) -> RuleSet | None:
+    """A rule for a state of ``rs``'s evaluation that no rule matched, or None if there was none.
+
+    It prefers states from high-payoff episodes and then keeps the action taken
+    there; otherwise the action is random.  Its strength is the episode's payoff.
+    """
+    unmatched = np.flatnonzero(~exp.full)
+    if unmatched.size == 0:
+        return None
+    good = unmatched[exp.high[exp.episode[unmatched]]]
+    pick = int(rng.choice(good if good.size else unmatched))
+    v = exp.bins[pick].astype(np.int64)
+    bins = np.array([s.bins for s in rs.schema.sensors])
+    lo, hi = _interval_around(rs, v, np.maximum(bins // 8, 1))
+    if good.size:
+        action = rs.action[exp.rule[pick]]
+    else:
+        action = np.array([rng.integers(len(a.values)) for a in rs.schema.actions])
+    strength = np.array([exp.payoff[exp.episode[pick]]]).clip(0, 1)
+    return RuleSet(rs.behaviour, lo[None], hi[None], np.asarray(action)[None], strength)
+
+
+def delete(rs: RuleSet, idle: np.ndarray) -> tuple[RuleSet, np.ndarray]:
+    """Drop the weakest rule flagged ``idle`` (never fired), keeping at least one rule."""
+    cand = np.flatnonzero(idle)
+    if len(rs) <= 1 or cand.size == 0:
+        return rs, idle
+    r = cand[np.argmin(rs.strength[cand])]
+    keep = np.delete(np.arange(len(rs)), r)
+    return rs.take(keep), idle[keep]
+
+
+def trim(rs: RuleSet, max_rules: int) -> RuleSet:
+    """Keep the ``max_rules`` strongest rules (order otherwise kept)."""
+    if len(rs) <= max_rules:
+        return rs
+    keep = np.sort(np.argsort(-rs.strength, kind="stable")[:max_rules])
+    return rs.take(keep)
+
+
+def _interval_around(rs: RuleSet, v: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    lo = np.empty_like(v)
+    hi = np.empty_like(v)
+    for j, s in enumerate(rs.schema.sensors):
+        if s.circular:
+            lo[j], hi[j] = (v[j] - half[j]) % s.bins, (v[j] + half[j]) % s.bins
+        else:
+            lo[j], hi[j] = max(0, v[j] - half[j]), min(s.bins - 1, v[j] + half[j])
+    return lo, hi

@@ -1,0 +1,92 @@
+"""``coevo learn``: one behaviour learns offline, in one process, with no network.
+
+Tracking and Docking learn with the trivial Executive that always picks them; the
+Executive learns against fixed Tracking and Docking rule sets.  The run directory
+gets the learning curve (CSV and JSON), the best rule set as text, and the SPEC
+measures of that best policy.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from coevo import __version__
+from coevo.behaviours import Behaviour
+from coevo.config import GAConfig, WorldConfig
+from coevo.errors import ConfigError
+from coevo.ga import GA, GenerationReport, Partners
+from coevo.policy.rules import RuleSet
+from coevo.policy.text import format_ruleset
+from coevo.robot import measure_behaviour
+from coevo.rundir import staged_dir, write_csv, write_json, write_text
+
+__all__ = ["learn", "LearnResult"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class LearnResult:
+    out_dir: Path
+    best: RuleSet
+    curve: list[GenerationReport]
+    measures: dict[str, float | int]
+    seconds: float
+
+
+def learn(
+    behaviour: Behaviour | str,
+    *,
+    world: WorldConfig,
+    ga: GAConfig,
+    seed: int,
+    out_dir: Path,
+    tracking: RuleSet | None = None,
+    docking: RuleSet | None = None,
+    seed_policy: RuleSet | None = None,
+    measure_epochs: int = 100,
+    on_generation: Callable[[GenerationReport], None] | None = None,
+) -> LearnResult:
+    behaviour = Behaviour(behaviour)
+    if behaviour is Behaviour.EXECUTIVE:
+        if tracking is None or docking is None:
+            raise ConfigError(
+                "the Executive learns against fixed Tracking and Docking rule sets: give --tracking FILE and "
+                "--docking FILE (e.g. the best.rules of 'coevo learn --behaviour tracking' and '... docking')"
+            )
+        partners = Partners(tracking=tracking, docking=docking)
+    else:
+        if tracking is not None or docking is not None:
+            raise ConfigError(f"{behaviour} learns offline with the trivial Executive; --tracking/--docking are for the executive")
+        partners = Partners()
+    t0 = time.perf_counter()
+    with staged_dir(out_dir) as tmp:
+        write_json(tmp / "config.json", {
+            "coevo": __version__, "behaviour": behaviour.value, "seed": seed,
+            "world": world.model_dump(), "ga": ga.model_dump(),
+        })
+        engine = GA(behaviour, world=world, ga=ga, seed=seed, seed_policy=seed_policy)
+        curve: list[GenerationReport] = []
+        for _ in range(ga.generations):
+            rep = engine.generation(partners)
+            curve.append(rep)
+            if on_generation is not None:
+                on_generation(rep)
+        assert engine.best is not None  # at least one generation ran
+        rows = [r.as_dict() for r in curve]
+        write_csv(tmp / "curve.csv", rows)
+        write_json(tmp / "curve.json", rows)
+        write_text(tmp / "best.rules", format_ruleset(engine.best))
+        measures = measure_behaviour(
+            behaviour, engine.best, world=world, tracking=tracking, docking=docking, epochs=measure_epochs, seed=seed + 1_000_003
+        )
+        measures = {"best_fitness": engine.best_fitness, **measures}
+        write_json(tmp / "measures.json", measures)
+        seconds = time.perf_counter() - t0
+        write_json(tmp / "timing.json", {"seconds": seconds, "generations": ga.generations})
+    log.info("learned %s in %.1f s -> %s", behaviour, seconds, out_dir)
+    return LearnResult(Path(out_dir), engine.best, curve, measures, seconds)
