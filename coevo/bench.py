@@ -65,7 +65,6 @@ def bench(
     w = BatchWorld(world, lanes)
     best = 0.0
     steps_total = 0
-    tracemalloc.start()
     for r in range(repeats):
         t0 = time.perf_counter()
         out = run_lanes(w, lane_episodes=1, restart_epochs=False, rng=np.random.default_rng(seed + r), **kw)
@@ -73,6 +72,9 @@ def bench(
         steps = int(out.steps.sum())
         steps_total += steps
         best = max(best, steps / dt)
+    # Memory in a separate, untimed run: tracemalloc slows numpy allocation down.
+    tracemalloc.start()
+    run_lanes(w, lane_episodes=1, restart_epochs=False, rng=np.random.default_rng(seed), **kw)
     peak = tracemalloc.get_traced_memory()[1] / 2**20
     tracemalloc.stop()
     base_steps = 0

@@ -1,0 +1,96 @@
+"""The command line, run as a real subprocess: outputs, bad input, nothing half-written."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from coevo.policy import parse_ruleset
+
+
+def coevo(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "coevo", *args], capture_output=True, text=True, timeout=300, cwd=cwd)
+
+
+def test_learn_writes_a_complete_run_directory(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    r = coevo("learn", "--behaviour", "docking", "--generations", "2", "--population", "4", "--episodes", "10",
+              "--ga", "best_episodes=10", "--measure-epochs", "3", "--out", str(out), "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["best.rules", "config.json", "curve.csv", "curve.json", "measures.json", "timing.json"]
+    curve = json.loads((out / "curve.json").read_text())
+    assert [c["generation"] for c in curve] == [1, 2]
+    assert len((out / "curve.csv").read_text().strip().splitlines()) == 3
+    best = parse_ruleset((out / "best.rules").read_text())
+    assert best.behaviour.value == "docking"
+    m = json.loads((out / "measures.json").read_text())
+    assert "docking_from_random_starts" in m and 0 <= m["quality_tracking"] <= 100
+
+
+def test_executive_learns_from_rule_files(tmp_path: Path) -> None:
+    (tmp_path / "t.rules").write_text("# behaviour: tracking\nIF ANY THEN SET turn = 0 AND speed = 0 (strength 0.5)\n")
+    (tmp_path / "d.rules").write_text("# behaviour: docking\nIF ANY THEN SET turn = 8 AND speed = 4 (strength 0.5)\n")
+    r = coevo("learn", "--behaviour", "executive", "--tracking", str(tmp_path / "t.rules"), "--docking", str(tmp_path / "d.rules"),
+              "--generations", "1", "--population", "4", "--episodes", "10", "--ga", "best_episodes=10",
+              "--measure-epochs", "2", "--out", str(tmp_path / "ex"), "--quiet")
+    assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["--population", "0"], "population=0"),
+        (["--generations", "-1"], "generations=-1"),
+        (["--ga", "mutation_rate=2"], "mutation_rate=2"),
+        (["--ga", "no_such=1"], "no_such"),
+        (["--world", "tracking_min=70"], "tracking_min"),
+        (["--ga", "oops"], "name=value"),
+        (["--seed-policy", "/nonexistent/file.rules"], "cannot read"),
+    ],
+)
+def test_bad_parameters_fail_clearly_and_write_nothing(tmp_path: Path, args: list[str], needle: str) -> None:
+    out = tmp_path / "run"
+    r = coevo("learn", "--behaviour", "tracking", "--out", str(out), "--quiet", *args)
+    assert r.returncode == 2
+    assert needle in r.stderr and "Traceback" not in r.stderr
+    assert not out.exists() and not list(tmp_path.iterdir())
+
+
+def test_unparseable_rule_file_names_file_line_and_value(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.rules"
+    bad.write_text("# behaviour: tracking\nIF range = [35, 999] THEN SET turn = 0 AND speed = 0 (strength 0.5)\n")
+    r = coevo("learn", "--behaviour", "tracking", "--seed-policy", str(bad), "--out", str(tmp_path / "run"), "--quiet")
+    assert r.returncode == 2
+    assert "bad.rules" in r.stderr and "line 2" in r.stderr and "999" in r.stderr
+    assert not (tmp_path / "run").exists()
+
+
+def test_executive_without_partners_is_refused(tmp_path: Path) -> None:
+    r = coevo("learn", "--behaviour", "executive", "--out", str(tmp_path / "run"), "--quiet")
+    assert r.returncode == 2 and "--tracking" in r.stderr
+
+
+def test_existing_output_directory_is_refused(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    r = coevo("learn", "--behaviour", "tracking", "--generations", "1", "--population", "4", "--episodes", "10", "--out", str(out), "--quiet")
+    assert r.returncode == 2 and "already exists" in r.stderr
+    assert (out / "keep.txt").read_text() == "mine"
+
+
+def test_bench_json_reports_both_figures_and_ratio() -> None:
+    r = coevo("bench", "--lanes", "200", "--repeats", "1", "--baseline-seconds", "0.3", "--json")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert d["batched_steps_per_s"] > 0 and d["baseline_steps_per_s"] > 0
+    assert d["ratio"] == pytest.approx(d["batched_steps_per_s"] / d["baseline_steps_per_s"])
+
+
+def test_bench_rejects_bad_sizes() -> None:
+    r = coevo("bench", "--lanes", "0")
+    assert r.returncode == 2 and "lanes=0" in r.stderr
