@@ -82,6 +82,9 @@ class GAConfig(_Settings):
     delete_rate: float = Field(0.3, ge=0, le=1, description="(ours) chance per offspring of deleting a rule that never fired")
     strength_rate: float = Field(0.3, gt=0, le=1, description="(ours) step size of strength updates towards episode payoffs")
     low_strength: float = Field(0.3, ge=0, le=1, description="(ours) below this a rule counts as weak (specialisation trigger)")
+    common_scenarios: bool = Field(
+        True, description="(ours) every individual of a generation faces the same starts and Target noise (common random numbers)"
+    )
     conflict: Literal["strongest", "proportional"] = Field(
         "strongest", description="(ours) conflict resolution: highest strength, or strength-proportional draw"
     )

@@ -186,3 +186,25 @@ def test_always_dock_executive_only_runs_docking() -> None:
     out = run_lanes(w, lane_episodes=2, executive=ALWAYS_DOCK, tracking=None, docking=Rules.single(CompiledPolicies([rs]), 3),
                     restart_epochs=True, rng=np.random.default_rng(0))
     assert (out.task[out.played] == 1).all()
+
+
+def test_common_scenarios_give_every_group_the_same_situations() -> None:
+    cfg = WorldConfig()
+    w = BatchWorld(cfg, 6)
+    stand = parse_ruleset("IF ANY THEN SET turn = 0 AND speed = 0 (strength 0.5)", "tracking")
+    out = run_lanes(w, lane_episodes=3, executive=ALWAYS_TRACK, tracking=Rules.single(CompiledPolicies([stand]), 6),
+                    docking=None, restart_epochs=True, rng=np.random.default_rng(0), scenarios=3)
+    # Lanes 0 and 3, 1 and 4, 2 and 5 share a scenario and run the same policy: identical lives.
+    assert np.array_equal(out.tracked[:3], out.tracked[3:])
+    assert np.array_equal(out.steps[:3], out.steps[3:])
+    assert not np.array_equal(out.tracked[0], out.tracked[1]) or not np.array_equal(out.steps[0], out.steps[1])
+
+
+def test_scenarios_must_divide_the_lanes() -> None:
+    from coevo.errors import ConfigError
+
+    w = BatchWorld(QUIET, 4)
+    stand = parse_ruleset("IF ANY THEN SET turn = 0 AND speed = 0 (strength 0.5)", "tracking")
+    with pytest.raises(ConfigError, match="scenarios=3"):
+        run_lanes(w, lane_episodes=1, executive=ALWAYS_TRACK, tracking=Rules.single(CompiledPolicies([stand]), 4),
+                  docking=None, restart_epochs=True, rng=np.random.default_rng(0), scenarios=3)

@@ -96,6 +96,7 @@ class Evaluator:
         out = run_lanes(
             world, lane_episodes=k, executive=executive, tracking=tracking, docking=docking,
             restart_epochs=restart, rng=rng, learner=beh, conflict=self.ga.conflict,
+            scenarios=per if self.ga.common_scenarios else None,
         )
         fitness = np.zeros(P)
         count = np.zeros(P, dtype=np.int64)

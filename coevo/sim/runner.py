@@ -11,6 +11,13 @@ Executive and the combined robot are evaluated).
 Each controller is either :class:`Trivial` (always the same task) or
 :class:`Rules` (compiled rule sets and, per lane, which one to use), so one run can
 evaluate a whole population against fixed partners.
+
+Common random numbers: with ``scenarios=g``, lane ``i`` lives scenario ``i % g``:
+its ``e``-th epoch starts where every other lane of that scenario starts its
+``e``-th epoch, and its Target gets the same heading noise at the same step.  A
+population evaluated with ``g`` = lanes per individual thus faces identical
+situations, so selection compares policies, not luck.  By default every lane is
+its own scenario.
 """
 
 from __future__ import annotations
@@ -109,10 +116,17 @@ def run_lanes(
     rng: np.random.Generator,
     learner: Behaviour | str | None = None,
     conflict: str = "strongest",
+    scenarios: int | None = None,
 ) -> Outcome:
     """Run every lane of ``world`` for ``lane_episodes`` episodes; see the module docstring."""
     cfg = world.cfg
     L, K, T = world.n, lane_episodes, cfg.episode_steps
+    g = L if scenarios is None else scenarios
+    if not 1 <= g <= L or L % g:
+        raise ConfigError(f"scenarios={scenarios} must divide the {L} lanes")
+    slot = np.arange(L) % g
+    starts = world.random_starts(g * K, rng).reshape(g, K, -1)  # a lane has at most K epochs
+    epoch_no = np.zeros(L, dtype=np.int64)
     _check("executive", executive, L, Behaviour.EXECUTIVE)
     _check("tracking", tracking, L, Behaviour.TRACKING)
     _check("docking", docking, L, Behaviour.DOCKING)
@@ -143,7 +157,7 @@ def run_lanes(
         trace = Trace(np.zeros(shape + (S,), np.uint8), np.full(shape, -1, np.int16), np.zeros(shape, bool))
 
     alive = np.ones(L, dtype=bool)
-    world.reset(np.arange(L), rng)
+    world.reset(np.arange(L), starts=starts[:, 0][slot])
     ep_tracked = np.zeros(L, dtype=np.int64)
     ep_count = np.zeros(L, dtype=np.int64)
     ep_id = np.arange(L)
@@ -207,7 +221,7 @@ def run_lanes(
                     rule = ctrl.compiled.rule_index(pol[mine], rank)
                     trace.bins[k, t, lanes], trace.rule[k, t, lanes], trace.full[k, t, lanes] = bins, rule, full
                     fired[lanes, k] |= _ONE << rule.astype(np.uint64)
-            noise = rng.normal(0.0, cfg.target_turn_sd, L)
+            noise = rng.normal(0.0, cfg.target_turn_sd, g)[slot]
             ev = world.step(active, turn, speed, noise)
             steps[:, k] += active
             tracked[:, k] += ev.tracking
@@ -238,7 +252,8 @@ def run_lanes(
         ended = lk[ends]
         world.place_at_dock(lk[docked[lk, k] & ~ends])
         if restart_epochs and not last:
-            world.reset(ended, rng)
+            epoch_no[ended] += 1
+            world.reset(ended, starts=starts[slot[ended], epoch_no[ended]])
             ep_tracked[ended] = 0
             ep_count[ended] = 0
             ep_id[ended] = n_epochs + np.arange(ended.size)

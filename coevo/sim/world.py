@@ -170,13 +170,9 @@ class BatchWorld:
         return np.stack([self.tx, self.ty], axis=1)
 
     # ----------------------------------------------------------------- placement
-    def reset(self, lanes: np.ndarray, rng: np.random.Generator) -> None:
-        """Start an epoch in ``lanes``: random Robot and Target, fuel at its initial level."""
-        lanes = np.asarray(lanes, dtype=np.int64)
-        if lanes.size == 0:
-            return
+    def random_starts(self, m: int, rng: np.random.Generator) -> np.ndarray:
+        """``m`` random epoch starts, rows of (robot x, y, heading, target x, y, heading) in radians."""
         c = self.cfg
-        m = len(lanes)
         robot = np.empty((m, 2))
         target = np.empty((m, 2))
         todo = np.arange(m)
@@ -186,11 +182,22 @@ class BatchWorld:
             target[todo] = self._free_points(k, c.target_radius, rng)
             far = np.hypot(*(robot[todo] - target[todo]).T) >= c.spawn_separation + c.robot_radius + c.target_radius
             todo = todo[~far]
-        self.rx[lanes], self.ry[lanes] = robot[:, 0], robot[:, 1]
-        self.tx[lanes], self.ty[lanes] = target[:, 0], target[:, 1]
-        self.rh[lanes] = rng.uniform(-np.pi, np.pi, m)
-        self.th[lanes] = rng.uniform(-np.pi, np.pi, m)
-        self.fuel[lanes] = c.initial_fuel
+        heading = rng.uniform(-np.pi, np.pi, (m, 2))
+        return np.column_stack([robot, heading[:, 0], target, heading[:, 1]])
+
+    def reset(self, lanes: np.ndarray, rng: np.random.Generator | None = None, *, starts: np.ndarray | None = None) -> None:
+        """Start an epoch in ``lanes``: Robot and Target placed (random, or the given ``starts``
+        rows from :meth:`random_starts`), fuel at its initial level."""
+        lanes = np.asarray(lanes, dtype=np.int64)
+        if lanes.size == 0:
+            return
+        if starts is None:
+            if rng is None:
+                raise ValueError("reset needs an rng or explicit starts")
+            starts = self.random_starts(lanes.size, rng)
+        self.rx[lanes], self.ry[lanes], self.rh[lanes] = starts[:, 0], starts[:, 1], starts[:, 2]
+        self.tx[lanes], self.ty[lanes], self.th[lanes] = starts[:, 3], starts[:, 4], starts[:, 5]
+        self.fuel[lanes] = self.cfg.initial_fuel
         self.speed[lanes] = 0.0
         self.turn[lanes] = 0.0
         self._push_positions()
