@@ -1,0 +1,84 @@
+"""Every Zenoh key expression coevo uses, built in one place (the wire protocol).
+
+    coevo/<run>/policy/<behaviour>              PolicyUpdate, put by that behaviour's worker
+    coevo/<run>/status/<behaviour>/<worker>     Status heartbeat, once per generation
+    coevo/<run>/control                         Control (stop)
+    coevo/<run>/alive/<behaviour>/<worker>      liveliness token of a worker
+    coevo/<run>/store/latest/<behaviour>        broker queryable: the latest PolicyUpdate
+    coevo/<run>/store/history/<behaviour>       broker queryable: every PolicyUpdate, in order
+
+Run ids and worker ids are single key chunks: letters, digits, ``_``, ``-``, ``.``.
+"""
+
+from __future__ import annotations
+
+import re
+
+from coevo.behaviours import Behaviour
+from coevo.errors import ConfigError
+
+__all__ = ["ROOT", "check_id", "policy", "status", "control", "alive", "store_latest", "store_history", "parse"]
+
+ROOT = "coevo"
+_ID = re.compile(r"^[A-Za-z0-9_.-]{1,64}$")
+
+
+def check_id(kind: str, value: str) -> str:
+    """``value`` if it is a valid single key chunk, else a ConfigError naming it."""
+    if not isinstance(value, str) or not _ID.match(value) or value in (".", ".."):
+        raise ConfigError(f"{kind} {value!r} is not valid: use 1-64 letters, digits, '_', '-' or '.'")
+    return value
+
+
+def _b(behaviour: Behaviour | str) -> str:
+    try:
+        return Behaviour(behaviour).value
+    except ValueError:
+        raise ConfigError(f"unknown behaviour {behaviour!r}") from None
+
+
+def _w(b: Behaviour | str | None) -> str:
+    return "*" if b is None else _b(b)
+
+
+def policy(run: str, behaviour: Behaviour | str | None = None) -> str:
+    return f"{ROOT}/{check_id('run id', run)}/policy/{_w(behaviour)}"
+
+
+def status(run: str, behaviour: Behaviour | str | None = None, worker: str | None = None) -> str:
+    w = "*" if worker is None else check_id("worker id", worker)
+    return f"{ROOT}/{check_id('run id', run)}/status/{_w(behaviour)}/{w}"
+
+
+def control(run: str) -> str:
+    return f"{ROOT}/{check_id('run id', run)}/control"
+
+
+def alive(run: str, behaviour: Behaviour | str | None = None, worker: str | None = None) -> str:
+    w = "*" if worker is None else check_id("worker id", worker)
+    return f"{ROOT}/{check_id('run id', run)}/alive/{_w(behaviour)}/{w}"
+
+
+def store_latest(run: str, behaviour: Behaviour | str | None = None) -> str:
+    return f"{ROOT}/{check_id('run id', run)}/store/latest/{_w(behaviour)}"
+
+
+def store_history(run: str, behaviour: Behaviour | str | None = None) -> str:
+    return f"{ROOT}/{check_id('run id', run)}/store/history/{_w(behaviour)}"
+
+
+def parse(key: str) -> dict[str, str]:
+    """Split a concrete key into its parts: ``{"run", "topic", "behaviour"?, "worker"?}``; {} if not coevo's."""
+    parts = str(key).split("/")
+    if len(parts) < 3 or parts[0] != ROOT:
+        return {}
+    out = {"run": parts[1], "topic": parts[2]}
+    rest = parts[3:]
+    if parts[2] == "store" and len(rest) == 2:
+        out["topic"] = f"store/{rest[0]}"
+        rest = rest[1:]
+    if rest:
+        out["behaviour"] = rest[0]
+    if len(rest) > 1:
+        out["worker"] = rest[1]
+    return out

@@ -1,0 +1,140 @@
+"""Bus messages: frozen pydantic models carried as msgpack maps with a schema version.
+
+Every message is a msgpack map with ``kind`` and ``schema_version`` first-class
+fields.  :func:`encode` and :func:`decode` are the only way in and out; a payload
+that is not msgpack, fails validation, has an unknown schema version, is too large
+or claims a key it was not published on becomes a :class:`MessageError` with a
+short ``reason`` (a counter name) — never a crash.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Any, Literal, Union
+
+import msgpack
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, field_validator
+
+from coevo import keys
+from coevo.behaviours import Behaviour
+from coevo.errors import MessageError, RuleSetError
+from coevo.policy.rules import RuleSet
+
+__all__ = ["SCHEMA_VERSION", "MAX_BYTES", "PolicyUpdate", "Status", "Control", "Message", "encode", "decode"]
+
+SCHEMA_VERSION = 1
+MAX_BYTES = 1 << 20  # a 64-rule policy is ~5 KB; anything near a megabyte is not ours
+
+
+class _Msg(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    schema_version: Literal[1] = SCHEMA_VERSION
+    run: Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]{1,64}$")]
+    sent_at: float = Field(ge=0)
+
+
+class PolicyUpdate(_Msg):
+    """A worker's new best-so-far policy."""
+
+    kind: Literal["policy"] = "policy"
+    behaviour: Behaviour
+    worker: Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]{1,64}$")]
+    version: int = Field(ge=1)
+    generation: int = Field(ge=0)
+    fitness: float
+    episodes: int = Field(ge=0)
+    rules: dict[str, Any]
+
+    @field_validator("fitness")
+    @classmethod
+    def _finite(cls, v: float) -> float:
+        if not math.isfinite(v):
+            raise ValueError(f"fitness must be finite, got {v}")
+        return v
+
+    @field_validator("rules")
+    @classmethod
+    def _rules(cls, v: dict[str, Any]) -> dict[str, Any]:
+        try:
+            RuleSet.from_dict(v)
+        except RuleSetError as exc:
+            raise ValueError(f"bad rule set: {exc}") from None
+        return v
+
+    def ruleset(self) -> RuleSet:
+        rs = RuleSet.from_dict(self.rules)
+        if rs.behaviour is not self.behaviour:
+            raise RuleSetError(f"policy for {self.behaviour} carries {rs.behaviour} rules")
+        return rs
+
+
+class Status(_Msg):
+    """A worker's heartbeat, once per generation."""
+
+    kind: Literal["status"] = "status"
+    behaviour: Behaviour
+    worker: Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]{1,64}$")]
+    regime: Literal["mutual", "independent"]
+    generation: int = Field(ge=0)
+    generations: int = Field(ge=0)
+    best_fitness: float
+    partner_versions: dict[str, int] = Field(default_factory=dict)
+    rejected: dict[str, int] = Field(default_factory=dict)
+    done: bool = False
+
+
+class Control(_Msg):
+    """A command to every process of a run."""
+
+    kind: Literal["control"] = "control"
+    command: Literal["stop"]
+
+
+Message = Annotated[Union[PolicyUpdate, Status, Control], Field(discriminator="kind")]
+_ADAPTER: TypeAdapter[Any] = TypeAdapter(Message)
+
+
+def encode(msg: PolicyUpdate | Status | Control) -> bytes:
+    return msgpack.packb(msg.model_dump(mode="json"), use_bin_type=True)
+
+
+def decode(payload: bytes, *, key: str | None = None) -> PolicyUpdate | Status | Control:
+    """Bytes -> message, checking it against the key it arrived on (if given)."""
+    if len(payload) > MAX_BYTES:
+        raise MessageError("oversize", f"{len(payload)} bytes > {MAX_BYTES}")
+    try:
+        data = msgpack.unpackb(payload, raw=False, strict_map_key=True)
+    except Exception as exc:  # msgpack raises several unrelated types
+        raise MessageError("not_msgpack", f"{type(exc).__name__}: {exc}") from None
+    if not isinstance(data, dict):
+        raise MessageError("invalid", f"expected a map, got {type(data).__name__}")
+    version = data.get("schema_version")
+    if version != SCHEMA_VERSION:
+        raise MessageError("schema_version", f"schema_version {version!r}, this coevo speaks {SCHEMA_VERSION}")
+    try:
+        msg = _ADAPTER.validate_python(data)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first["loc"])
+        raise MessageError("invalid", f"{where}: {first['msg']}") from None
+    if key is not None:
+        _check_key(msg, key)
+    return msg
+
+
+def _check_key(msg: PolicyUpdate | Status | Control, key: str) -> None:
+    k = keys.parse(key)
+    if not k:
+        raise MessageError("wrong_key", f"{key!r} is not a coevo key")
+    if k["run"] != msg.run:
+        raise MessageError("wrong_run", f"message for run {msg.run!r} on {key!r}")
+    topic = {"policy": "policy", "status": "status", "control": "control"}[msg.kind]
+    if k["topic"] != topic:
+        raise MessageError("wrong_key", f"{msg.kind} message on {key!r}")
+    beh = getattr(msg, "behaviour", None)
+    if beh is not None and k.get("behaviour") != beh.value:
+        raise MessageError("wrong_key", f"{beh.value} {msg.kind} on {key!r}")
+    worker = getattr(msg, "worker", None)
+    if msg.kind == "status" and k.get("worker") != worker:
+        raise MessageError("wrong_key", f"status of worker {worker!r} on {key!r}")
