@@ -129,6 +129,107 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_broker(args: argparse.Namespace) -> int:
+    from coevo.broker.server import Broker
+    from coevo.bus import config_from_args, sigterm_as_exit
+
+    if not args.listen:
+        args.listen = ["tcp/127.0.0.1:7447"]
+    sigterm_as_exit()
+    with Broker(config_from_args(args), Path(args.data_dir)) as broker:
+        logging.getLogger("coevo.broker").info("broker listening on %s, store in %s", args.listen, args.data_dir)
+        print(f"coevo broker listening on {', '.join(args.listen)}; store in {args.data_dir}", flush=True)
+        try:
+            broker.serve_forever()
+        except KeyboardInterrupt:
+            pass
+    return 0
+
+
+def cmd_worker(args: argparse.Namespace) -> int:
+    from coevo import keys
+    from coevo.agents.worker import Worker
+    from coevo.bus import config_from_args, sigterm_as_exit
+
+    world, ga = _configs(args)
+    behaviour = Behaviour(args.behaviour)
+    keys.check_id("run id", args.run)
+    worker_id = args.worker_id or f"{behaviour.value}-{args.seed}"
+    out = Path(args.out) if args.out else Path("runs") / args.run / "workers" / behaviour.value
+    sigterm_as_exit()
+    w = Worker(behaviour=behaviour, regime=args.regime, run=args.run, worker_id=worker_id, seed=args.seed,
+               world=world, ga=ga, out_dir=out, conf=config_from_args(args), model=args.model)
+    try:
+        curve = w.run()
+    except KeyboardInterrupt:
+        return 130
+    print(f"{worker_id}: {len(curve)} generations, best so far {curve[-1].best_so_far if curve else float('nan'):.3f}")
+    return 0
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from rich.live import Live
+    from rich.table import Table
+
+    from coevo.run import run_local
+
+    world, ga = _configs(args)
+    run_id = args.run or f"{args.regime}-{time.strftime('%Y%m%d-%H%M%S')}"
+
+    def table(board: Any) -> Table:
+        t = Table(title=f"run {run_id} ({args.regime})")
+        for col in ("behaviour", "worker", "generation", "best fitness", "partners", "rejected", "state"):
+            t.add_column(col)
+        for w in board.snapshot():
+            partners = " ".join(f"{k[0].upper()}v{v}" for k, v in sorted(w["partner_versions"].items())) or "-"
+            t.add_row(w["behaviour"], w["worker"], f"{w['generation']}/{w['generations']}", f"{w['best_fitness']:.3f}",
+                      partners, str(w["rejected"]), w["state"])
+        return t
+
+    with Live(auto_refresh=False, transient=False) as live:
+        def show(board: Any) -> None:
+            if not args.quiet:
+                live.update(table(board), refresh=True)
+
+        summary = run_local(regime=args.regime, run=run_id, root=Path(args.root), world=world, ga=ga, seed=args.seed,
+                            model=args.model, measure_epochs=args.measure_epochs, on_status=show, log_level=args.log_level)
+    print(f"run directory: {Path(args.root) / run_id} ({summary['seconds']:.1f} s)")
+    if "measures" in summary:
+        m = summary["measures"]
+        print("combined robot: " + ", ".join(f"{k} {m[k]:.1f}" for k in
+              ("quality_tracking", "successful_docking", "dock_choice", "average_epoch_length", "executive_payoff")))
+    return 130 if summary["interrupted"] else 0
+
+
+def cmd_status(args: argparse.Namespace) -> int:
+    from coevo import keys
+    from coevo.bus import config_from_args, open_session, sigterm_as_exit
+    from coevo.status import StatusBoard
+
+    keys.check_id("run id", args.run)
+    sigterm_as_exit()
+    end = time.monotonic() + args.duration if args.duration else None
+    with open_session(config_from_args(args), what="status session") as s:
+        board = StatusBoard(s, args.run, stall=args.stall)
+        try:
+            while end is None or time.monotonic() < end:
+                board.changed.wait(1.0)
+                board.changed.clear()
+                if args.json:
+                    print(board.json_line(), flush=True)
+                else:
+                    rows = board.snapshot()
+                    print(time.strftime("%H:%M:%S"), " | ".join(
+                        f"{w['behaviour']}/{w['worker']} gen {w['generation']}/{w['generations']} best {w['best_fitness']:.3f} "
+                        f"partners {w['partner_versions']} rejected {w['rejected']} {w['state']}" for w in rows) or "(no workers yet)",
+                        flush=True)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            board.close()
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="coevo", description="Co-evolve robot behaviours with SAMUEL-style rule GAs.")
     parser.add_argument("--log-level", default="WARNING", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
@@ -157,6 +258,44 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--world", action="append", metavar="NAME=VALUE")
     p.add_argument("--json", action="store_true", help="print both figures and their ratio as JSON")
     p.set_defaults(func=cmd_bench)
+
+    from coevo.bus import add_connection_args
+
+    p = sub.add_parser("broker", help="the Zenoh router workers meet at, plus the policy store")
+    add_connection_args(p, default_mode="router")
+    p.add_argument("--data-dir", default="runs", help="where the store keeps each run's policies (default runs/)")
+    p.set_defaults(func=cmd_broker)
+
+    p = sub.add_parser("worker", help="one behaviour's GA as its own process on the bus")
+    p.add_argument("--behaviour", required=True, choices=[b.value for b in Behaviour])
+    p.add_argument("--regime", required=True, choices=["mutual", "independent"])
+    p.add_argument("--run", required=True, help="run id (letters, digits, _ - .)")
+    p.add_argument("--worker-id", help="default BEHAVIOUR-SEED")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--model", default="best", choices=["best", "recent"], help="how partners are modelled")
+    p.add_argument("--out", help="worker directory (default runs/RUN/workers/BEHAVIOUR)")
+    _add_settings(p)
+    add_connection_args(p)
+    p.set_defaults(func=cmd_worker)
+
+    p = sub.add_parser("run", help="broker + three workers on this machine, with a live status")
+    p.add_argument("--regime", default="independent", choices=["mutual", "independent"])
+    p.add_argument("--run", help="run id (default REGIME-TIME)")
+    p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--model", default="best", choices=["best", "recent"])
+    p.add_argument("--measure-epochs", type=int, default=100)
+    p.add_argument("--quiet", action="store_true")
+    _add_settings(p)
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("status", help="follow a run's workers")
+    p.add_argument("--run", required=True)
+    p.add_argument("--json", action="store_true", help="one JSON object per update")
+    p.add_argument("--stall", type=float, default=10.0, help="seconds without a heartbeat before a live worker counts as stalled")
+    p.add_argument("--duration", type=float, help="stop after this many seconds (default: until Ctrl-C)")
+    add_connection_args(p)
+    p.set_defaults(func=cmd_status)
     return parser
 
 

@@ -6,6 +6,7 @@
     coevo/<run>/alive/<behaviour>/<worker>      liveliness token of a worker
     coevo/<run>/store/latest/<behaviour>        broker queryable: the latest PolicyUpdate
     coevo/<run>/store/history/<behaviour>       broker queryable: every PolicyUpdate, in order
+    coevo/_broker                               liveliness token of a broker with its store up
 
 Run ids and worker ids are single key chunks: letters, digits, ``_``, ``-``, ``.``.
 """
@@ -20,6 +21,7 @@ from coevo.errors import ConfigError
 __all__ = ["ROOT", "check_id", "policy", "status", "control", "alive", "store_latest", "store_history", "parse"]
 
 ROOT = "coevo"
+BROKER = f"{ROOT}/_broker"
 _ID = re.compile(r"^[A-Za-z0-9_.-]{1,64}$")
 
 
