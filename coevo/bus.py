@@ -90,9 +90,9 @@ def open_session(conf: zenoh.Config, *, what: str = "session") -> Iterator[Any]:
 
 
 def sigterm_as_exit() -> None:
-    """Turn SIGTERM into SystemExit so ``finally`` blocks close sessions."""
+    """Turn SIGTERM into KeyboardInterrupt: one stop path, and ``finally`` blocks close sessions."""
 
     def _raise(signum: int, frame: Any) -> None:
-        raise SystemExit(128 + signum)
+        raise KeyboardInterrupt(f"signal {signum}")
 
     signal.signal(signal.SIGTERM, _raise)

@@ -230,6 +230,18 @@ def cmd_status(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_replay(args: argparse.Namespace) -> int:
+    from coevo.replay import replay
+
+    results = replay(Path(args.run_dir))
+    ok = True
+    for r in results:
+        ok &= r.reproduced
+        verdict = "reproduced exactly" if r.reproduced else f"DIFFERS at generation {r.first_mismatch}: {r.detail}"
+        print(f"{r.behaviour}: {r.generations} generations {verdict}")
+    return 0 if ok else 1
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="coevo", description="Co-evolve robot behaviours with SAMUEL-style rule GAs.")
     parser.add_argument("--log-level", default="WARNING", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
@@ -288,6 +300,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true")
     _add_settings(p)
     p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("replay", help="re-run a finished run in one process from its adoption log")
+    p.add_argument("run_dir")
+    p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("status", help="follow a run's workers")
     p.add_argument("--run", required=True)

@@ -1,0 +1,93 @@
+"""``coevo replay RUN_DIR``: re-run a finished asynchronous run in one process, exactly.
+
+Each worker's GA is deterministic given its seed and the partner policies it
+evaluated against; the only non-repeatable thing in a run is *when* partner
+versions arrived.  The adoption log records that (after how many of its own
+generations a worker took which version), and the store holds every version, so
+replaying feeds each GA the same partners at the same points and must reproduce
+its learning curve bit for bit.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from coevo.agents.models import PartnerModels
+from coevo.behaviours import Behaviour
+from coevo.config import GAConfig, WorldConfig
+from coevo.errors import RunDirError
+from coevo.ga import GA
+from coevo.messages import PolicyUpdate
+from coevo.policy.rules import RuleSet
+
+__all__ = ["WorkerReplay", "replay"]
+
+_COMPARED = ("generation", "best_fitness", "population_best", "population_mean", "best_so_far", "improved", "starved")
+
+
+@dataclass(frozen=True)
+class WorkerReplay:
+    behaviour: str
+    generations: int
+    reproduced: bool
+    first_mismatch: int | None  # 1-based generation
+    detail: str
+
+
+def _jsonl(path: Path) -> list[dict]:
+    if not path.exists():
+        raise RunDirError(f"{path} is missing: not a complete run directory")
+    rows = []
+    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+        if line.strip():
+            try:
+                rows.append(json.loads(line))
+            except json.JSONDecodeError as exc:
+                raise RunDirError(f"{path} line {n} is not JSON: {exc}") from exc
+    return rows
+
+
+def _store(run_dir: Path) -> dict[tuple[str, str, int], RuleSet]:
+    out: dict[tuple[str, str, int], RuleSet] = {}
+    for f in sorted((run_dir / "store").glob("*.jsonl")):
+        for row in _jsonl(f):
+            m = PolicyUpdate.model_validate(row)
+            out[(m.behaviour.value, m.worker, m.version)] = m.ruleset()
+    return out
+
+
+def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, until: int | None = None) -> WorkerReplay:
+    meta = json.loads((wdir / "worker.json").read_text())
+    behaviour = Behaviour(meta["behaviour"])
+    world = WorldConfig(**meta["world"])
+    ga_cfg = GAConfig(**meta["ga"])
+    curve = _jsonl(wdir / "curve.jsonl")
+    adoptions = _jsonl(wdir / "adoptions.jsonl")
+    n = len(curve) if until is None else min(until, len(curve))
+    models = PartnerModels(behaviour, meta["regime"], meta["seed"], kind=meta["model"], initial_rules=ga_cfg.initial_rules)
+    ga = GA(behaviour, world=world, ga=ga_cfg, seed=meta["seed"])
+    by_gen: dict[int, list[dict]] = {}
+    for a in adoptions:
+        by_gen.setdefault(int(a["generation"]), []).append(a)
+    for g in range(n):
+        for a in by_gen.get(g, []):
+            key = (a["partner"], a["from_worker"], int(a["version"]))
+            if key not in store:
+                raise RunDirError(f"{wdir.name}: adopted {key} is not in the store; the run directory is incomplete")
+            models.adopt(Behaviour(a["partner"]), int(a["version"]), store[key])
+        rep = ga.generation(models.partners()).as_dict()
+        for k in _COMPARED:
+            if rep[k] != curve[g][k]:
+                return WorkerReplay(behaviour.value, n, False, g + 1, f"{k}: recorded {curve[g][k]!r}, replayed {rep[k]!r}")
+    return WorkerReplay(behaviour.value, n, True, None, "identical")
+
+
+def replay(run_dir: Path) -> list[WorkerReplay]:
+    run_dir = Path(run_dir)
+    workers = sorted(p for p in (run_dir / "workers").glob("*") if (p / "worker.json").exists())
+    if not workers:
+        raise RunDirError(f"{str(run_dir)!r} holds no workers/*/worker.json: not a coevo run directory")
+    store = _store(run_dir)
+    return [replay_worker(w, store) for w in workers]

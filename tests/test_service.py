@@ -1,0 +1,190 @@
+"""The service for real: broker and workers as processes, Zenoh sessions on loopback."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from coevo import keys
+from coevo.bus import make_config, open_session
+from coevo.messages import PolicyUpdate, encode
+from coevo.policy import random_ruleset
+from coevo.run import free_port
+from coevo.status import StatusBoard
+
+SMALL = ["--population", "6", "--episodes", "10", "--ga", "best_episodes=10", "--ga", "initial_rules=8"]
+
+
+def poll(check, timeout: float, what: str):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        value = check()
+        if value:
+            return value
+        time.sleep(0.05)
+    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+
+
+def coevo_proc(*args: str, log: Path) -> subprocess.Popen:
+    f = open(log, "wb")
+    p = subprocess.Popen([sys.executable, "-m", "coevo", "--log-level", "INFO", *args], stdout=f, stderr=subprocess.STDOUT)
+    f.close()
+    return p
+
+
+def stop(p: subprocess.Popen) -> None:
+    if p.poll() is None:
+        p.terminate()
+        try:
+            p.wait(10)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
+
+
+@pytest.fixture
+def broker(tmp_path: Path) -> Iterator[tuple[str, Path]]:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    data = tmp_path / "data"
+    p = coevo_proc("broker", "--listen", endpoint, "--data-dir", str(data), log=tmp_path / "broker.log")
+    with open_session(make_config(mode="client", connect=[endpoint], connect_timeout=20)) as s:
+        poll(lambda: any(r.ok is not None for r in s.liveliness().get(keys.BROKER, timeout=1.0)), 20, "the broker token")
+    yield endpoint, data
+    stop(p)
+    assert p.returncode == 0, (tmp_path / "broker.log").read_text()
+
+
+def test_broker_stores_answers_and_rejects(broker, tmp_path: Path) -> None:
+    endpoint, data = broker
+    rs = random_ruleset("tracking", 6, np.random.default_rng(0))
+    msg = PolicyUpdate(run="r1", behaviour="tracking", worker="t", version=1, generation=1, fitness=0.5, episodes=10,
+                       rules=rs.to_dict(), sent_at=time.time())
+    with open_session(make_config(mode="client", connect=[endpoint])) as s:
+        s.put(keys.policy("r1", "tracking"), b"garbage")
+        s.put(keys.policy("r1", "docking"), encode(msg))  # a tracking policy on docking's key
+        s.put(keys.policy("r1", "tracking"), encode(msg))
+        s.put(keys.policy("r1", "tracking"), encode(msg))  # duplicate: stored once
+
+        def latest():
+            return [r.ok.payload.to_bytes() for r in s.get(keys.store_latest("r1", "tracking"), timeout=2.0) if r.ok]
+
+        got = poll(latest, 10, "the stored policy")
+        assert got == [encode(msg)]
+    lines = (data / "r1" / "store" / "tracking.jsonl").read_text().splitlines()
+    assert len(lines) == 1 and not (data / "r1" / "store" / "docking.jsonl").exists()
+    log = (tmp_path / "broker.log").read_text()
+    assert "not_msgpack" in log and "wrong_key" in log
+
+
+def test_late_worker_gets_partners_best_from_the_store_and_logs_adoption(broker, tmp_path: Path) -> None:
+    endpoint, _ = broker
+    with open_session(make_config(mode="client", connect=[endpoint])) as s:
+        for beh, v in (("tracking", 3), ("docking", 2)):
+            rs = random_ruleset(beh, 6, np.random.default_rng(v))
+            s.put(keys.policy("late", beh), encode(PolicyUpdate(run="late", behaviour=beh, worker=f"{beh}-x", version=v,
+                  generation=v, fitness=0.1 * v, episodes=10, rules=rs.to_dict(), sent_at=time.time())))
+        poll(lambda: len([r for r in s.get(keys.store_latest("late"), timeout=2.0) if r.ok]) == 2, 10, "both stored")
+    out = tmp_path / "exec"
+    p = coevo_proc("worker", "--behaviour", "executive", "--regime", "independent", "--run", "late", "--connect", endpoint,
+                   "--generations", "1", *SMALL, "--out", str(out), log=tmp_path / "w.log")
+    assert p.wait(120) == 0, (tmp_path / "w.log").read_text()
+    adopted = [json.loads(x) for x in (out / "adoptions.jsonl").read_text().splitlines()]
+    assert {(a["partner"], a["version"], a["generation"]) for a in adopted} == {("tracking", 3, 0), ("docking", 2, 0)}
+
+
+def test_status_sees_a_worker_die(broker, tmp_path: Path) -> None:
+    endpoint, _ = broker
+    p = coevo_proc("worker", "--behaviour", "tracking", "--regime", "independent", "--run", "die", "--connect", endpoint,
+                   "--generations", "1000", *SMALL, "--out", str(tmp_path / "w"), log=tmp_path / "w.log")
+    try:
+        with open_session(make_config(mode="client", connect=[endpoint])) as s:
+            board = StatusBoard(s, "die", stall=5.0)
+            try:
+                poll(lambda: [w for w in board.snapshot() if w["state"] == "alive" and w["generation"] >= 1], 60, "alive")
+                os.kill(p.pid, signal.SIGKILL)
+                t0 = time.monotonic()
+                poll(lambda: [w for w in board.snapshot() if w["state"] == "dead"], 10, "dead")
+                assert time.monotonic() - t0 < 5
+            finally:
+                board.close()
+    finally:
+        stop(p)
+
+
+def test_worker_rejects_bad_partner_messages_and_keeps_evolving(broker, tmp_path: Path) -> None:
+    endpoint, _ = broker
+    out = tmp_path / "w"
+    p = coevo_proc("worker", "--behaviour", "executive", "--regime", "independent", "--run", "bad", "--connect", endpoint,
+                   "--generations", "1000", *SMALL, "--out", str(out), log=tmp_path / "w.log")
+    try:
+        with open_session(make_config(mode="client", connect=[endpoint])) as s:
+            board = StatusBoard(s, "bad")
+            try:
+                poll(lambda: [w for w in board.snapshot() if w["generation"] >= 1], 60, "first heartbeat")
+                for payload in (b"\x00\x01", b"\xc1", json.dumps({"a": 1}).encode()):
+                    s.put(keys.policy("bad", "tracking"), payload)
+                poll(lambda: [w for w in board.snapshot() if w["rejected"] >= 3], 30, "rejections counted")
+                gen = board.snapshot()[0]["generation"]
+                poll(lambda: board.snapshot()[0]["generation"] > gen, 30, "more generations")
+            finally:
+                board.close()
+    finally:
+        stop(p)
+    assert not (out / "adoptions.jsonl").read_text().strip()
+
+
+@pytest.mark.parametrize("regime", ["independent", "mutual"])
+def test_coevo_run_end_to_end_and_replay_reproduces_it(tmp_path: Path, regime: str) -> None:
+    r = subprocess.run([sys.executable, "-m", "coevo", "run", "--regime", regime, "--run", f"e2e-{regime}", "--root", str(tmp_path),
+                        "--generations", "4", *SMALL, "--measure-epochs", "5", "--quiet"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    run_dir = tmp_path / f"e2e-{regime}"
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert set(summary["versions"]) == {"tracking", "docking", "executive"}
+    assert "measures" in summary and (run_dir / "measures.json").exists()
+    for beh in ("tracking", "docking", "executive"):
+        w = run_dir / "workers" / beh
+        assert len((w / "curve.jsonl").read_text().splitlines()) == 4
+        assert (w / "best.rules").exists() and (w / "done.json").exists()
+    adopters = {b for b in ("tracking", "docking", "executive") if (run_dir / "workers" / b / "adoptions.jsonl").read_text().strip()}
+    # Which adoptions happen depends on scheduling (that is the point); what is adopted must be in the store.
+    stored = {(json.loads(x)["behaviour"], json.loads(x)["version"]) for f in (run_dir / "store").glob("*.jsonl")
+              for x in f.read_text().splitlines()}
+    for b in adopters:
+        for a in (run_dir / "workers" / b / "adoptions.jsonl").read_text().splitlines():
+            a = json.loads(a)
+            assert (a["partner"], a["version"]) in stored
+    if regime == "independent":
+        assert adopters <= {"executive"}  # Tracking and Docking learn with the trivial Executive
+    rr = subprocess.run([sys.executable, "-m", "coevo", "replay", str(run_dir)], capture_output=True, text=True, timeout=300)
+    assert rr.returncode == 0, rr.stdout + rr.stderr
+    assert rr.stdout.count("reproduced exactly") == 3
+
+
+def test_replay_detects_a_tampered_log(tmp_path: Path) -> None:
+    r = subprocess.run([sys.executable, "-m", "coevo", "run", "--regime", "mutual", "--run", "tamper", "--root", str(tmp_path),
+                        "--generations", "3", *SMALL, "--measure-epochs", "2", "--quiet"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    curve = tmp_path / "tamper" / "workers" / "tracking" / "curve.jsonl"
+    rows = [json.loads(x) for x in curve.read_text().splitlines()]
+    rows[1]["population_mean"] += 0.125
+    curve.write_text("".join(json.dumps(x) + "\n" for x in rows))
+    rr = subprocess.run([sys.executable, "-m", "coevo", "replay", str(tmp_path / "tamper")], capture_output=True, text=True, timeout=300)
+    assert rr.returncode == 1 and "tracking: 3 generations DIFFERS at generation 2" in rr.stdout
+
+
+def test_worker_with_no_broker_fails_clearly(tmp_path: Path) -> None:
+    r = subprocess.run([sys.executable, "-m", "coevo", "worker", "--behaviour", "tracking", "--regime", "mutual", "--run", "x",
+                        "--connect", f"tcp/127.0.0.1:{free_port()}", "--connect-timeout", "1", "--out", str(tmp_path / "w")],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "ConfigError" in r.stderr and "broker" in r.stderr
