@@ -144,7 +144,9 @@ class Worker:
                     if self._stop.is_set():
                         log.info("%s stopping at generation %d", self.worker_id, g)
                         break
+                    t_net = time.perf_counter()
                     self._adopt(g, adopt_log)
+                    self.net_seconds += time.perf_counter() - t_net
                     rep = ga.generation(self.models.partners())
                     curve.append(rep)
                     curve_log.write(json.dumps(rep.as_dict()) + "\n")
