@@ -80,7 +80,7 @@ def cmd_learn(args: argparse.Namespace) -> int:
     tracking = _read_rules(args.tracking, Behaviour.TRACKING)
     docking = _read_rules(args.docking, Behaviour.DOCKING)
     seed_policy = _read_rules(args.seed_policy, behaviour)
-    if behaviour is Behaviour.EXECUTIVE and (tracking is None or docking is None):
+    if behaviour is Behaviour.EXECUTIVE and args.history is None and (tracking is None or docking is None):
         raise ConfigError("--behaviour executive needs --tracking FILE and --docking FILE (best.rules of earlier learn runs)")
     if args.measure_epochs < 1:
         raise ConfigError(f"--measure-epochs must be at least 1, got {args.measure_epochs}")
@@ -99,6 +99,7 @@ def cmd_learn(args: argparse.Namespace) -> int:
         res = learn(
             behaviour, world=world, ga=ga, seed=args.seed, out_dir=out, tracking=tracking, docking=docking,
             seed_policy=seed_policy, measure_epochs=args.measure_epochs, on_generation=show,
+            history=Path(args.history) if args.history else None, rate=args.rate,
         )
     m = res.measures
     print(f"run directory: {res.out_dir}")
@@ -254,6 +255,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tracking", help="Tracking rule file (for --behaviour executive)")
     p.add_argument("--docking", help="Docking rule file (for --behaviour executive)")
     p.add_argument("--seed-policy", help="start the population from this rule file instead of random rules")
+    p.add_argument("--history", metavar="RUN_DIR", help="executive: adopt the Tracking/Docking policies stored in a finished run, in step")
+    p.add_argument("--rate", type=float, default=1.0, help="with --history: partner generations per executive generation (default 1)")
     p.add_argument("--measure-epochs", type=int, default=100, help="fresh epochs for the final measures")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     _add_settings(p)

@@ -8,6 +8,7 @@ measures of that best policy.
 
 from __future__ import annotations
 
+import json
 import logging
 import time
 from collections.abc import Callable
@@ -15,6 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from coevo import __version__
+from coevo.agents.history import HistoryFeed
+from coevo.agents.models import PartnerModels
 from coevo.behaviours import Behaviour
 from coevo.config import GAConfig, WorldConfig
 from coevo.errors import ConfigError
@@ -50,9 +53,18 @@ def learn(
     seed_policy: RuleSet | None = None,
     measure_epochs: int = 100,
     on_generation: Callable[[GenerationReport], None] | None = None,
+    history: Path | None = None,
+    rate: float = 1.0,
 ) -> LearnResult:
     behaviour = Behaviour(behaviour)
-    if behaviour is Behaviour.EXECUTIVE:
+    feed = None
+    if history is not None:
+        if behaviour is not Behaviour.EXECUTIVE:
+            raise ConfigError("--history feeds recorded Tracking/Docking policies to the executive only")
+        feed = HistoryFeed(Path(history), rate)
+        models = PartnerModels(behaviour, "independent", seed, initial_rules=ga.initial_rules)
+        partners = models.partners()
+    elif behaviour is Behaviour.EXECUTIVE:
         if tracking is None or docking is None:
             raise ConfigError(
                 "the Executive learns against fixed Tracking and Docking rule sets: give --tracking FILE and "
@@ -68,10 +80,18 @@ def learn(
         write_json(tmp / "config.json", {
             "coevo": __version__, "behaviour": behaviour.value, "seed": seed,
             "world": world.model_dump(), "ga": ga.model_dump(),
+            "history": str(history) if history else None, "rate": rate if history else None,
         })
         engine = GA(behaviour, world=world, ga=ga, seed=seed, seed_policy=seed_policy)
         curve: list[GenerationReport] = []
-        for _ in range(ga.generations):
+        adoptions: list[dict[str, object]] = []
+        for g in range(ga.generations):
+            if feed is not None:
+                for m in feed.due(g):
+                    if models.adopt(m.behaviour, m.version, m.ruleset()):
+                        adoptions.append({"generation": g, "partner": m.behaviour.value, "version": m.version,
+                                          "from_worker": m.worker, "partner_generation": m.generation})
+                partners = models.partners()
             rep = engine.generation(partners)
             curve.append(rep)
             if on_generation is not None:
@@ -81,6 +101,9 @@ def learn(
         write_csv(tmp / "curve.csv", rows)
         write_json(tmp / "curve.json", rows)
         write_text(tmp / "best.rules", format_ruleset(engine.best))
+        if feed is not None:
+            write_text(tmp / "adoptions.jsonl", "".join(json.dumps(a) + "\n" for a in adoptions))
+            tracking, docking = partners.tracking, partners.docking
         measures = measure_behaviour(
             behaviour, engine.best, world=world, tracking=tracking, docking=docking, epochs=measure_epochs, seed=seed + 1_000_003
         )

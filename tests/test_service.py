@@ -188,3 +188,23 @@ def test_worker_with_no_broker_fails_clearly(tmp_path: Path) -> None:
                         "--connect", f"tcp/127.0.0.1:{free_port()}", "--connect-timeout", "1", "--out", str(tmp_path / "w")],
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and "ConfigError" in r.stderr and "broker" in r.stderr
+
+
+def test_executive_learns_from_a_recorded_history_at_a_rate(tmp_path: Path) -> None:
+    r = subprocess.run([sys.executable, "-m", "coevo", "run", "--regime", "independent", "--run", "hist", "--root", str(tmp_path),
+                        "--generations", "4", *SMALL, "--measure-epochs", "2", "--quiet"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    outs = {}
+    for rate in ("0.5", "2"):
+        out = tmp_path / f"exec-{rate}"
+        e = subprocess.run([sys.executable, "-m", "coevo", "learn", "--behaviour", "executive", "--history", str(tmp_path / "hist"),
+                            "--rate", rate, "--generations", "4", *SMALL, "--measure-epochs", "2", "--out", str(out), "--quiet"],
+                           capture_output=True, text=True, timeout=300)
+        assert e.returncode == 0, e.stderr
+        outs[rate] = [json.loads(x) for x in (out / "adoptions.jsonl").read_text().splitlines()]
+    for rate, rows in outs.items():
+        for a in rows:  # never adopts a version from the partner's future at this rate
+            assert a["partner_generation"] <= a["generation"] * float(rate)
+    bad = subprocess.run([sys.executable, "-m", "coevo", "learn", "--behaviour", "executive", "--history", str(tmp_path / "hist"),
+                          "--rate", "0", "--out", str(tmp_path / "bad"), "--quiet"], capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 2 and "rate" in bad.stderr and not (tmp_path / "bad").exists()
