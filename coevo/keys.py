@@ -1,6 +1,8 @@
 """Every Zenoh key expression coevo uses, built in one place (the wire protocol).
 
     coevo/<run>/policy/<behaviour>              PolicyUpdate, put by that behaviour's worker
+    coevo/<run>/current/<behaviour>             PolicyUpdate of its current generation's best
+                                                (version = generation), for the "current" model
     coevo/<run>/status/<behaviour>/<worker>     Status heartbeat, once per generation
     coevo/<run>/control                         Control (stop)
     coevo/<run>/alive/<behaviour>/<worker>      liveliness token of a worker
@@ -18,7 +20,7 @@ import re
 from coevo.behaviours import Behaviour
 from coevo.errors import ConfigError
 
-__all__ = ["ROOT", "check_id", "policy", "status", "control", "alive", "store_latest", "store_history", "parse"]
+__all__ = ["ROOT", "BROKER", "check_id", "policy", "current", "status", "control", "alive", "store_latest", "store_history", "parse"]
 
 ROOT = "coevo"
 BROKER = f"{ROOT}/_broker"
@@ -45,6 +47,10 @@ def _w(b: Behaviour | str | None) -> str:
 
 def policy(run: str, behaviour: Behaviour | str | None = None) -> str:
     return f"{ROOT}/{check_id('run id', run)}/policy/{_w(behaviour)}"
+
+
+def current(run: str, behaviour: Behaviour | str | None = None) -> str:
+    return f"{ROOT}/{check_id('run id', run)}/current/{_w(behaviour)}"
 
 
 def status(run: str, behaviour: Behaviour | str | None = None, worker: str | None = None) -> str:

@@ -129,8 +129,8 @@ def _check_key(msg: PolicyUpdate | Status | Control, key: str) -> None:
         raise MessageError("wrong_key", f"{key!r} is not a coevo key")
     if k["run"] != msg.run:
         raise MessageError("wrong_run", f"message for run {msg.run!r} on {key!r}")
-    topic = {"policy": "policy", "status": "status", "control": "control"}[msg.kind]
-    if k["topic"] != topic:
+    topics = {"policy": ("policy", "current"), "status": ("status",), "control": ("control",)}[msg.kind]
+    if k["topic"] not in topics:
         raise MessageError("wrong_key", f"{msg.kind} message on {key!r}")
     beh = getattr(msg, "behaviour", None)
     if beh is not None and k.get("behaviour") != beh.value:

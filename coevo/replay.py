@@ -74,9 +74,13 @@ def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, unt
     for g in range(n):
         for a in by_gen.get(g, []):
             key = (a["partner"], a["from_worker"], int(a["version"]))
-            if key not in store:
-                raise RunDirError(f"{wdir.name}: adopted {key} is not in the store; the run directory is incomplete")
-            models.adopt(Behaviour(a["partner"]), int(a["version"]), store[key])
+            if "rules" in a:
+                rules = RuleSet.from_dict(a["rules"])
+            elif key in store:
+                rules = store[key]
+            else:
+                raise RunDirError(f"{wdir.name}: adopted {key} is neither in the log nor in the store; the run directory is incomplete")
+            models.adopt(Behaviour(a["partner"]), int(a["version"]), rules)
         rep = ga.generation(models.partners()).as_dict()
         for k in _COMPARED:
             if rep[k] != curve[g][k]:

@@ -208,3 +208,21 @@ def test_executive_learns_from_a_recorded_history_at_a_rate(tmp_path: Path) -> N
     bad = subprocess.run([sys.executable, "-m", "coevo", "learn", "--behaviour", "executive", "--history", str(tmp_path / "hist"),
                           "--rate", "0", "--out", str(tmp_path / "bad"), "--quiet"], capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and "rate" in bad.stderr and not (tmp_path / "bad").exists()
+
+
+def test_current_policy_model_end_to_end_replays_from_the_log(tmp_path: Path) -> None:
+    r = subprocess.run([sys.executable, "-m", "coevo", "run", "--regime", "mutual", "--model", "current", "--run", "cur",
+                        "--root", str(tmp_path), "--generations", "4", *SMALL, "--measure-epochs", "2", "--quiet"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    run_dir = tmp_path / "cur"
+    for b in ("tracking", "docking", "executive"):
+        for line in (run_dir / "workers" / b / "adoptions.jsonl").read_text().splitlines():
+            a = json.loads(line)
+            assert 1 <= a["version"] <= 4 and "rules" in a  # versions of "current" are partner generations
+    import shutil
+
+    shutil.rmtree(run_dir / "store")  # the log alone must suffice
+    (run_dir / "store").mkdir()
+    rr = subprocess.run([sys.executable, "-m", "coevo", "replay", str(run_dir)], capture_output=True, text=True, timeout=300)
+    assert rr.returncode == 0, rr.stdout + rr.stderr

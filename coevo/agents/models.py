@@ -11,8 +11,10 @@ Regimes (SPEC §2):
 Until a partner has published anything, its model is a random rule set drawn from
 the worker's seed *(ours)*: "best so far" of a GA that has not finished a
 generation is one of its random initial policies.  Model kinds: ``best`` (the
-newest published best so far, the report's choice) and ``recent`` (each
-generation, one of the last ``recent`` bests at random).
+newest published best so far, the report's choice), ``current`` (the partner's
+current policy: the best individual of its latest generation, published every
+generation on its own key) and ``recent`` (each generation, one of the last
+``recent`` bests at random).
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from coevo.policy.rules import RuleSet, random_ruleset
 __all__ = ["REGIMES", "MODELS", "partners_needed", "PartnerModels"]
 
 REGIMES = ("mutual", "independent")
-MODELS = ("best", "recent")
+MODELS = ("best", "current", "recent")
 Regime = Literal["mutual", "independent"]
 
 

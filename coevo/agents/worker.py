@@ -113,6 +113,7 @@ class Worker:
                 entry = {
                     "generation": generation, "partner": beh.value, "version": msg.version,
                     "from_worker": msg.worker, "fitness": msg.fitness, "received_at": time.time(),
+                    "rules": msg.rules,  # so a replay needs nothing but this log
                 }
                 log_file.write(json.dumps(entry) + "\n")
                 log_file.flush()
@@ -131,10 +132,12 @@ class Worker:
         with open_session(self.conf, what=f"{self.behaviour} worker session") as s, \
                 open(self.out / "adoptions.jsonl", "a", encoding="utf-8") as adopt_log, \
                 open(self.out / "curve.jsonl", "a", encoding="utf-8") as curve_log:
-            decls = [s.declare_subscriber(keys.policy(self.run_id, b), self._on_policy) for b in self.models.needed]
+            partner_key = keys.current if self.models.kind == "current" else keys.policy
+            decls = [s.declare_subscriber(partner_key(self.run_id, b), self._on_policy) for b in self.models.needed]
             decls.append(s.declare_subscriber(keys.control(self.run_id), self._on_control))
             token = s.liveliness().declare_token(keys.alive(self.run_id, self.behaviour, self.worker_id))
             pub = s.declare_publisher(keys.policy(self.run_id, self.behaviour))
+            current_pub = s.declare_publisher(keys.current(self.run_id, self.behaviour))
             status_pub = s.declare_publisher(keys.status(self.run_id, self.behaviour, self.worker_id))
             last_policy: bytes | None = None
             try:
@@ -160,6 +163,12 @@ class Worker:
                             rules=ga.best.to_dict(), sent_at=time.time(),
                         ))
                         write_text(self.out / "best.rules", format_ruleset(ga.best))
+                    if ga.current is not None:
+                        current_pub.put(encode(PolicyUpdate(
+                            run=self.run_id, behaviour=self.behaviour, worker=self.worker_id, version=rep.generation,
+                            generation=rep.generation, fitness=ga.current_fitness, episodes=self.ga_cfg.episodes,
+                            rules=ga.current.to_dict(), sent_at=time.time(),
+                        )))
                     if last_policy is not None:
                         # Every generation, not only on improvement: a put nobody received is lost
                         # silently, and the store and partners drop versions they already have.
@@ -196,6 +205,8 @@ class Worker:
 
     def _fetch_from_store(self, session: Any) -> None:
         """A late or restarted worker gets the partners' current best at once."""
+        if self.models.kind == "current":
+            return  # current policies are not stored; the next generation's arrives within a generation
         for b in self.models.needed:
             try:
                 for reply in session.get(keys.store_latest(self.run_id, b), timeout=self.store_timeout):

@@ -81,6 +81,8 @@ class GA:
             self.population = [random_ruleset(self.behaviour, ga.initial_rules, self.rng) for _ in range(ga.population)]
         self.generation_no = 0
         self.best: RuleSet | None = None
+        self.current: RuleSet | None = None  # the last generation's best individual (strengths learned)
+        self.current_fitness = 0.0
         self.best_fitness = -np.inf
         self.last: Evaluation | None = None
 
@@ -97,6 +99,7 @@ class GA:
             update_strengths(p, e.fired, e.payoff, cfg.strength_rate) for p, e in zip(self.population, ev.experience)
         ]
         top = int(np.argmax(ev.fitness))
+        self.current, self.current_fitness = learned[top], float(ev.fitness[top])
         check = self.evaluator.evaluate([learned[top]], partners, self._child_rng(), episodes=cfg.best_episodes)
         best_fit = float(check.fitness[0])
         improved = best_fit > self.best_fitness
