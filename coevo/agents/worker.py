@@ -27,6 +27,7 @@ from coevo.config import GAConfig, WorldConfig
 from coevo.errors import MessageError, RuleSetError
 from coevo.ga import GA, GenerationReport
 from coevo.messages import Control, PolicyUpdate, Status, decode, encode
+from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
 from coevo.rundir import write_json, write_text
 
@@ -95,7 +96,7 @@ class Worker:
     def _adopt(self, generation: int, log_file: Any) -> None:
         with self._lock:
             items, self._inbox = self._inbox, []
-        newest: dict[Behaviour, PolicyUpdate] = {}
+        newest: dict[Behaviour, tuple[PolicyUpdate, RuleSet]] = {}
         for key, payload in items:
             try:
                 msg = decode(payload, key=key)
@@ -106,10 +107,10 @@ class Worker:
                 self._reject(err if isinstance(err, MessageError) else MessageError("invalid", str(err)), key)
                 continue
             cur = newest.get(msg.behaviour)
-            if cur is None or msg.version > cur.version:
-                newest[msg.behaviour] = msg
-        for beh, msg in newest.items():
-            if self.models.adopt(beh, msg.version, msg.ruleset()):
+            if cur is None or msg.version > cur[0].version:
+                newest[msg.behaviour] = (msg, rules)
+        for beh, (msg, rules) in newest.items():
+            if self.models.adopt(beh, msg.version, rules):
                 entry = {
                     "generation": generation, "partner": beh.value, "version": msg.version,
                     "from_worker": msg.worker, "fitness": msg.fitness, "received_at": time.time(),
