@@ -89,10 +89,13 @@ def open_session(conf: zenoh.Config, *, what: str = "session") -> Iterator[Any]:
         session.close()
 
 
-def sigterm_as_exit() -> None:
-    """Turn SIGTERM into KeyboardInterrupt: one stop path, and ``finally`` blocks close sessions."""
+def sigterm_as_exit() -> Any:
+    """Turn SIGTERM into KeyboardInterrupt: one stop path, and ``finally`` blocks close sessions.
+
+    Returns the previous handler, for callers that restore it.
+    """
 
     def _raise(signum: int, frame: Any) -> None:
         raise KeyboardInterrupt(f"signal {signum}")
 
-    signal.signal(signal.SIGTERM, _raise)
+    return signal.signal(signal.SIGTERM, _raise)

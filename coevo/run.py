@@ -22,7 +22,7 @@ from typing import Any
 
 from coevo import keys
 from coevo.behaviours import Behaviour
-from coevo.bus import make_config, open_session
+from coevo.bus import make_config, open_session, sigterm_as_exit
 from coevo.config import GAConfig, WorldConfig
 from coevo.errors import RunDirError
 from coevo.messages import Control, PolicyUpdate, decode, encode
@@ -96,7 +96,7 @@ def run_local(
 
     t0 = time.time()
     interrupted = False
-    previous = signal.signal(signal.SIGTERM, lambda s, f: (_ for _ in ()).throw(KeyboardInterrupt()))
+    previous = sigterm_as_exit()
     try:
         spawn("broker", ["broker", "--listen", endpoint, "--data-dir", str(root)])
         workers = {

@@ -95,7 +95,8 @@ class StatusBoard:
             v.regime, v.generation, v.generations = msg.regime, msg.generation, msg.generations
             v.best_fitness, v.partner_versions = msg.best_fitness, msg.partner_versions
             v.rejected, v.done, v.last_heartbeat = sum(msg.rejected.values()), msg.done, time.time()
-            v.token = True if not msg.done else v.token
+            if not msg.done:
+                v.token = True  # a heartbeat proves the process is there
         self.changed.set()
 
     def _on_token(self, sample: Any) -> None:

@@ -80,7 +80,7 @@ def select_parents(fitness: np.ndarray, fraction: float, rng: np.random.Generato
     return order[:n]
 
 
-def _units(rs: RuleSet, exp: Experience, rng: np.random.Generator) -> list[np.ndarray]:
+def _units(rs: RuleSet, exp: Experience) -> list[np.ndarray]:
     """Partition a parent's rules into clusters (fired together in a high-payoff episode) and singletons."""
     n = len(rs)
     assigned = np.zeros(n, dtype=bool)
@@ -108,7 +108,7 @@ def crossover(
     pools: list[list[tuple[RuleSet, np.ndarray]]] = [[], []]
     for rs, exp in ((a, ea), (b, eb)):
         idle = ~exp.fired_rules(len(rs))
-        for unit in _units(rs, exp, rng):
+        for unit in _units(rs, exp):
             pools[int(rng.integers(2))].append((rs.take(unit), idle[unit]))
     for side in (0, 1):
         if not pools[side]:  # steal one unit so neither child is empty

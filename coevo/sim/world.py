@@ -159,16 +159,6 @@ class BatchWorld:
         a, b = arbiter.shapes
         hits.append(a.lane if a.collision_type == _ROBOT else b.lane)
 
-    @property
-    def robot(self) -> np.ndarray:
-        """Robot positions ``(n, 2)`` (a copy)."""
-        return np.stack([self.rx, self.ry], axis=1)
-
-    @property
-    def target(self) -> np.ndarray:
-        """Target positions ``(n, 2)`` (a copy)."""
-        return np.stack([self.tx, self.ty], axis=1)
-
     # ----------------------------------------------------------------- placement
     def random_starts(self, m: int, rng: np.random.Generator) -> np.ndarray:
         """``m`` random epoch starts, rows of (robot x, y, heading, target x, y, heading) in radians."""
