@@ -70,6 +70,11 @@ def _add_settings(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ga", action="append", metavar="NAME=VALUE", help="GA setting, e.g. mutation_rate=0.05 (repeatable)")
 
 
+def _add_max_lead(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--max-lead", default="1", metavar="N|off",
+                   help="pacing: start a generation only when every partner is at most N generations behind (default 1; off = unpaced)")
+
+
 def cmd_learn(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
@@ -149,6 +154,7 @@ def cmd_broker(args: argparse.Namespace) -> int:
 
 def cmd_worker(args: argparse.Namespace) -> int:
     from coevo import keys
+    from coevo.agents.pacing import parse_max_lead
     from coevo.agents.worker import Worker
     from coevo.bus import config_from_args, sigterm_as_exit
 
@@ -159,7 +165,8 @@ def cmd_worker(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("runs") / args.run / "workers" / behaviour.value
     sigterm_as_exit()
     w = Worker(behaviour=behaviour, regime=args.regime, run=args.run, worker_id=worker_id, seed=args.seed,
-               world=world, ga=ga, out_dir=out, conf=config_from_args(args), model=args.model)
+               world=world, ga=ga, out_dir=out, conf=config_from_args(args), model=args.model,
+               max_lead=parse_max_lead(args.max_lead))
     try:
         curve = w.run()
     except KeyboardInterrupt:
@@ -172,9 +179,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     from rich.live import Live
     from rich.table import Table
 
+    from coevo.agents.pacing import parse_max_lead
     from coevo.run import run_local
 
     world, ga = _configs(args)
+    max_lead = parse_max_lead(args.max_lead)
     run_id = args.run or f"{args.regime}-{time.strftime('%Y%m%d-%H%M%S')}"
 
     def table(board: Any) -> Table:
@@ -193,13 +202,65 @@ def cmd_run(args: argparse.Namespace) -> int:
                 live.update(table(board), refresh=True)
 
         summary = run_local(regime=args.regime, run=run_id, root=Path(args.root), world=world, ga=ga, seed=args.seed,
-                            model=args.model, measure_epochs=args.measure_epochs, on_status=show, log_level=args.log_level)
+                            model=args.model, max_lead=max_lead, measure_epochs=args.measure_epochs, on_status=show,
+                            log_level=args.log_level)
     print(f"run directory: {Path(args.root) / run_id} ({summary['seconds']:.1f} s)")
     if "measures" in summary:
         m = summary["measures"]
         print("combined robot: " + ", ".join(f"{k} {m[k]:.1f}" for k in
               ("quality_tracking", "successful_docking", "dock_choice", "average_epoch_length", "executive_payoff")))
     return 130 if summary["interrupted"] else 0
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from coevo.agents.pacing import parse_max_lead
+    from coevo.compare import CompareSpec, prepare, run_all, write_report
+    from coevo.compare.experiment import default_jobs
+
+    world, ga = _configs(args)
+    spec = CompareSpec.make(regimes=tuple(args.regimes), runs=args.runs, seed=args.seed, model=args.model,
+                            max_lead=parse_max_lead(args.max_lead), measure_epochs=args.measure_epochs, world=world, ga=ga)
+    jobs = default_jobs() if args.jobs is None else args.jobs
+    if jobs < 1:
+        raise ConfigError(f"--jobs must be at least 1, got {jobs}")
+    out = Path(args.out) if args.out else Path("runs") / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"
+    t0 = time.time()
+    if args.report_only:
+        if not (out / "compare.json").exists():
+            raise ConfigError(f"--report-only: {out} holds no comparison (no compare.json)")
+        todo = prepare(out, spec, resume=True)
+        print(f"{len(todo)} runs unfinished; reporting on the rest")
+    else:
+        todo = prepare(out, spec, resume=args.resume)
+        total = len(spec.regimes) * spec.runs
+        print(f"comparison in {out}: {total - len(todo)} of {total} runs already done, {len(todo)} to run, {jobs} at a time",
+              flush=True)
+        columns = (TextColumn("[bold]compare[/]"), BarColumn(), TextColumn("{task.fields[info]}"),
+                   TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn())
+        with Progress(*columns, disable=args.quiet) as bar:
+            task = bar.add_task("compare", total=1, info="")
+
+            def show(p: Any) -> None:
+                bar.update(task, total=p.total_generations, completed=p.done_generations,
+                           info=f"runs {p.runs_done}/{p.runs_total}" + (f", {len(p.failed)} failed" if p.failed else ""))
+
+            try:
+                failed = run_all(out, spec, todo, jobs=jobs, on_progress=show)
+            except KeyboardInterrupt:
+                print(f"interrupted; finished runs are kept: continue with the same command and --resume --out {out}",
+                      file=sys.stderr)
+                return 130
+        if failed:
+            print(f"{len(failed)} runs failed ({', '.join(failed)}); their logs are in {out / 'logs'}. "
+                  f"Run again with --resume to retry them.", file=sys.stderr)
+    results = write_report(out, spec, elapsed=None if args.report_only else time.time() - t0)
+    print(f"report: {out / 'report.md'}")
+    for r, counts in results["table1"].items():
+        print(f"  {r}: " + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
+    print(results["verdict"])
+    return 1 if results["runs_finished"] < results["runs_expected"] and not args.report_only else 0
 
 
 def cmd_status(args: argparse.Namespace) -> int:
@@ -289,6 +350,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--model", default="best", choices=["best", "current", "recent"], help="how partners are modelled (default best so far)")
     p.add_argument("--out", help="worker directory (default runs/RUN/workers/BEHAVIOUR)")
+    _add_max_lead(p)
     _add_settings(p)
     add_connection_args(p)
     p.set_defaults(func=cmd_worker)
@@ -301,8 +363,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", default="best", choices=["best", "current", "recent"])
     p.add_argument("--measure-epochs", type=int, default=100)
     p.add_argument("--quiet", action="store_true")
+    _add_max_lead(p)
     _add_settings(p)
     p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("compare", help="many real runs per regime: Table 1, learning curves, rank tests, verdict")
+    p.add_argument("--regimes", nargs="+", default=["mutual", "independent"], metavar="REGIME",
+                   help="regimes to compare (default: mutual independent)")
+    p.add_argument("--runs", type=int, default=10, help="runs per regime (default 10, as in the report)")
+    p.add_argument("--out", help="comparison directory (default runs/compare-TIME)")
+    p.add_argument("--resume", action="store_true", help="continue the comparison in --out, keeping its finished runs")
+    p.add_argument("--report-only", action="store_true", help="only (re)write the report from the finished runs in --out")
+    p.add_argument("--jobs", type=int, help="runs at once (default: one per two cores)")
+    p.add_argument("--seed", type=int, default=0, help="base seed; run i of every regime uses seed + 1000 i")
+    p.add_argument("--model", default="best", choices=["best", "current", "recent"])
+    p.add_argument("--measure-epochs", type=int, default=100, help="fresh epochs measuring each final robot")
+    p.add_argument("--quiet", action="store_true", help="no progress display")
+    _add_max_lead(p)
+    _add_settings(p)
+    p.set_defaults(func=cmd_compare)
 
     p = sub.add_parser("replay", help="re-run a finished run in one process from its adoption log")
     p.add_argument("run_dir")

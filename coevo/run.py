@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from coevo import keys
+from coevo.agents.pacing import DEFAULT_MAX_LEAD
 from coevo.behaviours import Behaviour
 from coevo.bus import make_config, open_session, sigterm_as_exit
 from coevo.config import GAConfig, WorldConfig
@@ -70,6 +71,7 @@ def run_local(
     ga: GAConfig,
     seed: int,
     model: str = "best",
+    max_lead: int | None = DEFAULT_MAX_LEAD,
     measure_epochs: int = 100,
     on_status: Callable[[StatusBoard], None] | None = None,
     log_level: str = "WARNING",
@@ -81,7 +83,8 @@ def run_local(
     run_dir.mkdir(parents=True, exist_ok=True)
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     py = [sys.executable, "-m", "coevo", "--log-level", log_level]
-    write_json(run_dir / "run.json", {"run": run, "regime": regime, "seed": seed, "model": model, "endpoint": endpoint,
+    write_json(run_dir / "run.json", {"run": run, "regime": regime, "seed": seed, "model": model, "max_lead": max_lead,
+                                      "endpoint": endpoint,
                                       "world": world.model_dump(), "ga": ga.model_dump(), "started": time.time()})
     children: list[subprocess.Popen[bytes]] = []
     logs = run_dir / "logs"
@@ -103,6 +106,7 @@ def run_local(
             b: spawn(f"worker-{b.value}", [
                 "worker", "--behaviour", b.value, "--regime", regime, "--run", run, "--connect", endpoint,
                 "--seed", str(seed + i), "--model", model, "--out", str(run_dir / "workers" / b.value),
+                "--max-lead", "off" if max_lead is None else str(max_lead),
                 *_settings_args(world, ga),
             ])
             for i, b in enumerate(Behaviour)

@@ -21,6 +21,7 @@ from typing import Any
 
 from coevo import __version__, keys
 from coevo.agents.models import PartnerModels
+from coevo.agents.pacing import DEFAULT_MAX_LEAD, Pacer
 from coevo.behaviours import Behaviour
 from coevo.bus import open_session
 from coevo.config import GAConfig, WorldConfig
@@ -52,6 +53,7 @@ class Worker:
         model: str = "best",
         store_timeout: float = 2.0,
         broker_wait: float = 30.0,
+        max_lead: int | None = DEFAULT_MAX_LEAD,
     ) -> None:
         self.behaviour = Behaviour(behaviour)
         self.regime = regime
@@ -65,6 +67,7 @@ class Worker:
         self.models = PartnerModels(self.behaviour, regime, seed, kind=model, initial_rules=ga.initial_rules)
         self.store_timeout = store_timeout
         self.broker_wait = broker_wait
+        self.max_lead = max_lead
         self._inbox: list[tuple[str, bytes]] = []
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -124,7 +127,7 @@ class Worker:
         self.out.mkdir(parents=True, exist_ok=True)
         write_json(self.out / "worker.json", {
             "coevo": __version__, "behaviour": self.behaviour.value, "regime": self.regime, "run": self.run_id,
-            "worker": self.worker_id, "seed": self.seed, "model": self.models.kind,
+            "worker": self.worker_id, "seed": self.seed, "model": self.models.kind, "max_lead": self.max_lead,
             "world": self.world.model_dump(), "ga": self.ga_cfg.model_dump(),
         })
         ga = GA(self.behaviour, world=self.world, ga=self.ga_cfg, seed=self.seed)
@@ -140,6 +143,7 @@ class Worker:
             pub = s.declare_publisher(keys.policy(self.run_id, self.behaviour))
             current_pub = s.declare_publisher(keys.current(self.run_id, self.behaviour))
             status_pub = s.declare_publisher(keys.status(self.run_id, self.behaviour, self.worker_id))
+            pacer = Pacer(s, self.run_id, self.models.needed, max_lead=self.max_lead)
             last_policy: bytes | None = None
             try:
                 self._wait_for_broker(s)
@@ -148,6 +152,7 @@ class Worker:
                     if self._stop.is_set():
                         log.info("%s stopping at generation %d", self.worker_id, g)
                         break
+                    pacer.wait(g, self._stop)
                     t_net = time.perf_counter()
                     self._adopt(g, adopt_log)
                     self.net_seconds += time.perf_counter() - t_net
@@ -178,12 +183,14 @@ class Worker:
                     self.net_seconds += time.perf_counter() - t0
                 status_pub.put(encode(self._status(len(curve), float(ga.best_fitness) if curve else 0.0, done=True)))
             finally:
+                pacer.close()
                 token.undeclare()
                 for d in decls:
                     d.undeclare()
         write_json(self.out / "done.json", {
             "generations": len(curve), "versions_published": version, "rejected": dict(self.rejected),
             "net_seconds": self.net_seconds, "gen_seconds": sum(r.seconds for r in curve),
+            "pace_seconds": pacer.waited,
         })
         return curve
 

@@ -1,0 +1,107 @@
+"""Pacing: a worker stays at most ``max_lead`` generations ahead of its partners.
+
+The report ran each agent's GA on its own processor, and their generations took
+comparable time, so the three learning curves advance together (its Figures 5
+and 6 share one generation axis).  Here the agents' generations cost very
+different amounts: in the Independent regime the Executive can finish all 50 of
+its generations while Tracking and Docking are still at their tenth, and then it
+has only learned against near-random partners.  Pacing *(ours, on by default
+with a lead of 1 generation)* restores the report's setting without making the
+run synchronous: each worker still runs at its own pace and adopts whatever
+arrived, but before starting generation ``g+1`` it waits until every partner it
+models has reported finishing generation ``g - max_lead`` (or finished its run,
+or ``wait_limit`` seconds passed; a dead partner must not stall the others
+forever).  Progress is read from the partners' status heartbeats, so pacing
+needs nothing beyond what status already publishes.  ``max_lead=None`` turns it
+off.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Iterable
+from typing import Any
+
+from coevo import keys
+from coevo.behaviours import Behaviour
+from coevo.errors import ConfigError, MessageError
+from coevo.messages import Status, decode
+
+__all__ = ["Pacer", "parse_max_lead", "DEFAULT_MAX_LEAD"]
+
+log = logging.getLogger(__name__)
+
+DEFAULT_MAX_LEAD = 1
+
+
+def parse_max_lead(value: str | int | None) -> int | None:
+    """``"off"``/``None`` → no pacing; otherwise a lead of at least 0 generations."""
+    if value is None or (isinstance(value, str) and value.strip().lower() in ("off", "none")):
+        return None
+    try:
+        lead = int(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"max lead must be a whole number of generations or 'off', got {value!r}") from None
+    if lead < 0:
+        raise ConfigError(f"max lead must be 0 or more generations (or 'off'), got {lead}")
+    return lead
+
+
+class Pacer:
+    """Follows the partners' status heartbeats and holds a worker back when it is too far ahead."""
+
+    def __init__(self, session: Any, run: str, partners: Iterable[Behaviour], *, max_lead: int | None,
+                 wait_limit: float = 120.0) -> None:
+        self.run = run
+        self.partners = tuple(partners)
+        self.max_lead = max_lead
+        self.wait_limit = wait_limit
+        self.waited = 0.0
+        self._progress: dict[Behaviour, int] = {b: 0 for b in self.partners}
+        self._finished: set[Behaviour] = set()
+        self._cond = threading.Condition()
+        self._subs = [] if max_lead is None else [
+            session.declare_subscriber(keys.status(run, b), self._on_status) for b in self.partners
+        ]
+
+    def _on_status(self, sample: Any) -> None:
+        try:
+            msg = decode(bytes(sample.payload.to_bytes()), key=str(sample.key_expr))
+        except MessageError:
+            return  # bad messages on the status keys are not pacing's business; status counts them
+        if not isinstance(msg, Status) or msg.behaviour not in self._progress:
+            return
+        with self._cond:
+            self._progress[msg.behaviour] = max(self._progress[msg.behaviour], msg.generation)
+            if msg.done or msg.generation >= msg.generations:
+                self._finished.add(msg.behaviour)
+            self._cond.notify_all()
+
+    def _behind(self, need: int) -> list[Behaviour]:
+        return [b for b in self.partners if b not in self._finished and self._progress[b] < need]
+
+    def wait(self, completed: int, stop: threading.Event) -> float:
+        """Block before the generation after ``completed`` ones until the partners are close enough."""
+        if self.max_lead is None or not self.partners:
+            return 0.0
+        need = completed - self.max_lead
+        t0 = time.monotonic()
+        end = t0 + self.wait_limit
+        with self._cond:
+            while self._behind(need) and not stop.is_set():
+                left = end - time.monotonic()
+                if left <= 0:
+                    log.warning("pacing: partners %s still behind generation %d after %.0f s; going on",
+                                [b.value for b in self._behind(need)], need, self.wait_limit)
+                    break
+                self._cond.wait(min(left, 0.5))
+        waited = time.monotonic() - t0
+        self.waited += waited
+        return waited
+
+    def close(self) -> None:
+        for s in self._subs:
+            s.undeclare()
+        self._subs = []
