@@ -1,0 +1,11 @@
+"""Regime comparisons: many real runs per regime, the report's Table 1, curves and a verdict.
+
+``experiment`` plans, runs and resumes the replicates; ``table1`` classes a run
+as the report's Table 1 does; ``stats`` compares two regimes; ``plots`` draws
+the learning curves; ``report`` writes it all down.
+"""
+
+from coevo.compare.experiment import CompareSpec, prepare, run_all
+from coevo.compare.report import write_report
+
+__all__ = ["CompareSpec", "prepare", "run_all", "write_report"]

@@ -1,0 +1,266 @@
+"""A regime comparison: N real asynchronous runs per regime, resumable.
+
+Every replicate is a whole ``coevo run`` (its own broker and three worker
+processes on a free port, its own run id and directory under ``OUT/runs/``), so
+what is compared is exactly what a user gets.  Replicate ``i`` of every regime
+uses the same seed (a paired design: the regimes differ in their agents'
+interactions, not in their random initial populations).
+
+Resuming: ``OUT/compare.json`` holds the comparison's settings; a finished run
+has ``summary.json`` with its measures.  ``--resume`` keeps the finished runs,
+deletes the half-done ones (an interrupted asynchronous run cannot be continued
+as if nothing happened) and runs the rest.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from coevo.agents.models import MODELS, REGIMES
+from coevo.agents.pacing import DEFAULT_MAX_LEAD
+from coevo.behaviours import Behaviour
+from coevo.config import GAConfig, WorldConfig
+from coevo.errors import ConfigError, RunDirError
+from coevo.rundir import write_json
+
+__all__ = ["CompareSpec", "Replicate", "prepare", "replicates", "run_all", "default_jobs"]
+
+log = logging.getLogger(__name__)
+
+SEED_STRIDE = 1000  # replicate i runs with seed + i * SEED_STRIDE (workers take seed, seed+1, seed+2)
+
+
+class CompareSpec(BaseModel):
+    """Everything that makes two comparisons the same comparison."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    regimes: tuple[str, ...] = REGIMES
+    runs: int = Field(10, ge=1, le=1000, description="replicates per regime")
+    seed: int = 0
+    model: str = "best"
+    max_lead: int | None = DEFAULT_MAX_LEAD
+    measure_epochs: int = Field(100, ge=1, le=100_000)
+    world: WorldConfig = WorldConfig()
+    ga: GAConfig = GAConfig()
+
+    @field_validator("regimes")
+    @classmethod
+    def _regimes(cls, v: tuple[str, ...]) -> tuple[str, ...]:
+        if not v:
+            raise ValueError("name at least one regime")
+        for r in v:
+            if r not in REGIMES:
+                raise ValueError(f"unknown regime {r!r} (use {' or '.join(REGIMES)})")
+        if len(set(v)) != len(v):
+            raise ValueError(f"regimes repeat: {list(v)}")
+        return v
+
+    @field_validator("model")
+    @classmethod
+    def _model(cls, v: str) -> str:
+        if v not in MODELS:
+            raise ValueError(f"unknown partner model {v!r} (use {', '.join(MODELS)})")
+        return v
+
+    @field_validator("max_lead")
+    @classmethod
+    def _lead(cls, v: int | None) -> int | None:
+        if v is not None and v < 0:
+            raise ValueError(f"max_lead must be 0 or more (or None for unpaced), got {v}")
+        return v
+
+    @classmethod
+    def make(cls, **values: Any) -> CompareSpec:
+        try:
+            return cls(**values)
+        except ValidationError as exc:
+            msgs = [f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors()]
+            raise ConfigError("comparison settings: " + "; ".join(msgs)) from exc
+
+
+@dataclass(frozen=True)
+class Replicate:
+    regime: str
+    index: int
+    seed: int
+
+    @property
+    def run_id(self) -> str:
+        return f"{self.regime}-{self.index:02d}"
+
+
+def replicates(spec: CompareSpec) -> list[Replicate]:
+    """Interleaved (mutual-00, independent-00, mutual-01, ...) so a partial comparison is balanced."""
+    return [Replicate(r, i, spec.seed + i * SEED_STRIDE) for i in range(spec.runs) for r in spec.regimes]
+
+
+def run_dir(out: Path, rep: Replicate) -> Path:
+    return Path(out) / "runs" / rep.run_id
+
+
+def is_finished(out: Path, rep: Replicate) -> bool:
+    f = run_dir(out, rep) / "summary.json"
+    if not f.exists():
+        return False
+    try:
+        return "measures" in json.loads(f.read_text())
+    except (OSError, json.JSONDecodeError):
+        return False
+
+
+def _spec_json(spec: CompareSpec) -> dict[str, Any]:
+    return json.loads(spec.model_dump_json())
+
+
+def prepare(out: Path, spec: CompareSpec, *, resume: bool) -> list[Replicate]:
+    """Check OUT before anything starts; returns the replicates still to run.
+
+    A fresh comparison needs an empty or missing OUT.  ``resume`` needs OUT to
+    hold this very comparison (same settings); anything else is refused with a
+    message naming what differs.
+    """
+    out = Path(out)
+    marker = out / "compare.json"
+    if out.exists() and not out.is_dir():
+        raise RunDirError(f"--out {str(out)!r} is a file, not a directory")
+    if out.exists() and any(out.iterdir()):
+        if not marker.exists():
+            raise RunDirError(f"--out {str(out)!r} is not empty and holds no comparison (no compare.json); choose another --out")
+        try:
+            held = json.loads(marker.read_text())["spec"]
+        except (OSError, json.JSONDecodeError, KeyError, TypeError) as exc:
+            raise RunDirError(f"{marker} cannot be read ({exc}); choose another --out") from exc
+        mine = _spec_json(spec)
+        if held != mine:
+            diff = sorted(k for k in set(held) | set(mine) if held.get(k) != mine.get(k))
+            raise RunDirError(
+                f"--out {str(out)!r} holds a different comparison (differs in: {', '.join(diff)}); "
+                "choose another --out or repeat the original settings with --resume")
+        if not resume:
+            raise RunDirError(f"--out {str(out)!r} already holds this comparison; add --resume to continue it")
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+        write_json(marker, {"spec": _spec_json(spec), "created": time.time()})
+    todo = []
+    for rep in replicates(spec):
+        if is_finished(out, rep):
+            continue
+        d = run_dir(out, rep)
+        if d.exists():
+            log.info("removing the unfinished run %s to run it again", d)
+            shutil.rmtree(d)
+        todo.append(rep)
+    return todo
+
+
+def default_jobs() -> int:
+    """Runs at once: a run keeps about two cores busy (three workers, paced), so one per two cores."""
+    return max(1, (os.cpu_count() or 1) // 2)
+
+
+def _run_command(out: Path, spec: CompareSpec, rep: Replicate) -> list[str]:
+    cmd = [sys.executable, "-m", "coevo", "run", "--quiet", "--regime", rep.regime, "--run", rep.run_id,
+           "--root", str(Path(out) / "runs"), "--seed", str(rep.seed), "--model", spec.model,
+           "--max-lead", "off" if spec.max_lead is None else str(spec.max_lead),
+           "--measure-epochs", str(spec.measure_epochs)]
+    for k, v in spec.world.model_dump(exclude_defaults=True).items():
+        cmd += ["--world", f"{k}={json.dumps(v)}"]
+    for k, v in spec.ga.model_dump(exclude_defaults=True).items():
+        cmd += ["--ga", f"{k}={json.dumps(v)}"]
+    return cmd
+
+
+def generations_done(out: Path, rep: Replicate) -> int:
+    """Worker generations finished so far in a replicate (for progress), read from the curve logs."""
+    n = 0
+    for b in Behaviour:
+        f = run_dir(out, rep) / "workers" / b.value / "curve.jsonl"
+        try:
+            with open(f, "rb") as fh:
+                n += sum(1 for _ in fh)
+        except OSError:
+            pass
+    return n
+
+
+@dataclass
+class Progress:
+    """What a display needs: worker-generations done out of the total, runs done, runs failed."""
+
+    total_generations: int
+    done_generations: int = 0
+    runs_total: int = 0
+    runs_done: int = 0
+    failed: list[str] = field(default_factory=list)
+
+
+def run_all(
+    out: Path,
+    spec: CompareSpec,
+    todo: list[Replicate],
+    *,
+    jobs: int,
+    on_progress: Callable[[Progress], None] | None = None,
+    poll: float = 1.0,
+) -> list[str]:
+    """Run the replicates, ``jobs`` at a time; returns the run ids that failed (their logs say why)."""
+    if jobs < 1:
+        raise ConfigError(f"--jobs must be at least 1, got {jobs}")
+    out = Path(out)
+    per_run = len(Behaviour) * spec.ga.generations
+    all_reps = replicates(spec)
+    finished_before = [r for r in all_reps if r not in todo]
+    prog = Progress(total_generations=per_run * len(all_reps), runs_total=len(all_reps),
+                    runs_done=len(finished_before))
+    base = per_run * len(finished_before)
+    pending = list(todo)
+    active: dict[Replicate, tuple[subprocess.Popen[bytes], Any]] = {}
+    logs = out / "logs"
+    logs.mkdir(exist_ok=True)
+    try:
+        while pending or active:
+            while pending and len(active) < jobs:
+                rep = pending.pop(0)
+                fh = open(logs / f"{rep.run_id}.log", "wb")
+                active[rep] = (subprocess.Popen(_run_command(out, spec, rep), stdout=fh, stderr=subprocess.STDOUT,
+                                                stdin=subprocess.DEVNULL), fh)
+            time.sleep(poll)
+            for rep, (p, fh) in list(active.items()):
+                if p.poll() is None:
+                    continue
+                fh.close()
+                del active[rep]
+                if p.returncode == 0 and is_finished(out, rep):
+                    prog.runs_done += 1
+                    base += per_run
+                else:
+                    prog.failed.append(rep.run_id)
+                    log.error("run %s failed with status %s; see %s", rep.run_id, p.returncode, logs / f"{rep.run_id}.log")
+            prog.done_generations = base + sum(min(per_run, generations_done(out, r)) for r in active)
+            if on_progress:
+                on_progress(prog)
+    finally:
+        for p, fh in active.values():
+            if p.poll() is None:
+                p.terminate()  # coevo run turns SIGTERM into a clean stop of its broker and workers
+        for p, fh in active.values():
+            try:
+                p.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+            fh.close()
+    return prog.failed

@@ -1,0 +1,95 @@
+"""Learning-curve plots of a comparison (the report's Figures 5 and 6), as PNG files.
+
+Each curve is a mean over a regime's runs with the band between the lowest and
+highest run, and the individual runs drawn thin, so starved and successful runs
+remain visible instead of being averaged into one another.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["PANELS", "figure_for_regime", "figure_regimes"]
+
+# (title, behaviour, curve column, y label, y scale)
+PANELS = (
+    ("Executive learning curve", "executive", "best_fitness", "best fitness", 1.0),
+    ("Docking learning curve", "docking", "best_fitness", "best fitness", 1.0),
+    ("Tracking learning curve", "tracking", "best_fitness", "best fitness", 1.0),
+    ("Quality Tracking (Executive's best)", "executive", "quality_tracking", "% of episodes", 100.0),
+)
+
+Curves = Mapping[str, Mapping[str, Mapping[str, Sequence[float]]]]  # run -> behaviour -> column -> per generation
+
+
+def _matrix(curves: Curves, behaviour: str, column: str) -> np.ndarray:
+    """Runs × generations, padded with NaN where a run has fewer generations."""
+    rows = [list(c[behaviour][column]) for c in curves.values() if behaviour in c and column in c[behaviour]]
+    if not rows:
+        return np.zeros((0, 0))
+    n = max(len(r) for r in rows)
+    m = np.full((len(rows), n), np.nan)
+    for i, r in enumerate(rows):
+        m[i, : len(r)] = r
+    return m
+
+
+def _pyplot():  # type: ignore[no-untyped-def]
+    import matplotlib
+
+    matplotlib.use("Agg")  # files only, no display needed
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def figure_for_regime(curves: Curves, regime: str, path: Path) -> None:
+    """One regime's four panels, like the report's Figure 5 (Mutual) or 6 (Independent)."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(2, 2, figsize=(10, 7), constrained_layout=True)
+    for ax, (title, beh, col, ylabel, top) in zip(axes.flat, PANELS):
+        m = _matrix(curves, beh, col)
+        if m.size:
+            g = np.arange(1, m.shape[1] + 1)
+            for row in m:
+                ax.plot(g, row, color="0.75", linewidth=0.7)
+            ax.fill_between(g, np.nanmin(m, axis=0), np.nanmax(m, axis=0), color="tab:blue", alpha=0.12)
+            ax.plot(g, np.nanmean(m, axis=0), color="tab:blue", linewidth=2, label=f"mean of {m.shape[0]} runs")
+            ax.legend(loc="lower right", fontsize=8)
+        ax.set_title(title)
+        ax.set_xlabel("generation")
+        ax.set_ylabel(ylabel)
+        ax.set_ylim(0, top)
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"{regime.capitalize()} regime: learning and performance")
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def figure_regimes(by_regime: Mapping[str, Curves], path: Path) -> None:
+    """The regimes' mean curves side by side on the same four panels."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(2, 2, figsize=(10, 7), constrained_layout=True)
+    colours = ("tab:red", "tab:green", "tab:blue", "tab:orange")
+    for ax, (title, beh, col, ylabel, top) in zip(axes.flat, PANELS):
+        for colour, (regime, curves) in zip(colours, by_regime.items()):
+            m = _matrix(curves, beh, col)
+            if not m.size:
+                continue
+            g = np.arange(1, m.shape[1] + 1)
+            mean = np.nanmean(m, axis=0)
+            sd = np.nanstd(m, axis=0)
+            ax.fill_between(g, mean - sd, mean + sd, color=colour, alpha=0.15)
+            ax.plot(g, mean, color=colour, linewidth=2, label=f"{regime} (mean ± s.d., {m.shape[0]} runs)")
+        ax.set_title(title)
+        ax.set_xlabel("generation")
+        ax.set_ylabel(ylabel)
+        ax.set_ylim(0, top)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="lower right", fontsize=8)
+    fig.suptitle("Regimes compared")
+    fig.savefig(path, dpi=90)
+    plt.close(fig)

@@ -1,0 +1,216 @@
+"""The comparison's report: per-run measures, Table 1, rank tests, curves and a verdict.
+
+Everything is computed from the runs' own files (``summary.json`` and the
+workers' ``curve.jsonl``), so a report can be rebuilt from a comparison
+directory at any time (``coevo compare --report-only``).  Files written to OUT:
+``results.json`` (everything), ``runs.csv`` (one row per run), ``curves.csv``
+(one row per run, behaviour and generation), ``figure-REGIME.png``,
+``regimes.png`` and ``report.md``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from coevo.behaviours import Behaviour
+from coevo.compare import plots
+from coevo.compare.experiment import CompareSpec, Replicate, is_finished, replicates, run_dir
+from coevo.compare.stats import RankComparison, compare_samples
+from coevo.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
+from coevo.errors import RunDirError
+from coevo.rundir import write_csv, write_json, write_text
+
+__all__ = ["collect", "write_report", "MEASURES"]
+
+# The combined robot's measures shown per run (SPEC §2 "Measures").
+MEASURES = ("quality_tracking", "successful_docking", "average_epoch_length", "dock_choice", "executive_payoff")
+CURVE_COLUMNS = ("best_fitness", "best_so_far", "quality_tracking", "successful_docking", "dock_choice")
+
+
+def _curve(path: Path) -> list[dict[str, Any]]:
+    if not path.exists():
+        return []
+    return [json.loads(x) for x in path.read_text().splitlines() if x.strip()]
+
+
+def collect(out: Path, spec: CompareSpec) -> list[dict[str, Any]]:
+    """One record per finished run: its measures, Table 1 class, final fitnesses and curves."""
+    records = []
+    for rep in replicates(spec):
+        if not is_finished(out, rep):
+            continue
+        records.append(_record(out, rep))
+    return records
+
+
+def _record(out: Path, rep: Replicate) -> dict[str, Any]:
+    d = run_dir(out, rep)
+    summary = json.loads((d / "summary.json").read_text())
+    m = summary["measures"]
+    curves: dict[str, dict[str, list[float]]] = {}
+    final: dict[str, float] = {}
+    for b in Behaviour:
+        rows = _curve(d / "workers" / b.value / "curve.jsonl")
+        curves[b.value] = {c: [float(r[c]) for r in rows] for c in CURVE_COLUMNS}
+        final[b.value] = float(rows[-1]["best_so_far"]) if rows else float("nan")
+    return {
+        "run": rep.run_id, "regime": rep.regime, "index": rep.index, "seed": rep.seed,
+        "seconds": float(summary.get("seconds", float("nan"))),
+        "measures": {k: float(v) for k, v in m.items()},
+        "class": classify(m),
+        "final_best_so_far": final,
+        "versions": summary.get("versions", {}),
+        "curves": curves,
+    }
+
+
+def _fmt_p(p: float) -> str:
+    return f"{p:.2g}" if p >= 0.001 else "< 0.001"
+
+
+def _verdict(spec: CompareSpec, records: list[dict[str, Any]], tests: list[RankComparison]) -> str:
+    by = {r: [x for x in records if x["regime"] == r] for r in spec.regimes}
+    parts = []
+    for t in tests:
+        med = {t.a: t.median_a, t.b: t.median_b}
+        name = t.measure.replace("_", " ")
+        if t.p_value < 0.05 and t.median_a != t.median_b:
+            hi, lo = (t.b, t.a) if t.median_b > t.median_a else (t.a, t.b)
+            parts.append(f"{hi} beats {lo} on {name} (medians {med[hi]:.3g} vs {med[lo]:.3g}, "
+                         f"Mann–Whitney p = {_fmt_p(t.p_value)}, A = {t.a12:.2f}, {t.magnitude})")
+        else:
+            parts.append(f"the regimes do not differ significantly on {name} "
+                         f"({t.b} median {t.median_b:.3g}, {t.a} median {t.median_a:.3g}, p = {_fmt_p(t.p_value)}, "
+                         f"A = {t.a12:.2f})")
+    text = "; ".join(parts) + "."
+    text = text[0].upper() + text[1:]
+    for r, runs in by.items():
+        starved = sum(x["class"].startswith("No Docking") for x in runs)
+        good = sum(x["class"].startswith("Good Docking") for x in runs)
+        text += (f" In {r}, the Executive starved Docking (picked it in under 5 % of episodes) in {starved} of "
+                 f"{len(runs)} runs, and {good} of {len(runs)} runs docked well (≥ 20 % of episodes).")
+    exp = []
+    if "mutual" in by and "independent" in by and by["mutual"] and by["independent"]:
+        exec_t = next((t for t in tests if t.measure == "final_executive_fitness"), None)
+        dock_t = next((t for t in tests if t.measure == "successful_docking"), None)
+        mutual_starved = sum(x["class"].startswith("No Docking") for x in by["mutual"])
+
+        def independent_wins(t: RankComparison | None) -> bool:
+            if t is None or t.p_value >= 0.05:
+                return False
+            med = {t.a: t.median_a, t.b: t.median_b}
+            return med["independent"] > med["mutual"]
+
+        checks = [
+            ("Independent beats Mutual on final Executive fitness", independent_wins(exec_t)),
+            ("Independent beats Mutual on Successful Docking", independent_wins(dock_t)),
+            ("in most Mutual runs the Executive stops picking Docking", mutual_starved > len(by["mutual"]) / 2),
+            ("Independent runs dock well", sum(x["class"].startswith("Good Docking") for x in by["independent"])
+             > len(by["independent"]) / 2),
+        ]
+        held = [c for c, ok in checks if ok]
+        missed = [c for c, ok in checks if not ok]
+        exp.append(f" Against the report: {len(held)} of {len(checks)} of its findings hold here"
+                   + (f" ({'; '.join(held)})" if held else "")
+                   + (f"; not reproduced: {'; '.join(missed)}." if missed else "."))
+    return text + "".join(exp)
+
+
+def write_report(out: Path, spec: CompareSpec, *, elapsed: float | None = None) -> dict[str, Any]:
+    """Write results.json, runs.csv, curves.csv, the PNG figures and report.md; returns the results."""
+    out = Path(out)
+    records = collect(out, spec)
+    if not records:
+        raise RunDirError(f"{out} holds no finished runs to report on")
+    table = {r: count(x["class"] for x in records if x["regime"] == r) for r in spec.regimes}
+    tests: list[RankComparison] = []
+    if len(spec.regimes) == 2:
+        a, b = spec.regimes
+        ra = [x for x in records if x["regime"] == a]
+        rb = [x for x in records if x["regime"] == b]
+        if ra and rb:
+            tests.append(compare_samples("final_executive_fitness", a, [x["final_best_so_far"]["executive"] for x in ra],
+                                         b, [x["final_best_so_far"]["executive"] for x in rb]))
+            tests.append(compare_samples("successful_docking", a, [x["measures"]["successful_docking"] for x in ra],
+                                         b, [x["measures"]["successful_docking"] for x in rb]))
+    verdict = _verdict(spec, records, tests)
+    expected = len(replicates(spec))
+
+    curves_by_regime = {r: {x["run"]: x["curves"] for x in records if x["regime"] == r} for r in spec.regimes}
+    figures = []
+    for r, curves in curves_by_regime.items():
+        if curves:
+            plots.figure_for_regime(curves, r, out / f"figure-{r}.png")
+            figures.append(f"figure-{r}.png")
+    plots.figure_regimes(curves_by_regime, out / "regimes.png")
+    figures.append("regimes.png")
+
+    results = {
+        "spec": json.loads(spec.model_dump_json()), "runs_expected": expected, "runs_finished": len(records),
+        "elapsed_seconds": elapsed, "table1": table, "table1_report": REPORT_COUNTS,
+        "tests": [t.as_dict() for t in tests], "verdict": verdict, "figures": figures,
+        "runs": [{k: v for k, v in x.items() if k != "curves"} for x in records],
+    }
+    write_json(out / "results.json", results)
+    write_csv(out / "runs.csv", [
+        {"run": x["run"], "regime": x["regime"], "seed": x["seed"], "class": x["class"], "seconds": round(x["seconds"], 1),
+         **{k: x["measures"][k] for k in MEASURES},
+         **{f"final_{b}_fitness": x["final_best_so_far"][b] for b in (bb.value for bb in Behaviour)}}
+        for x in records
+    ])
+    curve_rows = []
+    for x in records:
+        for beh, cols in x["curves"].items():
+            for i in range(len(cols["best_fitness"])):
+                curve_rows.append({"run": x["run"], "regime": x["regime"], "behaviour": beh, "generation": i + 1,
+                                   **{c: cols[c][i] for c in CURVE_COLUMNS}})
+    write_csv(out / "curves.csv", curve_rows)
+    write_text(out / "report.md", _markdown(spec, records, table, tests, verdict, figures, expected, elapsed))
+    return results
+
+
+def _markdown(spec: CompareSpec, records: list[dict[str, Any]], table: dict[str, dict[str, int]],
+              tests: list[RankComparison], verdict: str, figures: list[str], expected: int, elapsed: float | None) -> str:
+    ga = spec.ga
+    lines = [
+        "# Regime comparison", "",
+        f"{len(records)} of {expected} runs finished"
+        + (f" in {elapsed / 60:.1f} min" if elapsed else "") + ". "
+        f"Regimes: {', '.join(spec.regimes)}; {spec.runs} runs each; {ga.generations} generations, population "
+        f"{ga.population}, {ga.episodes} episodes per evaluation, {ga.best_episodes} for the best; partner model "
+        f"`{spec.model}`; pacing max lead {spec.max_lead if spec.max_lead is not None else 'off'}; base seed {spec.seed}; "
+        f"measures on {spec.measure_epochs} fresh epochs.", "",
+        "## Verdict", "", verdict, "",
+        "## Table 1: runs per class (ours, then the report's)", "",
+        "| regime | " + " | ".join(CLASSES) + " |",
+        "|---|" + "---|" * len(CLASSES),
+    ]
+    for r in spec.regimes:
+        lines.append(f"| {r} (ours) | " + " | ".join(str(table[r][c] or "") for c in CLASSES) + " |")
+        if r in REPORT_COUNTS:
+            lines.append(f"| {r} (report) | " + " | ".join(str(REPORT_COUNTS[r].get(c, "")) for c in CLASSES) + " |")
+    lines += ["", "Classes: Good Docking ≥ 20 % of episodes dock successfully, Poor Docking < 20 %, No Docking = "
+              "Docking picked in < 5 % of episodes; Hi tracking > 60 % quality tracking, Med > 30 %, Lo otherwise.", ""]
+    if tests:
+        lines += ["## Statistical comparison", "",
+                  "| measure | median " + tests[0].a + " | median " + tests[0].b + " | Mann–Whitney U | p | A (" + tests[0].b
+                  + " > " + tests[0].a + ") | effect |", "|---|---|---|---|---|---|---|"]
+        for t in tests:
+            lines.append(f"| {t.measure.replace('_', ' ')} | {t.median_a:.3g} | {t.median_b:.3g} | {t.u:.1f} | "
+                         f"{_fmt_p(t.p_value)} | {t.a12:.2f} | {t.magnitude} |")
+        lines.append("")
+    lines += ["## Runs", "",
+              "| run | class | quality tracking % | successful docking % | avg epoch length | Docking picked % "
+              "| executive payoff | final E / D / T best fitness | minutes |",
+              "|---|---|---|---|---|---|---|---|---|"]
+    for x in records:
+        m, f = x["measures"], x["final_best_so_far"]
+        lines.append(f"| {x['run']} | {x['class']} | {m['quality_tracking']:.1f} | {m['successful_docking']:.1f} | "
+                     f"{m['average_epoch_length']:.2f} | {m['dock_choice']:.1f} | {m['executive_payoff']:.3f} | "
+                     f"{f['executive']:.3f} / {f['docking']:.3f} / {f['tracking']:.3f} | {x['seconds'] / 60:.1f} |")
+    lines += ["", "## Learning curves", ""]
+    lines += [f"![{f}]({f})" for f in figures]
+    lines += ["", "Files: `results.json` (everything above), `runs.csv`, `curves.csv`, and each run under `runs/`.", ""]
+    return "\n".join(lines)

@@ -1,0 +1,64 @@
+"""The report's Table 1: nine classes of a finished run, and the report's own counts.
+
+A run is classed by its combined robot's measures (SPEC §2, report Appendix A §7):
+
+- Docking: *No Docking* when the Executive picks Docking in under 5 % of episodes
+  (starvation); otherwise *Good Docking* with at least 20 % of episodes docking
+  successfully, else *Poor Docking*.
+- Tracking: *Hi* over 60 % quality tracking, *Med* over 30 %, else *Lo*.
+
+The report's counts come from its Table 1 and its text: Mutual, 9 of 10 runs
+never picked Docking (4 Hi, 3 Med, 2 Lo tracking) and the one run that docked
+"was not high" in tracking; Independent, 10 of 10 dock well, 5 Hi and 5 Med.
+The scan of the table lost the column of Mutual's docking run; the text says
+docking "was integrated into the Robot's behavior", which we read as Good
+Docking with Med tracking *(our reading)*.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterable, Mapping
+
+__all__ = ["DOCKING", "TRACKING", "CLASSES", "REPORT_COUNTS", "classify", "count"]
+
+DOCKING = ("Good Docking", "Poor Docking", "No Docking")
+TRACKING = ("Hi", "Med", "Lo")
+CLASSES = tuple(f"{d} / {t}" for d in DOCKING for t in TRACKING)
+
+NO_DOCKING_CHOICE = 5.0  # % of episodes the Executive picks Docking, below which Docking is starved
+GOOD_DOCKING = 20.0  # % of episodes that dock successfully
+HI_TRACKING = 60.0  # % quality tracking
+MED_TRACKING = 30.0
+
+REPORT_COUNTS: dict[str, dict[str, int]] = {
+    "mutual": {"Good Docking / Med": 1, "No Docking / Hi": 4, "No Docking / Med": 3, "No Docking / Lo": 2},
+    "independent": {"Good Docking / Hi": 5, "Good Docking / Med": 5},
+}
+
+
+def docking_class(successful_docking: float, dock_choice: float) -> str:
+    if dock_choice < NO_DOCKING_CHOICE:
+        return "No Docking"
+    return "Good Docking" if successful_docking >= GOOD_DOCKING else "Poor Docking"
+
+
+def tracking_class(quality_tracking: float) -> str:
+    if quality_tracking > HI_TRACKING:
+        return "Hi"
+    return "Med" if quality_tracking > MED_TRACKING else "Lo"
+
+
+def classify(measures: Mapping[str, float]) -> str:
+    """The Table 1 class of one run from its combined robot's measures."""
+    d = docking_class(float(measures["successful_docking"]), float(measures["dock_choice"]))
+    return f"{d} / {tracking_class(float(measures['quality_tracking']))}"
+
+
+def count(classes: Iterable[str]) -> dict[str, int]:
+    """Counts in all nine classes (zeros included), in the table's order."""
+    c = Counter(classes)
+    unknown = set(c) - set(CLASSES)
+    if unknown:
+        raise ValueError(f"not Table 1 classes: {sorted(unknown)}")
+    return {k: c.get(k, 0) for k in CLASSES}
