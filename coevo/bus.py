@@ -4,6 +4,13 @@ Flags follow the zenoh examples: ``--mode``, ``--connect``, ``--listen``,
 ``--config``, ``--no-multicast-scouting``.  Sessions are context managers: a
 process that exits without closing a session that has callback subscribers hangs
 (see ZENOH-NOTES), so every process closes its sessions in ``finally``.
+
+Members only: :class:`Security` turns ``--tls-ca/--tls-cert/--tls-key`` (mutual
+TLS on ``tls/`` endpoints) and ``--user/--password/--auth-file`` (Zenoh's
+user/password authentication) into Zenoh transport settings, and checks the
+merged configuration before any session opens, so that a missing certificate or
+a ``tcp/`` endpoint beside TLS settings is a clear error rather than a timeout or
+a run silently open to anyone.
 """
 
 from __future__ import annotations
@@ -11,30 +18,179 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import signal
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import zenoh
 
 from coevo.errors import ConfigError
 
-__all__ = ["DEFAULT_ENDPOINT", "add_connection_args", "make_config", "open_session", "sigterm_as_exit"]
+__all__ = ["DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "make_config",
+           "config_from_args", "open_session", "sigterm_as_exit"]
 
 log = logging.getLogger(__name__)
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+DEFAULT_TLS_ENDPOINT = "tls/localhost:7447"  # TLS checks the router's name: use one its certificate carries
+PASSWORD_ENV = "COEVO_ZENOH_PASSWORD"
+DEFAULT_LEASE_S = 3.0
+
+
+def _readable(what: str, path: str | Path) -> str:
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError(f"{what} {str(p)!r} does not exist or is not a file")
+    try:
+        with open(p, "rb") as f:
+            f.read(1)
+    except OSError as exc:
+        raise ConfigError(f"{what} {str(p)!r} cannot be read: {exc.strerror}") from exc
+    return str(p.resolve())
+
+
+@dataclass(frozen=True, kw_only=True)
+class Security:
+    """Who may join a run: mutual TLS, user/password, or both (validated at construction).
+
+    * ``tls_ca``: the CA that signed the members' certificates; a router accepts only
+      clients whose certificate it signed (mutual TLS), a client accepts only a router
+      whose certificate it signed.
+    * ``tls_cert``/``tls_key``: this process's own certificate and key (a router's must
+      name the host clients connect to).
+    * ``user``/``password``: this process's credentials (a client's login, or a router's
+      when it joins another router).
+    * ``auth_file``: a router's dictionary of accepted ``user:password`` lines.
+    """
+
+    tls_ca: str | None = None
+    tls_cert: str | None = None
+    tls_key: str | None = None
+    user: str | None = None
+    password: str | None = None
+    auth_file: str | None = None
+
+    def __post_init__(self) -> None:
+        if (self.tls_cert is None) != (self.tls_key is None):
+            raise ConfigError("--tls-cert and --tls-key go together: give both (this process's certificate and its key)")
+        if self.tls_cert is not None and self.tls_ca is None:
+            raise ConfigError("--tls-cert needs --tls-ca (the CA that signed the other members' certificates)")
+        for what, name in (("--tls-ca file", "tls_ca"), ("--tls-cert file", "tls_cert"), ("--tls-key file", "tls_key"),
+                           ("--auth-file", "auth_file")):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, _readable(what, getattr(self, name)))
+        if (self.user is None) != (self.password is None):
+            raise ConfigError(f"--user needs a password (--password or ${PASSWORD_ENV}) and a password needs --user")
+        if self.user is not None and (not self.user or ":" in self.user):
+            raise ConfigError(f"--user {self.user!r}: must be non-empty and contain no ':'")
+        if self.auth_file is not None:
+            lines = [x for x in Path(self.auth_file).read_text(encoding="utf-8").splitlines() if x.strip()]
+            bad = [n for n, x in enumerate(lines, 1) if ":" not in x or not x.split(":", 1)[0] or not x.split(":", 1)[1]]
+            if not lines or bad:
+                raise ConfigError(f"--auth-file {self.auth_file!r}: every line must be user:password "
+                                  f"({'empty file' if not lines else f'line {bad[0]} is not'})")
+
+    @property
+    def tls(self) -> bool:
+        return self.tls_ca is not None
+
+    @property
+    def enabled(self) -> bool:
+        return self.tls or self.user is not None or self.auth_file is not None
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> Security:
+        password = getattr(args, "password", None)
+        if password is None and getattr(args, "user", None) is not None:
+            password = os.environ.get(PASSWORD_ENV)
+        return cls(tls_ca=getattr(args, "tls_ca", None), tls_cert=getattr(args, "tls_cert", None),
+                   tls_key=getattr(args, "tls_key", None), user=getattr(args, "user", None), password=password,
+                   auth_file=getattr(args, "auth_file", None))
+
+    def apply(self, conf: zenoh.Config, mode: str) -> None:
+        """Write these settings into ``conf`` (a router both listens and, to join other routers, connects)."""
+        sets: dict[str, Any] = {}
+        if self.tls_ca is not None:
+            sets["transport/link/tls/root_ca_certificate"] = self.tls_ca
+            sets["transport/link/tls/enable_mtls"] = self.tls_cert is not None
+        if self.tls_cert is not None:
+            if mode == "router":
+                sets["transport/link/tls/listen_certificate"] = self.tls_cert
+                sets["transport/link/tls/listen_private_key"] = self.tls_key
+            sets["transport/link/tls/connect_certificate"] = self.tls_cert
+            sets["transport/link/tls/connect_private_key"] = self.tls_key
+        if self.user is not None:
+            sets["transport/auth/usrpwd/user"] = self.user
+            sets["transport/auth/usrpwd/password"] = self.password
+        if self.auth_file is not None:
+            if mode != "router":
+                raise ConfigError("--auth-file is a router's list of accepted users: give it to 'coevo broker' or 'coevo router'")
+            sets["transport/auth/usrpwd/dictionary_file"] = self.auth_file
+        for key, value in sets.items():
+            conf.insert_json5(key, json.dumps(value))
+
+
+def _endpoints(section: Any) -> list[str]:
+    """A config's ``listen``/``connect`` endpoints: a list, or a per-mode dict of lists."""
+    eps = (section or {}).get("endpoints") or []
+    if isinstance(eps, dict):
+        return [e for v in eps.values() for e in (v or [])]
+    return list(eps)
+
+
+def check_config(conf: zenoh.Config, *, source: str = "flags") -> None:
+    """Refuse a merged configuration that would fail late or leave a protected run open."""
+    try:
+        d = json.loads(str(conf))
+    except ValueError:  # a zenoh that prints its config differently: nothing to check
+        return
+    tls = ((d.get("transport") or {}).get("link") or {}).get("tls") or {}
+    for key in ("root_ca_certificate", "listen_certificate", "listen_private_key", "connect_certificate", "connect_private_key"):
+        if tls.get(key):
+            _readable(f"transport/link/tls/{key} ({source})", tls[key])
+    dictionary = (((d.get("transport") or {}).get("auth") or {}).get("usrpwd") or {}).get("dictionary_file")
+    if dictionary:
+        _readable(f"transport/auth/usrpwd/dictionary_file ({source})", dictionary)
+    mode = d.get("mode") or "peer"
+    listen, connect = _endpoints(d.get("listen")), _endpoints(d.get("connect"))
+    has_tls = bool(tls.get("root_ca_certificate") or tls.get("listen_certificate"))
+    for ep in listen + connect:
+        if ep.startswith(("tls/", "quic/")) and not tls.get("root_ca_certificate"):
+            raise ConfigError(f"endpoint {ep!r} is TLS but no CA is set: give --tls-ca (and --tls-cert/--tls-key for mutual TLS)")
+    for ep in listen:
+        if ep.startswith(("tls/", "quic/")) and not (tls.get("listen_certificate") and tls.get("listen_private_key")):
+            raise ConfigError(f"listening on {ep!r} needs this router's certificate: give --tls-cert and --tls-key")
+    if has_tls:
+        plain = [ep for ep in (listen if mode == "router" else connect) if not ep.startswith(("tls/", "quic/"))]
+        if plain:
+            raise ConfigError(f"TLS is configured but endpoint {plain[0]!r} is not tls/: every "
+                              f"{'listen' if mode == 'router' else 'connect'} endpoint must be tls/ or the run is open (or unreachable)")
 
 
 def add_connection_args(p: argparse.ArgumentParser, *, default_mode: str = "client") -> None:
     p.add_argument("--mode", choices=["client", "peer", "router"], default=default_mode, help=f"zenoh mode (default {default_mode})")
     p.add_argument("--connect", "-e", action="append", metavar="ENDPOINT", help=f"endpoint to connect to (default {DEFAULT_ENDPOINT} for clients)")
     p.add_argument("--listen", "-l", action="append", metavar="ENDPOINT", help="endpoint to listen on")
-    p.add_argument("--config", "-c", metavar="FILE", help="a zenoh JSON5 config file (flags override it)")
+    p.add_argument("--config", "--zenoh-config", "-c", dest="config", metavar="FILE",
+                   help="a full zenoh JSON5 config file, e.g. from deploy/zenoh/ (flags override it)")
     p.add_argument("--no-multicast-scouting", action="store_true", default=True, help="(default) do not scout by multicast")
     p.add_argument("--connect-timeout", type=float, default=30.0, metavar="SECONDS",
                    help="how long a client waits for its router before giving up (default 30; -1: for ever)")
+    p.add_argument("--lease", type=float, metavar="SECONDS",
+                   help=f"a link silent this long counts as dead and its session closes (default {DEFAULT_LEASE_S:g}; "
+                        "across hosts use 10 or more: longer survives network cuts, shorter detects dead workers faster)")
+    g = p.add_argument_group("members only (see deploy/README.md)")
+    g.add_argument("--tls-ca", metavar="FILE", help="CA certificate (PEM) that signed the members' certificates: mutual TLS")
+    g.add_argument("--tls-cert", metavar="FILE", help="this process's certificate (PEM), signed by --tls-ca")
+    g.add_argument("--tls-key", metavar="FILE", help="the private key (PEM) of --tls-cert")
+    g.add_argument("--user", help="user name for Zenoh user/password authentication")
+    g.add_argument("--password", help=f"its password (better: set ${PASSWORD_ENV}; a flag shows in ps)")
+    if default_mode == "router":
+        g.add_argument("--auth-file", metavar="FILE", help="accepted users, one user:password per line (routers only)")
 
 
 def make_config(
@@ -45,7 +201,10 @@ def make_config(
     config_file: str | None = None,
     connect_timeout: float = 30.0,
     lease_ms: int | None = 3000,
+    security: Security | None = None,
 ) -> zenoh.Config:
+    if config_file:
+        _readable("--zenoh-config file", config_file)
     try:
         conf = zenoh.Config.from_file(config_file) if config_file else zenoh.Config()
     except Exception as exc:  # zenoh raises ZError with the parser's message
@@ -53,7 +212,9 @@ def make_config(
     if mode not in ("client", "peer", "router"):
         raise ConfigError(f"zenoh mode {mode!r} is not client, peer or router")
     if mode == "client" and not connect and not config_file:
-        connect = [DEFAULT_ENDPOINT]
+        connect = [DEFAULT_TLS_ENDPOINT if security is not None and security.tls else DEFAULT_ENDPOINT]
+    if lease_ms is not None and lease_ms < 500:
+        raise ConfigError(f"lease {lease_ms} ms is too short: use at least 0.5 s (10 s across hosts)")
     try:
         conf.insert_json5("mode", json.dumps(mode))
         conf.insert_json5("scouting/multicast/enabled", "false")
@@ -66,14 +227,23 @@ def make_config(
             conf.insert_json5("connect/timeout_ms", json.dumps(ms))
         if lease_ms is not None:
             conf.insert_json5("transport/link/tx/lease", json.dumps(lease_ms))
+        if security is not None:
+            security.apply(conf, mode)
+    except ConfigError:
+        raise
     except Exception as exc:
         raise ConfigError(f"bad zenoh setting: {exc}") from exc
+    check_config(conf, source=f"--zenoh-config {config_file}" if config_file else "flags")
     return conf
 
 
 def config_from_args(args: argparse.Namespace) -> zenoh.Config:
+    lease = getattr(args, "lease", None)
+    if lease is None and not args.config:
+        lease = DEFAULT_LEASE_S  # with a config file, its lease (or zenoh's 10 s) stands unless --lease is given
     return make_config(mode=args.mode, connect=args.connect, listen=args.listen, config_file=args.config,
-                       connect_timeout=args.connect_timeout)
+                       connect_timeout=args.connect_timeout, lease_ms=None if lease is None else int(lease * 1000),
+                       security=Security.from_args(args))
 
 
 @contextmanager
@@ -82,7 +252,7 @@ def open_session(conf: zenoh.Config, *, what: str = "session") -> Iterator[Any]:
     try:
         session = zenoh.open(conf)
     except Exception as exc:
-        raise ConfigError(f"cannot open the zenoh {what}: {exc} (is 'coevo broker' running and reachable?)") from exc
+        raise ConfigError(f"cannot open the zenoh {what}: {exc} (is 'coevo broker' running and reachable, and does it accept this process's certificate or password?)") from exc
     try:
         yield session
     finally:

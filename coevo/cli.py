@@ -135,16 +135,37 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _router_listen(args: argparse.Namespace) -> list[str]:
+    if not args.listen and not args.config:
+        args.listen = ["tls/127.0.0.1:7447" if args.tls_ca else "tcp/127.0.0.1:7447"]
+    return args.listen or ["(from " + args.config + ")"]
+
+
+def cmd_router(args: argparse.Namespace) -> int:
+    """A plain Zenoh router (no store): a second site's meeting point, joined to the broker with --connect."""
+    from coevo.bus import config_from_args, open_session, sigterm_as_exit
+
+    listen = _router_listen(args)
+    sigterm_as_exit()
+    with open_session(config_from_args(args), what="router"):
+        print(f"coevo router listening on {', '.join(listen)}; joined to {', '.join(args.connect or ['-'])}", flush=True)
+        try:
+            while True:
+                time.sleep(3600)
+        except KeyboardInterrupt:
+            pass
+    return 0
+
+
 def cmd_broker(args: argparse.Namespace) -> int:
     from coevo.broker.server import Broker
     from coevo.bus import config_from_args, sigterm_as_exit
 
-    if not args.listen:
-        args.listen = ["tcp/127.0.0.1:7447"]
+    _router_listen(args)
     sigterm_as_exit()
     with Broker(config_from_args(args), Path(args.data_dir)) as broker:
         logging.getLogger("coevo.broker").info("broker listening on %s, store in %s", args.listen, args.data_dir)
-        print(f"coevo broker listening on {', '.join(args.listen)}; store in {args.data_dir}", flush=True)
+        print(f"coevo broker listening on {', '.join(_router_listen(args))}; store in {args.data_dir}", flush=True)
         try:
             broker.serve_forever()
         except KeyboardInterrupt:
@@ -341,6 +362,10 @@ def build_parser() -> argparse.ArgumentParser:
     add_connection_args(p, default_mode="router")
     p.add_argument("--data-dir", default="runs", help="where the store keeps each run's policies (default runs/)")
     p.set_defaults(func=cmd_broker)
+
+    p = sub.add_parser("router", help="a plain Zenoh router, no store: another site's meeting point (--connect to the broker)")
+    add_connection_args(p, default_mode="router")
+    p.set_defaults(func=cmd_router)
 
     p = sub.add_parser("worker", help="one behaviour's GA as its own process on the bus")
     p.add_argument("--behaviour", required=True, choices=[b.value for b in Behaviour])
