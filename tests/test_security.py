@@ -1,0 +1,159 @@
+"""Members only, for real: a protected broker process, members that join, intruders that cannot.
+
+Certificates are made with openssl by ``deploy/make-certs.sh`` (the script the deploy guide uses):
+a CA with a router and a worker certificate, and a second CA with an intruder's certificate.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from coevo import keys
+from coevo.bus import PASSWORD_ENV, Security, make_config, open_session
+from coevo.errors import ConfigError
+from coevo.run import free_port
+
+from test_service import SMALL, coevo_proc, poll, stop
+
+REPO = Path(__file__).resolve().parent.parent
+pytestmark = pytest.mark.skipif(shutil.which("openssl") is None, reason="openssl is not installed")
+
+
+@pytest.fixture(scope="module")
+def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    d = tmp_path_factory.mktemp("certs")
+    make = [str(REPO / "deploy" / "make-certs.sh")]
+    subprocess.run(make + [str(d / "ca"), "router=DNS:localhost,IP:127.0.0.1", "worker"], check=True, timeout=60)
+    subprocess.run(make + [str(d / "other"), "intruder"], check=True, timeout=60)
+    return d
+
+
+def _start_broker(tmp_path: Path, flags: list[str], member: Security, scheme: str) -> Iterator[tuple[str, Path, Security]]:
+    port = free_port()
+    data = tmp_path / "data"
+    p = coevo_proc("broker", "--listen", f"{scheme}/127.0.0.1:{port}", "--data-dir", str(data), *flags,
+                   log=tmp_path / "broker.log")
+    endpoint = f"{scheme}/{'localhost' if scheme == 'tls' else '127.0.0.1'}:{port}"
+    try:
+        with open_session(make_config(mode="client", connect=[endpoint], connect_timeout=20, security=member)) as s:
+            poll(lambda: any(r.ok is not None for r in s.liveliness().get(keys.BROKER, timeout=1.0)), 20, "the broker token")
+        yield endpoint, data, member
+    finally:
+        stop(p)
+    assert p.returncode == 0, (tmp_path / "broker.log").read_text()
+
+
+@pytest.fixture
+def tls_broker(certs: Path, tmp_path: Path) -> Iterator[tuple[str, Path, Security]]:
+    ca = certs / "ca"
+    member = Security(tls_ca=str(ca / "ca.pem"), tls_cert=str(ca / "worker.pem"), tls_key=str(ca / "worker.key"))
+    flags = ["--tls-ca", str(ca / "ca.pem"), "--tls-cert", str(ca / "router.pem"), "--tls-key", str(ca / "router.key")]
+    yield from _start_broker(tmp_path, flags, member, "tls")
+
+
+@pytest.fixture
+def pwd_broker(tmp_path: Path) -> Iterator[tuple[str, Path, Security]]:
+    users = tmp_path / "users.txt"
+    users.write_text("alice:correct-horse\nbob:battery-staple\n")
+    yield from _start_broker(tmp_path, ["--auth-file", str(users)], Security(user="alice", password="correct-horse"), "tcp")
+
+
+def _worker(tmp_path: Path, name: str, endpoint: str, run: str, flags: list[str], env: dict[str, str] | None = None,
+            generations: int = 2) -> subprocess.Popen:
+    log = tmp_path / f"{name}.log"
+    f = open(log, "wb")
+    p = subprocess.Popen([sys.executable, "-m", "coevo", "worker", "--behaviour", "tracking", "--regime", "independent",
+                          "--run", run, "--connect", endpoint, "--connect-timeout", "4", "--generations", str(generations),
+                          *SMALL, "--out", str(tmp_path / name), *flags],
+                         stdout=f, stderr=subprocess.STDOUT, env={**os.environ, **(env or {})})
+    f.close()
+    return p
+
+
+def _assert_member_joins_and_intruders_do_not(tmp_path: Path, endpoint: str, data: Path, member: Security,
+                                               good: subprocess.Popen, bad: dict[str, tuple[subprocess.Popen, Security]]) -> None:
+    assert good.wait(180) == 0, (tmp_path / "member.log").read_text()
+    # A member reads the run: the worker's best is in the store and answers a member's query.
+    with open_session(make_config(mode="client", connect=[endpoint], connect_timeout=10, security=member)) as s:
+        got = poll(lambda: [r for r in s.get(keys.store_latest("members", "tracking"), timeout=2.0) if r.ok], 10, "the stored best")
+        assert len(got) == 1
+    assert (data / "members" / "store" / "tracking.jsonl").read_text().strip()
+    for name, (p, sec) in bad.items():
+        rc = p.wait(60)
+        log = (tmp_path / f"{name}.log").read_text()
+        assert rc == 2 and "ConfigError: cannot open the zenoh" in log, f"{name} got in (exit {rc}):\n{log}"
+        # Nor can it read from, or publish into, the run from a session of its own.
+        with pytest.raises(ConfigError):
+            with open_session(make_config(mode="client", connect=[endpoint], connect_timeout=3, security=sec)):
+                pass
+    assert not (data / "intruders").exists(), "an intruder's policy reached the store"
+    assert not any((tmp_path / n / "curve.jsonl").exists() and (tmp_path / n / "curve.jsonl").read_text() for n in bad)
+
+
+def test_mutual_tls_admits_members_only(tls_broker, certs: Path, tmp_path: Path) -> None:
+    endpoint, data, member = tls_broker
+    ca, other = certs / "ca", certs / "other"
+    good = _worker(tmp_path, "member", endpoint, "members",
+                   ["--tls-ca", str(ca / "ca.pem"), "--tls-cert", str(ca / "worker.pem"), "--tls-key", str(ca / "worker.key")])
+    no_cert = Security(tls_ca=str(ca / "ca.pem"))  # trusts the router but has no certificate to show
+    wrong_cert = Security(tls_ca=str(ca / "ca.pem"), tls_cert=str(other / "intruder.pem"), tls_key=str(other / "intruder.key"))
+    bad = {
+        "no-cert": (_worker(tmp_path, "no-cert", endpoint, "intruders", ["--tls-ca", str(ca / "ca.pem")]), no_cert),
+        "wrong-cert": (_worker(tmp_path, "wrong-cert", endpoint, "intruders", [
+            "--tls-ca", str(ca / "ca.pem"), "--tls-cert", str(other / "intruder.pem"), "--tls-key", str(other / "intruder.key")]),
+            wrong_cert),
+    }
+    try:
+        _assert_member_joins_and_intruders_do_not(tmp_path, endpoint, data, member, good, bad)
+    finally:
+        for p in [good, *(b[0] for b in bad.values())]:
+            stop(p)
+
+
+def test_user_password_admits_members_only(pwd_broker, tmp_path: Path) -> None:
+    endpoint, data, member = pwd_broker
+    good = _worker(tmp_path, "member", endpoint, "members", ["--user", "alice"], env={PASSWORD_ENV: "correct-horse"})
+    bad = {
+        "wrong-password": (_worker(tmp_path, "wrong-password", endpoint, "intruders", ["--user", "alice", "--password", "guess"]),
+                           Security(user="alice", password="guess")),
+        "no-password": (_worker(tmp_path, "no-password", endpoint, "intruders", []), Security()),
+    }
+    try:
+        _assert_member_joins_and_intruders_do_not(tmp_path, endpoint, data, member, good, bad)
+    finally:
+        for p in [good, *(b[0] for b in bad.values())]:
+            stop(p)
+
+
+@pytest.mark.parametrize("flags, message", [
+    (["--tls-ca", "/no/such/ca.pem"], "'/no/such/ca.pem' does not exist"),
+    (["--tls-ca", "CA", "--tls-cert", "CA"], "--tls-cert and --tls-key go together"),
+    (["--connect", "tls/localhost:1"], "no CA is set"),
+    (["--tls-ca", "CA", "--connect", "tcp/127.0.0.1:1"], "is not tls/"),
+    (["--user", "alice"], "--user needs a password"),
+    (["--zenoh-config", "/no/such.json5"], "'/no/such.json5' does not exist"),
+])
+def test_bad_security_settings_fail_clearly(certs: Path, flags: list[str], message: str) -> None:
+    flags = [str(certs / "ca" / "ca.pem") if f == "CA" else f for f in flags]
+    env = {k: v for k, v in os.environ.items() if k != PASSWORD_ENV}
+    r = subprocess.run([sys.executable, "-m", "coevo", "status", "--run", "x", "--connect-timeout", "1", *flags],
+                       capture_output=True, text=True, timeout=60, env=env)
+    assert r.returncode == 2 and "ConfigError" in r.stderr and message in r.stderr, r.stderr
+
+
+def test_auth_file_is_for_routers_and_checked(tmp_path: Path) -> None:
+    bad = tmp_path / "users.txt"
+    bad.write_text("alice\n")
+    r = subprocess.run([sys.executable, "-m", "coevo", "router", "--auth-file", str(bad)], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "line 1" in r.stderr and str(bad) in r.stderr, r.stderr
+    ok = tmp_path / "ok.txt"
+    ok.write_text("alice:pw\n")
+    with pytest.raises(ConfigError, match="router"):
+        Security(auth_file=str(ok)).apply(make_config(mode="client"), "client")
