@@ -134,11 +134,11 @@ class Security:
             conf.insert_json5(key, json.dumps(value))
 
 
-def _endpoints(section: Any) -> list[str]:
-    """A config's ``listen``/``connect`` endpoints: a list, or a per-mode dict of lists."""
+def _endpoints(section: Any, mode: str) -> list[str]:
+    """A config's ``listen``/``connect`` endpoints for ``mode``: a list, or a per-mode dict of lists."""
     eps = (section or {}).get("endpoints") or []
     if isinstance(eps, dict):
-        return [e for v in eps.values() for e in (v or [])]
+        return list(eps.get(mode) or [])
     return list(eps)
 
 
@@ -156,7 +156,7 @@ def check_config(conf: zenoh.Config, *, source: str = "flags") -> None:
     if dictionary:
         _readable(f"transport/auth/usrpwd/dictionary_file ({source})", dictionary)
     mode = d.get("mode") or "peer"
-    listen, connect = _endpoints(d.get("listen")), _endpoints(d.get("connect"))
+    listen, connect = _endpoints(d.get("listen"), mode), _endpoints(d.get("connect"), mode)
     has_tls = bool(tls.get("root_ca_certificate") or tls.get("listen_certificate"))
     for ep in listen + connect:
         if ep.startswith(("tls/", "quic/")) and not tls.get("root_ca_certificate"):
@@ -178,7 +178,7 @@ def add_connection_args(p: argparse.ArgumentParser, *, default_mode: str = "clie
     p.add_argument("--config", "--zenoh-config", "-c", dest="config", metavar="FILE",
                    help="a full zenoh JSON5 config file, e.g. from deploy/zenoh/ (flags override it)")
     p.add_argument("--no-multicast-scouting", action="store_true", default=True, help="(default) do not scout by multicast")
-    p.add_argument("--connect-timeout", type=float, default=30.0, metavar="SECONDS",
+    p.add_argument("--connect-timeout", type=float, metavar="SECONDS",
                    help="how long a client waits for its router before giving up (default 30; -1: for ever)")
     p.add_argument("--lease", type=float, metavar="SECONDS",
                    help=f"a link silent this long counts as dead and its session closes (default {DEFAULT_LEASE_S:g}; "
@@ -199,7 +199,7 @@ def make_config(
     connect: list[str] | None = None,
     listen: list[str] | None = None,
     config_file: str | None = None,
-    connect_timeout: float = 30.0,
+    connect_timeout: float | None = 30.0,
     lease_ms: int | None = 3000,
     security: Security | None = None,
 ) -> zenoh.Config:
@@ -222,7 +222,7 @@ def make_config(
             conf.insert_json5("connect/endpoints", json.dumps(connect))
         if listen:
             conf.insert_json5("listen/endpoints", json.dumps(listen))
-        if mode != "router":
+        if mode != "router" and connect_timeout is not None:
             ms = -1 if connect_timeout < 0 else int(connect_timeout * 1000)
             conf.insert_json5("connect/timeout_ms", json.dumps(ms))
         if lease_ms is not None:
@@ -241,8 +241,11 @@ def config_from_args(args: argparse.Namespace) -> zenoh.Config:
     lease = getattr(args, "lease", None)
     if lease is None and not args.config:
         lease = DEFAULT_LEASE_S  # with a config file, its lease (or zenoh's 10 s) stands unless --lease is given
+    timeout = args.connect_timeout
+    if timeout is None and not args.config:
+        timeout = 30.0
     return make_config(mode=args.mode, connect=args.connect, listen=args.listen, config_file=args.config,
-                       connect_timeout=args.connect_timeout, lease_ms=None if lease is None else int(lease * 1000),
+                       connect_timeout=timeout, lease_ms=None if lease is None else int(lease * 1000),
                        security=Security.from_args(args))
 
 

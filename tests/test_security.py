@@ -30,8 +30,9 @@ pytestmark = pytest.mark.skipif(shutil.which("openssl") is None, reason="openssl
 def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     d = tmp_path_factory.mktemp("certs")
     make = [str(REPO / "deploy" / "make-certs.sh")]
-    subprocess.run(make + [str(d / "ca"), "router=DNS:localhost,IP:127.0.0.1", "worker"], check=True, timeout=60)
-    subprocess.run(make + [str(d / "other"), "intruder"], check=True, timeout=60)
+    router = "DNS:localhost,IP:127.0.0.1"
+    subprocess.run(make + [str(d / "ca"), f"router={router}", "worker", f"broker={router}", "member"], check=True, timeout=60)
+    subprocess.run(make + [str(d / "other"), "intruder", "member"], check=True, timeout=60)
     return d
 
 
@@ -157,3 +158,39 @@ def test_auth_file_is_for_routers_and_checked(tmp_path: Path) -> None:
     ok.write_text("alice:pw\n")
     with pytest.raises(ConfigError, match="router"):
         Security(auth_file=str(ok)).apply(make_config(mode="client"), "client")
+
+
+def _deploy_config(tmp_path: Path, name: str, port: int, subst: dict[str, str]) -> str:
+    """A copy of deploy/zenoh/NAME.json5 pointed at this machine (host names, ports, file paths)."""
+    text = (REPO / "deploy" / "zenoh" / f"{name}.json5").read_text()
+    for old, new in {"broker.site-a.example:7447": f"localhost:{port}", "0.0.0.0:7447": f"127.0.0.1:{port}", **subst}.items():
+        text = text.replace(old, new)
+    out = tmp_path / f"{name}-{len(list(tmp_path.glob('*.json5')))}.json5"
+    out.write_text(text)
+    return str(out)
+
+
+@pytest.mark.parametrize("kind", ["tls", "usrpwd"])
+def test_the_shipped_deploy_configs_protect_a_broker(kind: str, certs: Path, tmp_path: Path) -> None:
+    """deploy/zenoh/broker-KIND.json5 and client-KIND.json5 as shipped (only hosts and paths changed)."""
+    port = free_port()
+    users = tmp_path / "users.txt"
+    users.write_text("worker:change-me\n")
+    good = {"/etc/coevo/certs/": f"{certs / 'ca'}/", "/etc/coevo/users.txt": str(users)}
+    bad = {"/etc/coevo/certs/ca.pem": str(certs / "ca" / "ca.pem"), "/etc/coevo/certs/": f"{certs / 'other'}/",
+           "change-me": "wrong"}
+    broker = coevo_proc("broker", "--zenoh-config", _deploy_config(tmp_path, f"broker-{kind}", port, good),
+                        "--data-dir", str(tmp_path / "data"), log=tmp_path / "broker.log")
+    try:
+        def status(subst: dict[str, str]) -> subprocess.CompletedProcess:
+            return subprocess.run([sys.executable, "-m", "coevo", "status", "--run", "x", "--duration", "1.5", "--json", "--connect-timeout", "5",
+                                   "--zenoh-config", _deploy_config(tmp_path, f"client-{kind}", port, subst)],
+                                  capture_output=True, text=True, timeout=120)
+
+        member = poll(lambda: (r := status(good)).returncode == 0 and r, 40, "a member to join the broker")
+        assert '"run": "x"' in member.stdout
+        intruder = status(bad)
+        assert intruder.returncode == 2 and "cannot open the zenoh" in intruder.stderr, intruder.stderr
+    finally:
+        stop(broker)
+    assert broker.returncode == 0, (tmp_path / "broker.log").read_text()
