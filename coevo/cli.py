@@ -136,6 +136,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _router_listen(args: argparse.Namespace) -> list[str]:
+    """Where a router listens (default: loopback); a broker run as a client of another router only connects."""
+    if args.mode != "router":
+        return [f"(a {args.mode} of {', '.join(args.connect or [args.config or '?'])})"]
     if not args.listen and not args.config:
         args.listen = ["tls/127.0.0.1:7447" if args.tls_ca else "tcp/127.0.0.1:7447"]
     return args.listen or ["(from " + args.config + ")"]
