@@ -15,6 +15,7 @@ meanwhile is dropped silently.  Prints JSON.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import subprocess
 import sys
@@ -87,7 +88,7 @@ def case(lease: float, cut: float, tmp: Path) -> dict:
     got = {int(v) for v, _ in rows}
     times = sorted(float(t) for _, t in rows)
     return {"lease_s": lease, "cut_s": cut, "sent": sent, "received": len(got), "lost": sent - len(got),
-            "longest_gap_s": round(max((b - a for a, b in zip(times, times[1:])), default=0.0), 2)}
+            "longest_gap_s": round(max((b - a for a, b in itertools.pairwise(times)), default=0.0), 2)}
 
 
 if __name__ == "__main__":

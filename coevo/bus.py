@@ -30,8 +30,8 @@ import zenoh
 
 from coevo.errors import ConfigError
 
-__all__ = ["DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "make_config",
-           "config_from_args", "open_session", "sigterm_as_exit"]
+__all__ = ["DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
+           "make_config", "open_session", "sigterm_as_exit"]
 
 log = logging.getLogger(__name__)
 

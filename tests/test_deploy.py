@@ -26,10 +26,10 @@ import time
 from pathlib import Path
 
 import pytest
-
 from netns import Lab, unavailable
-from coevo.run import free_port
 from test_service import SMALL, coevo_proc, poll, stop
+
+from coevo.run import free_port
 
 REASON = unavailable()
 

@@ -14,13 +14,12 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from test_service import SMALL, coevo_proc, poll, stop
 
 from coevo import keys
 from coevo.bus import PASSWORD_ENV, Security, make_config, open_session
 from coevo.errors import ConfigError
 from coevo.run import free_port
-
-from test_service import SMALL, coevo_proc, poll, stop
 
 REPO = Path(__file__).resolve().parent.parent
 pytestmark = pytest.mark.skipif(shutil.which("openssl") is None, reason="openssl is not installed")
