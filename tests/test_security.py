@@ -193,3 +193,19 @@ def test_the_shipped_deploy_configs_protect_a_broker(kind: str, certs: Path, tmp
     finally:
         stop(broker)
     assert broker.returncode == 0, (tmp_path / "broker.log").read_text()
+
+
+def test_security_round_trips_through_the_flags_a_spawner_passes(certs: Path, tmp_path: Path,
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    from coevo.cli import build_parser
+
+    users = tmp_path / "users.txt"
+    users.write_text("alice:pw\n")
+    ca = certs / "ca"
+    sec = Security(tls_ca=str(ca / "ca.pem"), tls_cert=str(ca / "router.pem"), tls_key=str(ca / "router.key"),
+                   user="alice", password="pw", auth_file=str(users))
+    assert "pw" not in sec.cli_args(router=True) and sec.env() == {PASSWORD_ENV: "pw"}
+    args = build_parser().parse_args(["broker", *sec.cli_args(router=True)])
+    monkeypatch.setenv(PASSWORD_ENV, "pw")
+    assert Security.from_args(args) == sec
+    assert "--auth-file" not in sec.cli_args()
