@@ -117,6 +117,25 @@ def test_mutual_tls_admits_members_only(tls_broker, certs: Path, tmp_path: Path)
             stop(p)
 
 
+def test_a_second_router_joins_a_tls_broker_with_its_own_certificate(tls_broker, certs: Path, tmp_path: Path) -> None:
+    """Two sites under mutual TLS: router2 is a client of the broker (its certificate) and a router to its members."""
+    endpoint, data, _ = tls_broker
+    ca = certs / "ca"
+    tls = ["--tls-ca", str(ca / "ca.pem"), "--tls-cert", str(ca / "router.pem"), "--tls-key", str(ca / "router.key")]
+    port = free_port()
+    router2 = coevo_proc("router", "--listen", f"tls/127.0.0.1:{port}", "--connect", endpoint, *tls, log=tmp_path / "router2.log")
+    try:
+        good = _worker(tmp_path, "member", f"tls/localhost:{port}", "site-b",
+                       ["--tls-ca", str(ca / "ca.pem"), "--tls-cert", str(ca / "worker.pem"), "--tls-key", str(ca / "worker.key")])
+        assert good.wait(180) == 0, (tmp_path / "member.log").read_text()
+        assert "no coevo broker seen" not in (tmp_path / "member.log").read_text()
+        stored = data / "site-b" / "store" / "tracking.jsonl"
+        poll(lambda: stored.exists() and stored.read_text().strip(), 10, "the worker's policy in the broker's store")
+    finally:
+        stop(router2)
+    assert router2.returncode == 0, (tmp_path / "router2.log").read_text()
+
+
 def test_user_password_admits_members_only(pwd_broker, tmp_path: Path) -> None:
     endpoint, data, member = pwd_broker
     good = _worker(tmp_path, "member", endpoint, "members", ["--user", "alice"], env={PASSWORD_ENV: "correct-horse"})
