@@ -90,6 +90,7 @@ def test_two_sites_in_namespaces_match_loopback_and_survive_a_cut_link(lab: Lab,
     router2 = lab.popen("router2", _coevo("router", "--listen", "tcp/10.77.2.1:7447", "--connect", "tcp/10.77.1.1:7447", *LEASE),
                         log=logs / "router2.log")
     poll(lambda: "listening" in (logs / "router2.log").read_text() or router2.poll() is not None, 30, "router2")
+    assert broker.poll() is None and router2.poll() is None, (logs / "broker.log").read_text() + (logs / "router2.log").read_text()
     site = {"track": "tcp/10.77.1.1:7447", "dock": "tcp/10.77.2.1:7447", "exec": "tcp/10.77.2.1:7447"}
     status = lab.popen("status", _coevo("status", "--run", run, "--json", "--connect", site["dock"], *LEASE),
                        log=logs / "status.log")
@@ -125,6 +126,8 @@ def test_two_sites_in_namespaces_match_loopback_and_survive_a_cut_link(lab: Lab,
     # the Executive (site B) adopted Tracking's policies across both routers, the broker stored site B's.
     seen = {w["behaviour"]: w for line in _status_lines(logs / "status.log") for w in line["workers"]}
     assert set(seen) == set(BEHAVIOURS)
+    for beh in BEHAVIOURS:  # each worker found the broker's store (its liveliness token) before its first generation
+        assert "no coevo broker seen" not in (logs / f"{beh}.log").read_text(), beh
     run_dir = root / run
     adopted = [json.loads(x) for x in (run_dir / "workers" / "executive" / "adoptions.jsonl").read_text().splitlines()]
     assert {a["partner"] for a in adopted} == {"tracking", "docking"}
