@@ -56,6 +56,7 @@ def test_tiny_comparison_writes_a_consistent_report(tiny: Path) -> None:
         summary = json.loads((tiny / "runs" / x["run"] / "summary.json").read_text())
         assert x["measures"] == pytest.approx(summary["measures"])
         assert x["class"] == classify(summary["measures"])
+        assert 0.0 <= x["docking_from_random_starts"] <= 100.0
         for beh, final in x["final_best_so_far"].items():
             rows = (tiny / "runs" / x["run"] / "workers" / beh / "curve.jsonl").read_text().splitlines()
             assert len(rows) == 3 and final == pytest.approx(json.loads(rows[-1])["best_so_far"])
@@ -84,6 +85,7 @@ def test_tiny_comparison_writes_a_consistent_report(tiny: Path) -> None:
     assert set(rows) == set(RUNS)
     for x in res["runs"]:
         assert rows[x["run"]]["class"] == x["class"]
+        assert float(rows[x["run"]]["docking_from_random_starts"]) == pytest.approx(x["docking_from_random_starts"])
         assert float(rows[x["run"]]["successful_docking"]) == pytest.approx(x["measures"]["successful_docking"])
     curves = _csv(tiny / "curves.csv")
     assert len(curves) == 4 * 3 * 3  # runs x behaviours x generations
