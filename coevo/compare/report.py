@@ -89,15 +89,22 @@ def _fmt_p(p: float) -> str:
     return f"{p:.2g}" if p >= 0.001 else "< 0.001"
 
 
+def _winner(t: RankComparison) -> tuple[str, str]:
+    """(higher, lower) regime by the effect size: medians tie when most runs score 0, ranks do not."""
+    return (t.b, t.a) if t.a12 > 0.5 else (t.a, t.b)
+
+
 def _verdict(spec: CompareSpec, records: list[dict[str, Any]], tests: list[RankComparison]) -> str:
     by = {r: [x for x in records if x["regime"] == r] for r in spec.regimes}
     parts = []
     for t in tests:
         med = {t.a: t.median_a, t.b: t.median_b}
+        mean = {t.a: t.mean_a, t.b: t.mean_b}
         name = t.measure.replace("_", " ")
-        if t.p_value < 0.05 and t.median_a != t.median_b:
-            hi, lo = (t.b, t.a) if t.median_b > t.median_a else (t.a, t.b)
+        if t.p_value < 0.05 and t.a12 != 0.5:
+            hi, lo = _winner(t)
             parts.append(f"{hi} beats {lo} on {name} (medians {med[hi]:.3g} vs {med[lo]:.3g}, "
+                         f"means {mean[hi]:.3g} vs {mean[lo]:.3g}, "
                          f"Mann–Whitney p = {_fmt_p(t.p_value)}, A = {t.a12:.2f}, {t.magnitude})")
         else:
             parts.append(f"the regimes do not differ significantly on {name} "
@@ -120,10 +127,7 @@ def _verdict(spec: CompareSpec, records: list[dict[str, Any]], tests: list[RankC
         mutual_starved = sum(x["class"].startswith("No Docking") for x in by["mutual"])
 
         def independent_wins(t: RankComparison | None) -> bool:
-            if t is None or t.p_value >= 0.05:
-                return False
-            med = {t.a: t.median_a, t.b: t.median_b}
-            return med["independent"] > med["mutual"]
+            return t is not None and t.p_value < 0.05 and t.a12 != 0.5 and _winner(t)[0] == "independent"
 
         checks = [
             ("Independent beats Mutual on final Executive fitness", independent_wins(exec_t)),
