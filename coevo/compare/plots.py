@@ -50,7 +50,7 @@ def figure_for_regime(curves: Curves, regime: str, path: Path) -> None:
     """One regime's four panels, like the report's Figure 5 (Mutual) or 6 (Independent)."""
     plt = _pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(10, 7), constrained_layout=True)
-    for ax, (title, beh, col, ylabel, top) in zip(axes.flat, PANELS):
+    for ax, (title, beh, col, ylabel, top) in zip(axes.flat, PANELS, strict=True):
         m = _matrix(curves, beh, col)
         if m.size:
             g = np.arange(1, m.shape[1] + 1)
@@ -74,8 +74,8 @@ def figure_regimes(by_regime: Mapping[str, Curves], path: Path) -> None:
     plt = _pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(10, 7), constrained_layout=True)
     colours = ("tab:red", "tab:green", "tab:blue", "tab:orange")
-    for ax, (title, beh, col, ylabel, top) in zip(axes.flat, PANELS):
-        for colour, (regime, curves) in zip(colours, by_regime.items()):
+    for ax, (title, beh, col, ylabel, top) in zip(axes.flat, PANELS, strict=True):
+        for colour, (regime, curves) in zip(colours, by_regime.items(), strict=False):
             m = _matrix(curves, beh, col)
             if not m.size:
                 continue

@@ -15,6 +15,7 @@ Files written to OUT:
 from __future__ import annotations
 
 import json
+import math
 import statistics
 from pathlib import Path
 from typing import Any
@@ -115,7 +116,7 @@ def _verdict(spec: CompareSpec, records: list[dict[str, Any]], tests: list[RankC
     for r, runs in by.items():
         starved = sum(x["class"].startswith("No Docking") for x in runs)
         good = sum(x["class"].startswith("Good Docking") for x in runs)
-        alone = [x["docking_from_random_starts"] for x in runs if x["docking_from_random_starts"] == x["docking_from_random_starts"]]
+        alone = [v for v in (x["docking_from_random_starts"] for x in runs) if not math.isnan(v)]
         text += (f" In {r}, the Executive starved Docking (picked it in under 5 % of episodes) in {starved} of "
                  f"{len(runs)} runs, and {good} of {len(runs)} runs docked well (≥ 20 % of episodes)")
         text += (f"; its final Docking policy, alone from a fresh random start, docked in a median "
