@@ -68,6 +68,8 @@ def _add_settings(p: argparse.ArgumentParser) -> None:
     p.add_argument("--episodes", type=int, help="evaluation episodes per individual (default 90)")
     p.add_argument("--world", action="append", metavar="NAME=VALUE", help="world setting, e.g. target_speed=3 (repeatable)")
     p.add_argument("--ga", action="append", metavar="NAME=VALUE", help="GA setting, e.g. mutation_rate=0.05 (repeatable)")
+    p.add_argument("--mutation-model", dest="ga", action="append", type=lambda v: f"mutation_model={v}", metavar="fm|gm|fh|gh",
+                   help="mutation model (default fm; the same as --ga mutation_model=...; parameters: see README)")
 
 
 def _add_max_lead(p: argparse.ArgumentParser) -> None:
