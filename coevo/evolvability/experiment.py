@@ -63,7 +63,7 @@ class GridSpec:
                 raise ConfigError(f"--models: unknown mutation model {m!r}: choose from {', '.join(MODEL_NAMES)}")
         for r in spec.rates:
             if not (isinstance(r, (int, float)) and 0 <= r <= 1):
-                raise ConfigError(f"--rates: base mutation rate {r!r} is not in [0, 1]")
+                raise ConfigError(f"--rates: base mutation rate {r!r} is not a number in [0, 1]")
         for name in ("landscapes", "runs", "generations"):
             v = getattr(spec, name)
             if not (isinstance(v, int) and v >= 1):
