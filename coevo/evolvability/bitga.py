@@ -24,7 +24,7 @@ import numpy as np
 
 from coevo.errors import ConfigError
 from coevo.evolvability.landscape import DynamicLandscape
-from coevo.ga.mutation import CONTROL_BITS, CONTROL_LEVELS, MODEL_NAMES, control_rate
+from coevo.ga.mutation import CONTROL_BITS, CONTROL_LEVELS, MODEL_NAMES
 
 __all__ = ["COORD_BITS", "GENOME_BITS", "RunParams", "Trace", "decode", "gene_of", "run_batch", "breed"]
 

@@ -141,6 +141,7 @@ class GA:
         order = np.argsort(-fitness, kind="stable")
         children: list[RuleSet] = [pop[i] for i in order[: cfg.elite]]
         genes: list[int] = [int(self.genes[i]) for i in order[: cfg.elite]]
+        inherited = list(genes)  # before mutation: what GH's hypermutation chance is read from
         parents = select_parents(fitness, cfg.parents_fraction, rng)
         while len(children) < cfg.population:
             for i in parents:
@@ -153,11 +154,12 @@ class GA:
                 for (child, idle), src in zip(pair, (i, j)):
                     gene = int(self.genes[src])
                     children.append(self._vary(child, idle, pop[src], exps[src], gene))
+                    inherited.append(gene)
                     genes.append(self.mutation.mutate_gene(gene, rng))
                 if len(children) >= cfg.population:
                     break
         children, gene_arr = children[: cfg.population], np.array(genes[: cfg.population], dtype=np.uint8)
-        hyper = self.mutation.hypermutants(gene_arr[cfg.elite :], rng)  # elites stay unchanged
+        hyper = self.mutation.hypermutants(np.array(inherited[cfg.elite : cfg.population], dtype=np.uint8), rng)
         if hyper is not None:
             for k in np.flatnonzero(hyper) + cfg.elite:
                 children[k] = random_ruleset(self.behaviour, cfg.initial_rules, rng)

@@ -15,7 +15,9 @@ GH(αH, mr)  an offspring is replaced by a random individual with probability
 The control gene is part of the genome: offspring inherit it, and each of its three
 bits is *reset* (set to a random value, so it changes half the time) with the
 individual's own mutation probability (``αM + k/8`` under GM, ``mr`` under GH).  A
-hypermutated individual gets a random control gene too.  Rates are clipped to 1.
+hypermutated individual gets a random control gene too.  GH's hypermutation chance
+is read from the gene the offspring inherited, before that gene mutates.  Rates are
+clipped to 1.
 
 On rule sets the probability applies per rule (a mutated rule gets one change, see
 :func:`mutate_rules`); on the bit strings of :mod:`coevo.evolvability.bitga` it applies
@@ -25,12 +27,15 @@ an FM GA consumes its generator exactly as before these models existed.
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
 from coevo.errors import ConfigError
 from coevo.policy.rules import RuleSet
+
+if TYPE_CHECKING:
+    from coevo.config import GAConfig
 
 __all__ = [
     "CONTROL_BITS",
@@ -209,16 +214,15 @@ class GeneticHypermutation(_Model):
         return f"GH({self.minimum}, {self.base})"
 
 
-def model_from_config(cfg: object) -> MutationModel:
+def model_from_config(cfg: GAConfig) -> MutationModel:
     """The model a :class:`~coevo.config.GAConfig` selects (``mutation_model`` and its parameters)."""
-    name = getattr(cfg, "mutation_model", "fm")
-    mr = getattr(cfg, "mutation_rate")
+    name, mr = cfg.mutation_model, cfg.mutation_rate
     if name == "fm":
         return FixedRate(mr)
     if name == "gm":
-        return GeneticRate(getattr(cfg, "min_mutation_rate"))
+        return GeneticRate(cfg.min_mutation_rate)
     if name == "fh":
-        return FixedHypermutation(getattr(cfg, "hypermutation_rate"), mr)
+        return FixedHypermutation(cfg.hypermutation_rate, mr)
     if name == "gh":
-        return GeneticHypermutation(getattr(cfg, "min_hypermutation_rate"), mr)
+        return GeneticHypermutation(cfg.min_hypermutation_rate, mr)
     raise ConfigError(f"mutation model {name!r} is not one of {', '.join(MODEL_NAMES)}")
