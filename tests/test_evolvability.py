@@ -15,6 +15,7 @@ from scipy import stats
 from coevo.cli import _configs, build_parser, main
 from coevo.config import GAConfig, WorldConfig
 from coevo.errors import ConfigError
+from coevo.run import _settings_args
 from coevo.evolvability.bitga import GENOME_BITS, RunParams, breed, decode, gene_of, run_batch
 from coevo.evolvability.experiment import GridSpec
 from coevo.evolvability.landscape import CLASSES, DynamicLandscape, LandscapeSpec
@@ -134,6 +135,11 @@ def test_mutation_model_flag_sets_the_ga_setting() -> None:
     assert GAConfig().mutation_model == "fm"
     with pytest.raises(ConfigError, match="mutation_model='gx'"):
         _configs(build_parser().parse_args(["run", "--mutation-model", "gx"]))
+    # coevo run / compare hand their GA settings to each worker process as --ga arguments
+    worker_argv = _settings_args(WorldConfig(), ga)
+    back = _configs(build_parser().parse_args(["worker", "--behaviour", "docking", "--regime", "mutual", "--run", "r",
+                                               *worker_argv]))[1]
+    assert back == ga
 
 
 # -- landscapes --------------------------------------------------------------------------------------------------
