@@ -268,9 +268,16 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def cmd_evolvability(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from coevo.evolvability.experiment import GridSpec, run_grid
+    from coevo.evolvability.experiment import GridResults, GridSpec, run_grid
     from coevo.evolvability.report import write_report
 
+    if args.report_only:
+        if not args.out:
+            raise ConfigError("--report-only needs --out DIR (a finished grid)")
+        res = GridResults.load(Path(args.out))
+        write_report(res, Path(args.out), elapsed=res.seconds)
+        print(f"report: {Path(args.out) / 'report.md'}")
+        return 0
     spec = GridSpec.make(classes=_tuple(args.classes), rates=_tuple(args.rates), models=_tuple(args.models),
                          landscapes=args.landscapes, runs=args.runs, generations=args.generations,
                          population=args.population, seed=args.seed)
@@ -430,6 +437,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--generations", type=int, help="generations per run (default 200)")
     p.add_argument("--population", type=int, help="population size (default 100)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--report-only", action="store_true", help="only rewrite the report from the grid finished in --out")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     p.set_defaults(func=cmd_evolvability)
 

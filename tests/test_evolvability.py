@@ -248,6 +248,9 @@ def test_tiny_grid_end_to_end(tmp_path: Path) -> None:
     assert {c["id"] for c in res["claims"]} >= {"hyper_beats_plain", "gh_rises_after_shift"}
     report = (out / "report.md").read_text()
     assert "## The report's claims" in report and "![fig8_gh_hypermutation_abrupt.png]" in report
+    (out / "report.md").unlink()
+    assert main(["evolvability", "--out", str(out), "--report-only"]) == 0  # from the saved curves, same numbers
+    assert (out / "report.md").read_text() == report
 
 
 @pytest.mark.parametrize("argv, named", [

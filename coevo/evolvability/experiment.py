@@ -13,9 +13,11 @@ GM ignores the base rate; it is run at every rate anyway, as in the report.
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -98,6 +100,21 @@ class GridResults:
     def save(self, path: str) -> None:
         arrays = {f"{kind}_{c}": getattr(self, kind)[c] for kind in ("mean", "best", "control") for c in self.mean}
         np.savez_compressed(path, **arrays)
+
+    @staticmethod
+    def load(out: Path) -> GridResults:
+        """The results a finished grid wrote to ``out`` (``results.json`` and ``curves.npz``)."""
+        try:
+            meta = json.loads((out / "results.json").read_text(encoding="utf-8"))
+            curves = np.load(out / "curves.npz")
+        except (OSError, ValueError) as exc:
+            raise ConfigError(f"{out} holds no finished evolvability grid: {exc}") from exc
+        spec = GridSpec.make(**{k: tuple(v) if isinstance(v, list) else v for k, v in meta["spec"].items()})
+        res = GridResults(spec, changes={c: list(v) for c, v in meta["changes"].items()}, seconds=meta["seconds"] or 0.0)
+        for c in spec.classes:
+            for kind in ("mean", "best", "control"):
+                getattr(res, kind)[c] = curves[f"{kind}_{c}"]
+        return res
 
 
 def run_grid(spec: GridSpec, *, on_progress: Callable[[int, int], None] | None = None) -> GridResults:

@@ -308,6 +308,20 @@ def _markdown(res: GridResults, rows: list[dict[str, Any]], claims: list[dict[st
                 L.append(f"| {c} | {r} | " + " | ".join(
                     (f"**{vals[m]:.1f}**" if vals[m] == top else f"{vals[m]:.1f}") for m in models) + " |")
         L.append("")
+    L += ["## Readings of the report (ours)", "",
+          "- Peak width: sigma = 4 in the Gaussian (the report's parameter); its gloss 'about 50 % at distance 4' "
+          "would need sigma = 3.4.",
+          "- Peak motion: each peak keeps a random heading and moves U[0, max_drift] along it at each change, "
+          "bouncing off the walls of [0, 100]^2.",
+          "- Selection: stochastic universal sampling on raw fitness, random pairing, crossover probability "
+          f"{spec.crossover_rate}, no elitism. Mutation resets a bit to a random value.",
+          "- Control gene (GM, GH): 3 bits, k = 0..7, rate = alpha + k/8 (clipped to 1); initially uniform; inherited "
+          "through crossover and reset bit by bit like the rest of the genome (at the individual's own rate under GM, "
+          "at mr under GH); GH's hypermutation chance is read from the gene after crossover, before mutation; a "
+          "hypermutated genome is entirely random.",
+          "- FH: exactly round(hr x population) offspring per generation are random immigrants.",
+          "- GH windows: for each abrupt shift at generation s, 'after' is generations s..s+4 (the first five on the "
+          "new landscape) and 'before' the last five generations before the next shift.", ""]
     L += ["## Figures", ""] + [f"![{f}]({f})" for f in files] + [""]
     L += ["Files: `conditions.csv`, `runs.csv`, `results.json`, `curves.npz` (per-generation mean, best and control "
           "rate of every run).", ""]
