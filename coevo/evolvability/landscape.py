@@ -4,6 +4,8 @@ A landscape is ``n_peaks`` Gaussian peaks in the box ``[low, high]^dim``::
 
     f(x, t) = max_i A_i exp(-d(x, c_i(t))^2 / (2 σ_i^2))
 
+The width is σ = 4, the report's parameter (its gloss "about 50 % at distance 4" would
+need σ ≈ 3.4; at σ = 4 a peak keeps 61 % there).
 Amplitudes are drawn from ``amplitude`` (U[10, 50]) except the ``optima`` peaks of
 height ``optimum`` (100), so the landscape's maximum is exactly ``optimum`` at all
 times, attained at an optimal peak's centre.  Amplitudes and widths do not change.
