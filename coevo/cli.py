@@ -68,6 +68,8 @@ def _add_settings(p: argparse.ArgumentParser) -> None:
     p.add_argument("--episodes", type=int, help="evaluation episodes per individual (default 90)")
     p.add_argument("--world", action="append", metavar="NAME=VALUE", help="world setting, e.g. target_speed=3 (repeatable)")
     p.add_argument("--ga", action="append", metavar="NAME=VALUE", help="GA setting, e.g. mutation_rate=0.05 (repeatable)")
+    p.add_argument("--mutation-model", dest="ga", action="append", type=lambda v: f"mutation_model={v}", metavar="fm|gm|fh|gh",
+                   help="mutation model (default fm; the same as --ga mutation_model=...; parameters: see README)")
 
 
 def _add_max_lead(p: argparse.ArgumentParser) -> None:
@@ -410,6 +412,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_max_lead(p)
     _add_settings(p)
     p.set_defaults(func=cmd_compare)
+
+    from coevo.evolvability.command import add_parser as add_evolvability
+
+    add_evolvability(sub)
 
     p = sub.add_parser("replay", help="re-run a finished run in one process from its adoption log")
     p.add_argument("run_dir")

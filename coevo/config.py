@@ -75,7 +75,14 @@ class GAConfig(_Settings):
     max_rules: int = Field(48, ge=1, le=64, description="(ours) most rules a policy may hold (matching packs rules in 64 bits)")
     crossover_rate: float = Field(0.8, ge=0, le=1, description="(ours) chance a pair is recombined")
     high_payoff_quantile: float = Field(0.5, ge=0, le=1, description="(ours) episodes above this payoff quantile count as 'high payoff'")
-    mutation_rate: float = Field(0.1, ge=0, le=1, description="(ours) per-rule mutation probability (FM model)")
+    mutation_rate: float = Field(0.1, ge=0, le=1, description="(ours) base per-rule mutation probability mr (FM, FH, GH)")
+    mutation_model: Literal["fm", "gm", "fh", "gh"] = Field(
+        "fm", description="mutation model (report Appendix D): fm = FM(mr), gm = GM(min_mutation_rate), "
+        "fh = FH(hypermutation_rate, mr), gh = GH(min_hypermutation_rate, mr); see coevo.ga.mutation"
+    )
+    min_mutation_rate: float = Field(0.03, ge=0, le=1, description="GM's αM: rate = αM + k/8, k its 3-bit control gene")
+    hypermutation_rate: float = Field(0.2, ge=0, le=1, description="FH's hr: fraction of offspring replaced by random immigrants")
+    min_hypermutation_rate: float = Field(0.05, ge=0, le=1, description="GH's αH: hypermutation chance = αH + k/8")
     specialise_rate: float = Field(0.3, ge=0, le=1, description="(ours) chance per offspring of a specialisation")
     generalise_rate: float = Field(0.1, ge=0, le=1, description="(ours) chance per offspring of a generalisation")
     cover_rate: float = Field(0.3, ge=0, le=1, description="(ours) chance per offspring of covering an unmatched state")

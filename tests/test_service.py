@@ -123,8 +123,9 @@ def test_status_sees_a_worker_die(broker, tmp_path: Path) -> None:
 def test_worker_rejects_bad_partner_messages_and_keeps_evolving(broker, tmp_path: Path) -> None:
     endpoint, _ = broker
     out = tmp_path / "w"
+    # No partners run here, so pacing is off: the worker must keep evolving alone.
     p = coevo_proc("worker", "--behaviour", "executive", "--regime", "independent", "--run", "bad", "--connect", endpoint,
-                   "--generations", "1000", *SMALL, "--out", str(out), log=tmp_path / "w.log")
+                   "--generations", "1000", *SMALL, "--max-lead", "off", "--out", str(out), log=tmp_path / "w.log")
     try:
         with open_session(make_config(mode="client", connect=[endpoint])) as s:
             board = StatusBoard(s, "bad")

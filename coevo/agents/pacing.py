@@ -10,10 +10,13 @@ with a lead of 1 generation)* restores the report's setting without making the
 run synchronous: each worker still runs at its own pace and adopts whatever
 arrived, but before starting generation ``g+1`` it waits until every partner it
 models has reported finishing generation ``g - max_lead`` (or finished its run,
-or ``wait_limit`` seconds passed; a dead partner must not stall the others
-forever).  Progress is read from the partners' status heartbeats, so pacing
-needs nothing beyond what status already publishes.  ``max_lead=None`` turns it
-off.
+or ``wait_limit`` seconds passed: a dead or never-started partner must not stall
+the others, so after one timeout it counts as absent, and is not waited for
+again until it reports).  Progress is read from the partners' status heartbeats, so pacing
+needs nothing beyond what status already publishes.  While it waits, the worker
+keeps its own heartbeat going (``tick``), so status never mistakes a paced worker
+for a stalled one and its rejection counts stay current.  ``max_lead=None`` turns
+it off.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 from coevo import keys
@@ -29,7 +32,7 @@ from coevo.behaviours import Behaviour
 from coevo.errors import ConfigError, MessageError
 from coevo.messages import Status, decode
 
-__all__ = ["Pacer", "parse_max_lead", "DEFAULT_MAX_LEAD"]
+__all__ = ["DEFAULT_MAX_LEAD", "Pacer", "parse_max_lead"]
 
 log = logging.getLogger(__name__)
 
@@ -61,6 +64,7 @@ class Pacer:
         self.waited = 0.0
         self._progress: dict[Behaviour, int] = {b: 0 for b in self.partners}
         self._finished: set[Behaviour] = set()
+        self._absent: set[Behaviour] = set()
         self._cond = threading.Condition()
         self._subs = [] if max_lead is None else [
             session.declare_subscriber(keys.status(run, b), self._on_status) for b in self.partners
@@ -77,26 +81,41 @@ class Pacer:
             self._progress[msg.behaviour] = max(self._progress[msg.behaviour], msg.generation)
             if msg.done or msg.generation >= msg.generations:
                 self._finished.add(msg.behaviour)
+            self._absent.discard(msg.behaviour)
             self._cond.notify_all()
 
     def _behind(self, need: int) -> list[Behaviour]:
-        return [b for b in self.partners if b not in self._finished and self._progress[b] < need]
+        return [b for b in self.partners
+                if b not in self._finished and b not in self._absent and self._progress[b] < need]
 
-    def wait(self, completed: int, stop: threading.Event) -> float:
-        """Block before the generation after ``completed`` ones until the partners are close enough."""
+    def wait(self, completed: int, stop: threading.Event, tick: Callable[[], None] | None = None,
+             tick_every: float = 1.0) -> float:
+        """Block before the generation after ``completed`` ones until the partners are close enough.
+
+        ``tick`` is called about every ``tick_every`` seconds while waiting (outside the lock).
+        """
         if self.max_lead is None or not self.partners:
             return 0.0
         need = completed - self.max_lead
         t0 = time.monotonic()
         end = t0 + self.wait_limit
-        with self._cond:
-            while self._behind(need) and not stop.is_set():
-                left = end - time.monotonic()
-                if left <= 0:
-                    log.warning("pacing: partners %s still behind generation %d after %.0f s; going on",
-                                [b.value for b in self._behind(need)], need, self.wait_limit)
+        next_tick = t0 + tick_every
+        while True:
+            with self._cond:
+                behind = self._behind(need)
+                if not behind or stop.is_set():
                     break
-                self._cond.wait(min(left, 0.5))
+                now = time.monotonic()
+                if now >= end:
+                    log.warning("pacing: partners %s still behind generation %d after %.0f s; going on "
+                                "without waiting for them until they report again",
+                                [b.value for b in behind], need, self.wait_limit)
+                    self._absent.update(behind)
+                    break
+                self._cond.wait(min(end - now, next_tick - now, 0.5))
+            if tick is not None and time.monotonic() >= next_tick:
+                tick()
+                next_tick = time.monotonic() + tick_every
         waited = time.monotonic() - t0
         self.waited += waited
         return waited

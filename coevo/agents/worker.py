@@ -16,6 +16,7 @@ import logging
 import threading
 import time
 from collections import Counter
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -152,7 +153,7 @@ class Worker:
                     if self._stop.is_set():
                         log.info("%s stopping at generation %d", self.worker_id, g)
                         break
-                    pacer.wait(g, self._stop)
+                    pacer.wait(g, self._stop, tick=partial(self._heartbeat, g, ga, adopt_log, status_pub))
                     t_net = time.perf_counter()
                     self._adopt(g, adopt_log)
                     self.net_seconds += time.perf_counter() - t_net
@@ -193,6 +194,12 @@ class Worker:
             "pace_seconds": pacer.waited,
         })
         return curve
+
+    def _heartbeat(self, completed: int, ga: GA, adopt_log: Any, status_pub: Any) -> None:
+        """While paced: take in what arrived (so rejections are counted) and tell status we are alive."""
+        self._adopt(completed, adopt_log)
+        best = float(ga.best_fitness) if completed else 0.0
+        status_pub.put(encode(self._status(completed, best, done=False)))
 
     def _status(self, generation: int, best: float, *, done: bool) -> Status:
         return Status(

@@ -253,7 +253,7 @@ def run_all(
             if on_progress:
                 on_progress(prog)
     finally:
-        for p, fh in active.values():
+        for p, _fh in active.values():
             if p.poll() is None:
                 p.terminate()  # coevo run turns SIGTERM into a clean stop of its broker and workers
         for p, fh in active.values():

@@ -50,7 +50,7 @@ def figure_for_regime(curves: Curves, regime: str, path: Path) -> None:
     """One regime's four panels, like the report's Figure 5 (Mutual) or 6 (Independent)."""
     plt = _pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(10, 7), constrained_layout=True)
-    for ax, (title, beh, col, ylabel, top) in zip(axes.flat, PANELS):
+    for ax, (title, beh, col, ylabel, top) in zip(axes.flat, PANELS, strict=True):
         m = _matrix(curves, beh, col)
         if m.size:
             g = np.arange(1, m.shape[1] + 1)
@@ -58,7 +58,7 @@ def figure_for_regime(curves: Curves, regime: str, path: Path) -> None:
                 ax.plot(g, row, color="0.75", linewidth=0.7)
             ax.fill_between(g, np.nanmin(m, axis=0), np.nanmax(m, axis=0), color="tab:blue", alpha=0.12)
             ax.plot(g, np.nanmean(m, axis=0), color="tab:blue", linewidth=2, label=f"mean of {m.shape[0]} runs")
-            ax.legend(loc="lower right", fontsize=8)
+            ax.legend(loc="upper left", fontsize=8)
         ax.set_title(title)
         ax.set_xlabel("generation")
         ax.set_ylabel(ylabel)
@@ -74,8 +74,8 @@ def figure_regimes(by_regime: Mapping[str, Curves], path: Path) -> None:
     plt = _pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(10, 7), constrained_layout=True)
     colours = ("tab:red", "tab:green", "tab:blue", "tab:orange")
-    for ax, (title, beh, col, ylabel, top) in zip(axes.flat, PANELS):
-        for colour, (regime, curves) in zip(colours, by_regime.items()):
+    for ax, (title, beh, col, ylabel, top) in zip(axes.flat, PANELS, strict=True):
+        for colour, (regime, curves) in zip(colours, by_regime.items(), strict=False):
             m = _matrix(curves, beh, col)
             if not m.size:
                 continue
@@ -89,7 +89,7 @@ def figure_regimes(by_regime: Mapping[str, Curves], path: Path) -> None:
         ax.set_ylabel(ylabel)
         ax.set_ylim(0, top)
         ax.grid(alpha=0.3)
-        ax.legend(loc="lower right", fontsize=8)
+        ax.legend(loc="upper left", fontsize=8)
     fig.suptitle("Regimes compared")
     fig.savefig(path, dpi=90)
     plt.close(fig)

@@ -2,7 +2,11 @@
 
 Everything is computed from the runs' own files (``summary.json`` and the
 workers' ``curve.jsonl``), so a report can be rebuilt from a comparison
-directory at any time (``coevo compare --report-only``).  Files written to OUT:
+directory at any time (``coevo compare --report-only``).  One diagnostic is
+recomputed rather than read: how often each run's final Docking policy docks on
+its own from a fresh random start (``DOCKING_PROBE_EPISODES`` single episodes),
+which tells a starved Executive from a Docking agent that never learned.
+Files written to OUT:
 ``results.json`` (everything), ``runs.csv`` (one row per run), ``curves.csv``
 (one row per run, behaviour and generation), ``figure-REGIME.png``,
 ``regimes.png`` and ``report.md``.
@@ -11,6 +15,8 @@ directory at any time (``coevo compare --report-only``).  Files written to OUT:
 from __future__ import annotations
 
 import json
+import math
+import statistics
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +25,9 @@ from coevo.compare import plots
 from coevo.compare.experiment import CompareSpec, Replicate, is_finished, replicates, run_dir
 from coevo.compare.stats import RankComparison, compare_samples
 from coevo.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
-from coevo.errors import RunDirError
+from coevo.errors import RuleSetError, RunDirError
+from coevo.policy.text import parse_ruleset
+from coevo.robot import docking_from_random_starts
 from coevo.rundir import write_csv, write_json, write_text
 
 __all__ = ["collect", "write_report", "MEASURES"]
@@ -27,6 +35,7 @@ __all__ = ["collect", "write_report", "MEASURES"]
 # The combined robot's measures shown per run (SPEC §2 "Measures").
 MEASURES = ("quality_tracking", "successful_docking", "average_epoch_length", "dock_choice", "executive_payoff")
 CURVE_COLUMNS = ("best_fitness", "best_so_far", "quality_tracking", "successful_docking", "dock_choice")
+DOCKING_PROBE_EPISODES = 300
 
 
 def _curve(path: Path) -> list[dict[str, Any]]:
@@ -41,11 +50,21 @@ def collect(out: Path, spec: CompareSpec) -> list[dict[str, Any]]:
     for rep in replicates(spec):
         if not is_finished(out, rep):
             continue
-        records.append(_record(out, rep))
+        records.append(_record(out, spec, rep))
     return records
 
 
-def _record(out: Path, rep: Replicate) -> dict[str, Any]:
+def _docking_alone(d: Path, spec: CompareSpec, rep: Replicate) -> float:
+    """% of fresh single episodes in which the run's final Docking policy docks (NaN if it published none)."""
+    f = d / "workers" / Behaviour.DOCKING.value / "best.rules"
+    try:
+        rules = parse_ruleset(f.read_text(), Behaviour.DOCKING)
+    except (OSError, RuleSetError):
+        return float("nan")
+    return docking_from_random_starts(spec.world, rules, episodes=DOCKING_PROBE_EPISODES, seed=rep.seed + 7)
+
+
+def _record(out: Path, spec: CompareSpec, rep: Replicate) -> dict[str, Any]:
     d = run_dir(out, rep)
     summary = json.loads((d / "summary.json").read_text())
     m = summary["measures"]
@@ -57,6 +76,7 @@ def _record(out: Path, rep: Replicate) -> dict[str, Any]:
         final[b.value] = float(rows[-1]["best_so_far"]) if rows else float("nan")
     return {
         "run": rep.run_id, "regime": rep.regime, "index": rep.index, "seed": rep.seed,
+        "docking_from_random_starts": _docking_alone(d, spec, rep),
         "seconds": float(summary.get("seconds", float("nan"))),
         "measures": {k: float(v) for k, v in m.items()},
         "class": classify(m),
@@ -70,15 +90,22 @@ def _fmt_p(p: float) -> str:
     return f"{p:.2g}" if p >= 0.001 else "< 0.001"
 
 
+def _winner(t: RankComparison) -> tuple[str, str]:
+    """(higher, lower) regime by the effect size: medians tie when most runs score 0, ranks do not."""
+    return (t.b, t.a) if t.a12 > 0.5 else (t.a, t.b)
+
+
 def _verdict(spec: CompareSpec, records: list[dict[str, Any]], tests: list[RankComparison]) -> str:
     by = {r: [x for x in records if x["regime"] == r] for r in spec.regimes}
     parts = []
     for t in tests:
         med = {t.a: t.median_a, t.b: t.median_b}
+        mean = {t.a: t.mean_a, t.b: t.mean_b}
         name = t.measure.replace("_", " ")
-        if t.p_value < 0.05 and t.median_a != t.median_b:
-            hi, lo = (t.b, t.a) if t.median_b > t.median_a else (t.a, t.b)
+        if t.p_value < 0.05 and t.a12 != 0.5:
+            hi, lo = _winner(t)
             parts.append(f"{hi} beats {lo} on {name} (medians {med[hi]:.3g} vs {med[lo]:.3g}, "
+                         f"means {mean[hi]:.3g} vs {mean[lo]:.3g}, "
                          f"Mann–Whitney p = {_fmt_p(t.p_value)}, A = {t.a12:.2f}, {t.magnitude})")
         else:
             parts.append(f"the regimes do not differ significantly on {name} "
@@ -89,8 +116,11 @@ def _verdict(spec: CompareSpec, records: list[dict[str, Any]], tests: list[RankC
     for r, runs in by.items():
         starved = sum(x["class"].startswith("No Docking") for x in runs)
         good = sum(x["class"].startswith("Good Docking") for x in runs)
+        alone = [v for v in (x["docking_from_random_starts"] for x in runs) if not math.isnan(v)]
         text += (f" In {r}, the Executive starved Docking (picked it in under 5 % of episodes) in {starved} of "
-                 f"{len(runs)} runs, and {good} of {len(runs)} runs docked well (≥ 20 % of episodes).")
+                 f"{len(runs)} runs, and {good} of {len(runs)} runs docked well (≥ 20 % of episodes)")
+        text += (f"; its final Docking policy, alone from a fresh random start, docked in a median "
+                 f"{statistics.median(alone):.1f} % of episodes (best run {max(alone):.1f} %)." if alone else ".")
     exp = []
     if "mutual" in by and "independent" in by and by["mutual"] and by["independent"]:
         exec_t = next((t for t in tests if t.measure == "final_executive_fitness"), None)
@@ -98,10 +128,7 @@ def _verdict(spec: CompareSpec, records: list[dict[str, Any]], tests: list[RankC
         mutual_starved = sum(x["class"].startswith("No Docking") for x in by["mutual"])
 
         def independent_wins(t: RankComparison | None) -> bool:
-            if t is None or t.p_value >= 0.05:
-                return False
-            med = {t.a: t.median_a, t.b: t.median_b}
-            return med["independent"] > med["mutual"]
+            return t is not None and t.p_value < 0.05 and t.a12 != 0.5 and _winner(t)[0] == "independent"
 
         checks = [
             ("Independent beats Mutual on final Executive fitness", independent_wins(exec_t)),
@@ -156,7 +183,7 @@ def write_report(out: Path, spec: CompareSpec, *, elapsed: float | None = None) 
     write_json(out / "results.json", results)
     write_csv(out / "runs.csv", [
         {"run": x["run"], "regime": x["regime"], "seed": x["seed"], "class": x["class"], "seconds": round(x["seconds"], 1),
-         **{k: x["measures"][k] for k in MEASURES},
+         **{k: x["measures"][k] for k in MEASURES}, "docking_from_random_starts": x["docking_from_random_starts"],
          **{f"final_{b}_fitness": x["final_best_so_far"][b] for b in (bb.value for bb in Behaviour)}}
         for x in records
     ])
@@ -191,7 +218,10 @@ def _markdown(spec: CompareSpec, records: list[dict[str, Any]], table: dict[str,
         lines.append(f"| {r} (ours) | " + " | ".join(str(table[r][c] or "") for c in CLASSES) + " |")
         if r in REPORT_COUNTS:
             lines.append(f"| {r} (report) | " + " | ".join(str(REPORT_COUNTS[r].get(c, "")) for c in CLASSES) + " |")
-    lines += ["", "Classes: Good Docking ≥ 20 % of episodes dock successfully, Poor Docking < 20 %, No Docking = "
+    lines += ["", "Docking alone docks %: the run's final Docking policy on its own, from fresh random starts "
+              f"({DOCKING_PROBE_EPISODES} single episodes); it separates a starved Docking agent from one that "
+              "never learned to dock.", ""]
+    lines += ["Classes: Good Docking ≥ 20 % of episodes dock successfully, Poor Docking < 20 %, No Docking = "
               "Docking picked in < 5 % of episodes; Hi tracking > 60 % quality tracking, Med > 30 %, Lo otherwise.", ""]
     if tests:
         lines += ["## Statistical comparison", "",
@@ -203,13 +233,14 @@ def _markdown(spec: CompareSpec, records: list[dict[str, Any]], table: dict[str,
         lines.append("")
     lines += ["## Runs", "",
               "| run | class | quality tracking % | successful docking % | avg epoch length | Docking picked % "
-              "| executive payoff | final E / D / T best fitness | minutes |",
-              "|---|---|---|---|---|---|---|---|---|"]
+              "| executive payoff | final E / D / T best fitness | Docking alone docks % | minutes |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
     for x in records:
         m, f = x["measures"], x["final_best_so_far"]
         lines.append(f"| {x['run']} | {x['class']} | {m['quality_tracking']:.1f} | {m['successful_docking']:.1f} | "
                      f"{m['average_epoch_length']:.2f} | {m['dock_choice']:.1f} | {m['executive_payoff']:.3f} | "
-                     f"{f['executive']:.3f} / {f['docking']:.3f} / {f['tracking']:.3f} | {x['seconds'] / 60:.1f} |")
+                     f"{f['executive']:.3f} / {f['docking']:.3f} / {f['tracking']:.3f} | "
+                     f"{x['docking_from_random_starts']:.1f} | {x['seconds'] / 60:.1f} |")
     lines += ["", "## Learning curves", ""]
     lines += [f"![{f}]({f})" for f in figures]
     lines += ["", "Files: `results.json` (everything above), `runs.csv`, `curves.csv`, and each run under `runs/`.", ""]

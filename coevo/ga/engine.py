@@ -8,6 +8,10 @@ for the learning curve; the best so far is kept; the next population is bred.
 
 The partner models are an argument of every generation, so an asynchronous worker
 can swap in new partner policies between generations without the GA knowing.
+
+The mutation model (``GAConfig.mutation_model``, see :mod:`coevo.ga.mutation`) may
+give every individual a 3-bit control gene: ``GA.genes[i]`` (uint8, 0..7) belongs to
+``GA.population[i]`` and travels with it through breeding (all zeros under FM and FH).
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ from coevo.behaviours import Behaviour
 from coevo.config import GAConfig, WorldConfig
 from coevo.errors import ConfigError
 from coevo.ga.evaluate import Evaluation, Evaluator, Partners
-from coevo.ga.mutation import FixedRate, MutationModel
+from coevo.ga.mutation import CONTROL_LEVELS, MutationModel, model_from_config
 from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise, trim
 from coevo.policy.rules import RuleSet, random_ruleset
 from coevo.policy.strength import update_strengths
@@ -68,7 +72,7 @@ class GA:
         self.world_cfg = world
         self.cfg = ga
         self.rng = np.random.default_rng(seed)
-        self.mutation = mutation or FixedRate(ga.mutation_rate)
+        self.mutation = mutation or model_from_config(ga)
         self.evaluator = Evaluator(self.behaviour, world, ga)
         if seed_policy is not None:
             if seed_policy.behaviour is not self.behaviour:
@@ -79,12 +83,18 @@ class GA:
             ]
         else:
             self.population = [random_ruleset(self.behaviour, ga.initial_rules, self.rng) for _ in range(ga.population)]
+        self.genes = self._random_genes(ga.population)  # control gene of population[i]; zeros if the model has none
         self.generation_no = 0
         self.best: RuleSet | None = None
         self.current: RuleSet | None = None  # the last generation's best individual (strengths learned)
         self.current_fitness = 0.0
         self.best_fitness = -np.inf
         self.last: Evaluation | None = None
+
+    def _random_genes(self, n: int) -> np.ndarray:
+        if not self.mutation.controlled:
+            return np.zeros(n, dtype=np.uint8)
+        return self.rng.integers(CONTROL_LEVELS, size=n).astype(np.uint8)
 
     def _child_rng(self) -> np.random.Generator:
         return np.random.default_rng(int(self.rng.integers(2**63)))
@@ -107,7 +117,7 @@ class GA:
             self.best, self.best_fitness = learned[top], best_fit
         m = check.measures(self.world_cfg.episode_steps)
         self.generation_no += 1
-        self.population = self._breed(learned, ev.fitness, ev.experience)
+        self.population, self.genes = self._breed(learned, ev.fitness, ev.experience)
         return GenerationReport(
             generation=self.generation_no,
             best_fitness=best_fit,
@@ -124,10 +134,14 @@ class GA:
             seconds=time.perf_counter() - t0,
         )
 
-    def _breed(self, pop: list[RuleSet], fitness: np.ndarray, exps: list[Experience]) -> list[RuleSet]:
+    def _breed(
+        self, pop: list[RuleSet], fitness: np.ndarray, exps: list[Experience]
+    ) -> tuple[list[RuleSet], np.ndarray]:
         cfg, rng = self.cfg, self.rng
         order = np.argsort(-fitness, kind="stable")
         children: list[RuleSet] = [pop[i] for i in order[: cfg.elite]]
+        genes: list[int] = [int(self.genes[i]) for i in order[: cfg.elite]]
+        inherited = list(genes)  # before mutation: what GH's hypermutation chance is read from
         parents = select_parents(fitness, cfg.parents_fraction, rng)
         while len(children) < cfg.population:
             for i in parents:
@@ -138,12 +152,21 @@ class GA:
                 else:
                     pair = tuple((pop[x], ~exps[x].fired_rules(len(pop[x]))) for x in (i, j))
                 for (child, idle), src in zip(pair, (i, j)):
-                    children.append(self._vary(child, idle, pop[src], exps[src]))
+                    gene = int(self.genes[src])
+                    children.append(self._vary(child, idle, pop[src], exps[src], gene))
+                    inherited.append(gene)
+                    genes.append(self.mutation.mutate_gene(gene, rng))
                 if len(children) >= cfg.population:
                     break
-        return children[: cfg.population]
+        children, gene_arr = children[: cfg.population], np.array(genes[: cfg.population], dtype=np.uint8)
+        hyper = self.mutation.hypermutants(np.array(inherited[cfg.elite : cfg.population], dtype=np.uint8), rng)
+        if hyper is not None:
+            for k in np.flatnonzero(hyper) + cfg.elite:
+                children[k] = random_ruleset(self.behaviour, cfg.initial_rules, rng)
+            gene_arr[cfg.elite :][hyper] = self._random_genes(int(hyper.sum()))
+        return children, gene_arr
 
-    def _vary(self, child: RuleSet, idle: np.ndarray, parent: RuleSet, exp: Experience) -> RuleSet:
+    def _vary(self, child: RuleSet, idle: np.ndarray, parent: RuleSet, exp: Experience, gene: int = 0) -> RuleSet:
         """Lamarckian operators from the parent's experience, then mutation, then the size cap."""
         cfg, rng = self.cfg, self.rng
         extra: list[RuleSet] = []
@@ -161,5 +184,5 @@ class GA:
                 extra.append(r)
         if extra:
             child = RuleSet.concat(child.behaviour, [child, *extra])
-        child = self.mutation.mutate(child, rng, generation=self.generation_no)
+        child = self.mutation.mutate(child, rng, generation=self.generation_no, gene=gene)
         return trim(child, cfg.max_rules)

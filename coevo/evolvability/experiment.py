@@ -1,0 +1,148 @@
+"""The report's Appendix D experiment: every model on every landscape class and base rate.
+
+The grid is landscape classes × base rates × models × landscapes × runs (default
+2 × 8 × 4 × 10 × 10 = 6400 runs of 200 generations, population 100).  All runs on
+one landscape (every model, rate and replicate) advance together as one batch of
+:func:`~coevo.evolvability.bitga.run_batch`.
+
+Seeds: landscape ``i`` of a class comes from ``(seed, class, i)`` and is the same
+whatever else the grid holds; the runs on it draw from ``(seed, class, i, 1)``, so a
+run's numbers depend on the batch it ran in (the same options give the same numbers).
+GM ignores the base rate; it is run at every rate anyway, as in the report.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from coevo.errors import ConfigError
+from coevo.evolvability.bitga import RunParams, run_batch
+from coevo.evolvability.landscape import CLASSES, DynamicLandscape
+from coevo.ga.mutation import MODEL_NAMES
+
+__all__ = ["GridSpec", "GridResults", "RATES", "run_grid"]
+
+RATES = (0.001, 0.003, 0.01, 0.03, 0.06, 0.1, 0.2, 0.3)
+
+
+@dataclass(frozen=True)
+class GridSpec:
+    """What to run; :meth:`make` validates every value before anything runs."""
+
+    classes: tuple[str, ...] = tuple(CLASSES)
+    rates: tuple[float, ...] = RATES
+    models: tuple[str, ...] = MODEL_NAMES
+    landscapes: int = 10
+    runs: int = 10
+    generations: int = 200
+    population: int = 100
+    seed: int = 0
+    alpha_m: float = 0.03
+    hyper: float = 0.2
+    alpha_h: float = 0.05
+    crossover_rate: float = 0.6
+
+    @staticmethod
+    def make(**values: object) -> GridSpec:
+        spec = GridSpec(**{k: v for k, v in values.items() if v is not None})  # type: ignore[arg-type]
+        for name in ("classes", "rates", "models"):
+            seq = getattr(spec, name)
+            if not seq:
+                raise ConfigError(f"--{name}: give at least one value")
+            if len(set(seq)) != len(seq):
+                raise ConfigError(f"--{name}: {list(seq)} repeats a value")
+        for c in spec.classes:
+            if c not in CLASSES:
+                raise ConfigError(f"--classes: unknown landscape class {c!r}: choose from {', '.join(CLASSES)}")
+        for m in spec.models:
+            if m not in MODEL_NAMES:
+                raise ConfigError(f"--models: unknown mutation model {m!r}: choose from {', '.join(MODEL_NAMES)}")
+        for r in spec.rates:
+            if not (isinstance(r, (int, float)) and 0 <= r <= 1):
+                raise ConfigError(f"--rates: base mutation rate {r!r} is not a number in [0, 1]")
+        for name in ("landscapes", "runs", "generations"):
+            v = getattr(spec, name)
+            if not (isinstance(v, int) and v >= 1):
+                raise ConfigError(f"--{name} must be a whole number >= 1, got {v!r}")
+        if not (isinstance(spec.population, int) and spec.population >= 2 and spec.population % 2 == 0):
+            raise ConfigError(f"--population must be an even number >= 2, got {spec.population!r}")
+        for name in ("alpha_m", "hyper", "alpha_h", "crossover_rate"):
+            v = getattr(spec, name)
+            if not 0 <= v <= 1:
+                raise ConfigError(f"{name} {v!r} is not in [0, 1]")
+        return GridSpec(**{**asdict(spec), "rates": tuple(sorted(float(r) for r in spec.rates))})
+
+    @property
+    def total_runs(self) -> int:
+        return len(self.classes) * len(self.rates) * len(self.models) * self.landscapes * self.runs
+
+    def as_dict(self) -> dict[str, object]:
+        return asdict(self)
+
+
+@dataclass
+class GridResults:
+    """Per class, arrays of shape (models, rates, landscapes, runs, generations)."""
+
+    spec: GridSpec
+    mean: dict[str, np.ndarray] = field(default_factory=dict)
+    best: dict[str, np.ndarray] = field(default_factory=dict)
+    control: dict[str, np.ndarray] = field(default_factory=dict)
+    changes: dict[str, list[int]] = field(default_factory=dict)  # generations at which each class's landscape moves
+    seconds: float = 0.0
+
+    def save(self, path: str) -> None:
+        arrays = {f"{kind}_{c}": getattr(self, kind)[c] for kind in ("mean", "best", "control") for c in self.mean}
+        np.savez_compressed(path, **arrays)
+
+    @staticmethod
+    def load(out: Path) -> GridResults:
+        """The results a finished grid wrote to ``out`` (``results.json`` and ``curves.npz``)."""
+        try:
+            meta = json.loads((out / "results.json").read_text(encoding="utf-8"))
+            curves = np.load(out / "curves.npz")
+        except (OSError, ValueError) as exc:
+            raise ConfigError(f"{out} holds no finished evolvability grid: {exc}") from exc
+        spec = GridSpec.make(**{k: tuple(v) if isinstance(v, list) else v for k, v in meta["spec"].items()})
+        res = GridResults(spec, changes={c: list(v) for c, v in meta["changes"].items()}, seconds=meta["seconds"] or 0.0)
+        for c in spec.classes:
+            for kind in ("mean", "best", "control"):
+                getattr(res, kind)[c] = curves[f"{kind}_{c}"]
+        return res
+
+
+def run_grid(spec: GridSpec, *, on_progress: Callable[[int, int], None] | None = None) -> GridResults:
+    """Run the whole grid; ``on_progress(done, total)`` counts generations of landscape batches."""
+    t0 = time.perf_counter()
+    M, K, L, N, T = len(spec.models), len(spec.rates), spec.landscapes, spec.runs, spec.generations
+    models = [m for m in spec.models for _ in spec.rates for _ in range(N)]
+    rates = [r for _ in spec.models for r in spec.rates for _ in range(N)]
+    params = RunParams.make(models, rates, alpha_m=spec.alpha_m, hyper=spec.hyper, alpha_h=spec.alpha_h)
+    res = GridResults(spec)
+    total, done = len(spec.classes) * L * T, 0
+    for cname in spec.classes:
+        ci = list(CLASSES).index(cname)
+        shape = (M, K, L, N, T)
+        res.mean[cname], res.best[cname], res.control[cname] = (np.empty(shape) for _ in range(3))
+        for li in range(L):
+            land = DynamicLandscape(CLASSES[cname], seed=np.random.SeedSequence([spec.seed, ci, li]), generations=T)
+            if li == 0:
+                res.changes[cname] = [int(t) for t in land.changes()]
+
+            def tick(gen: int, _base: int = done) -> None:
+                if on_progress is not None:
+                    on_progress(_base + gen, total)
+
+            tr = run_batch(land, params, population=spec.population, generations=T, crossover_rate=spec.crossover_rate,
+                           seed=np.random.SeedSequence([spec.seed, ci, li, 1]), on_generation=tick)
+            for name in ("mean", "best", "control"):
+                getattr(res, name)[cname][:, :, li] = getattr(tr, name).reshape(M, K, N, T)
+            done += T
+    res.seconds = time.perf_counter() - t0
+    return res

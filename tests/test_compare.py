@@ -1,0 +1,186 @@
+"""`coevo compare`: a tiny real comparison end to end, resuming it, its bad input, and its pieces."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from coevo.compare.stats import compare_samples, magnitude
+from coevo.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
+
+TINY = ["--runs", "2", "--generations", "3", "--population", "6", "--episodes", "10", "--ga", "best_episodes=10",
+        "--ga", "initial_rules=8", "--measure-epochs", "5", "--jobs", "2", "--quiet"]
+RUNS = ("mutual-00", "independent-00", "mutual-01", "independent-01")
+
+
+def coevo(*args: str, timeout: float = 600) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "coevo", *args], capture_output=True, text=True, timeout=timeout,
+                          check=False)
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("cmp") / "tiny"
+    r = coevo("compare", "--out", str(out), *TINY)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "0 of 4 runs already done, 4 to run, 2 at a time" in r.stdout
+    return out
+
+
+def _csv(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_tiny_comparison_writes_a_consistent_report(tiny: Path) -> None:
+    for name in ("compare.json", "report.md", "results.json", "runs.csv", "curves.csv",
+                 "figure-mutual.png", "figure-independent.png", "regimes.png"):
+        assert (tiny / name).is_file(), name
+    for png in tiny.glob("*.png"):
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+
+    res = json.loads((tiny / "results.json").read_text())
+    assert res["runs_expected"] == res["runs_finished"] == 4
+    assert sorted(x["run"] for x in res["runs"]) == sorted(RUNS)
+
+    # Every run's measures are its own summary's, and its class follows from them.
+    for x in res["runs"]:
+        summary = json.loads((tiny / "runs" / x["run"] / "summary.json").read_text())
+        assert x["measures"] == pytest.approx(summary["measures"])
+        assert x["class"] == classify(summary["measures"])
+        assert 0.0 <= x["docking_from_random_starts"] <= 100.0
+        for beh, final in x["final_best_so_far"].items():
+            rows = (tiny / "runs" / x["run"] / "workers" / beh / "curve.jsonl").read_text().splitlines()
+            assert len(rows) == 3 and final == pytest.approx(json.loads(rows[-1])["best_so_far"])
+
+    # Table 1 counts are the classes of the runs, nine columns per regime, beside the report's own.
+    for regime in ("mutual", "independent"):
+        counts = res["table1"][regime]
+        assert set(counts) == set(CLASSES)  # results.json keeps keys sorted
+        assert counts == count(x["class"] for x in res["runs"] if x["regime"] == regime)
+        assert sum(counts.values()) == 2
+    assert res["table1_report"] == REPORT_COUNTS
+
+    # The rank tests are recomputable from the per-run numbers.
+    tests = {t["measure"]: t for t in res["tests"]}
+    assert set(tests) == {"final_executive_fitness", "successful_docking"}
+    by = {r: [x for x in res["runs"] if x["regime"] == r] for r in ("mutual", "independent")}
+    again = compare_samples("final_executive_fitness", "mutual", [x["final_best_so_far"]["executive"] for x in by["mutual"]],
+                            "independent", [x["final_best_so_far"]["executive"] for x in by["independent"]])
+    assert tests["final_executive_fitness"] == pytest.approx(again.as_dict())
+    for t in tests.values():
+        assert 0.0 <= t["p_value"] <= 1.0 and 0.0 <= t["a12"] <= 1.0
+    assert res["verdict"]
+
+    # The CSVs say what results.json says.
+    rows = {r["run"]: r for r in _csv(tiny / "runs.csv")}
+    assert set(rows) == set(RUNS)
+    for x in res["runs"]:
+        assert rows[x["run"]]["class"] == x["class"]
+        assert float(rows[x["run"]]["docking_from_random_starts"]) == pytest.approx(x["docking_from_random_starts"])
+        assert float(rows[x["run"]]["successful_docking"]) == pytest.approx(x["measures"]["successful_docking"])
+    curves = _csv(tiny / "curves.csv")
+    assert len(curves) == 4 * 3 * 3  # runs x behaviours x generations
+    assert Counter(r["behaviour"] for r in curves) == {"tracking": 12, "docking": 12, "executive": 12}
+
+    md = (tiny / "report.md").read_text()
+    for part in ("## Verdict", "## Table 1", "| mutual (ours) |", "| mutual (report) |", "| independent (report) |",
+                 "## Statistical comparison", "## Runs", "![regimes.png](regimes.png)", res["verdict"]):
+        assert part in md, part
+    for run in RUNS:
+        assert f"| {run} |" in md
+
+
+def test_resume_reruns_only_what_is_unfinished(tiny: Path) -> None:
+    kept = {r: (tiny / "runs" / r / "summary.json").read_bytes() for r in RUNS if r != "mutual-01"}
+    (tiny / "runs" / "mutual-01" / "summary.json").unlink()  # as if killed before the end
+
+    again = coevo("compare", "--out", str(tiny), *TINY)
+    assert again.returncode == 2 and "add --resume" in again.stderr
+    r = coevo("compare", "--out", str(tiny), "--resume", *TINY)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "3 of 4 runs already done, 1 to run" in r.stdout
+    for run, body in kept.items():
+        assert (tiny / "runs" / run / "summary.json").read_bytes() == body, run
+    assert (tiny / "runs" / "mutual-01" / "summary.json").is_file()
+    assert json.loads((tiny / "results.json").read_text())["runs_finished"] == 4
+
+    other = coevo("compare", "--out", str(tiny), "--resume", *TINY, "--seed", "7")
+    assert other.returncode == 2 and "different comparison" in other.stderr and "seed" in other.stderr
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--regimes", "mutual", "cooperative"], "unknown regime 'cooperative'"),
+    (["--regimes", "mutual", "mutual"], "regimes repeat"),
+    (["--runs", "0"], "runs"),
+    (["--runs", "-3"], "runs"),
+    (["--jobs", "0"], "--jobs must be at least 1, got 0"),
+    (["--generations", "0"], "generations"),
+    (["--measure-epochs", "0"], "measure_epochs"),
+    (["--max-lead", "-1"], "-1"),
+])
+def test_bad_settings_fail_before_anything_starts(tmp_path: Path, args: list[str], message: str) -> None:
+    out = tmp_path / "never"
+    r = coevo("compare", "--out", str(out), "--quiet", *args, timeout=60)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert message in r.stderr
+    assert not out.exists()
+
+
+def test_an_output_directory_that_is_not_a_comparison_is_refused(tmp_path: Path) -> None:
+    (tmp_path / "busy").mkdir()
+    (tmp_path / "busy" / "notes.txt").write_text("mine")
+    r = coevo("compare", "--out", str(tmp_path / "busy"), "--quiet", timeout=60)
+    assert r.returncode == 2 and "holds no comparison" in r.stderr
+    assert [p.name for p in (tmp_path / "busy").iterdir()] == ["notes.txt"]
+    (tmp_path / "file").write_text("x")
+    r = coevo("compare", "--out", str(tmp_path / "file"), "--quiet", timeout=60)
+    assert r.returncode == 2 and "is a file" in r.stderr
+    r = coevo("compare", "--out", str(tmp_path / "nothing"), "--report-only", "--quiet", timeout=60)
+    assert r.returncode == 2 and "no compare.json" in r.stderr
+
+
+@pytest.mark.parametrize(("measures", "expected"), [
+    ({"successful_docking": 20.0, "dock_choice": 5.0, "quality_tracking": 60.1}, "Good Docking / Hi"),
+    ({"successful_docking": 19.9, "dock_choice": 5.0, "quality_tracking": 60.0}, "Poor Docking / Med"),
+    ({"successful_docking": 50.0, "dock_choice": 4.9, "quality_tracking": 30.1}, "No Docking / Med"),
+    ({"successful_docking": 0.0, "dock_choice": 0.0, "quality_tracking": 30.0}, "No Docking / Lo"),
+])
+def test_table1_class_boundaries(measures: dict[str, float], expected: str) -> None:
+    assert classify(measures) == expected
+
+
+def test_table1_counts_all_nine_classes_and_rejects_others() -> None:
+    counts = count(["No Docking / Hi", "No Docking / Hi", "Good Docking / Lo"])
+    assert list(counts) == list(CLASSES) and sum(counts.values()) == 3 and counts["No Docking / Hi"] == 2
+    for regime, c in REPORT_COUNTS.items():
+        assert sum(c.values()) == 10 and set(c) <= set(CLASSES), regime
+    with pytest.raises(ValueError, match="Great Docking"):
+        count(["Great Docking / Hi"])
+
+
+def test_rank_comparison_effect_size_and_p_value() -> None:
+    lo, hi = [0.1, 0.2, 0.3, 0.4], [0.5, 0.6, 0.7, 0.8]
+    t = compare_samples("x", "a", lo, "b", hi)
+    assert t.a12 == 1.0 and t.magnitude == "large"
+    assert t.p_value == pytest.approx(stats.mannwhitneyu(hi, lo, alternative="two-sided").pvalue)
+    assert compare_samples("x", "a", hi, "b", lo).a12 == 0.0
+    same = compare_samples("x", "a", [0.0] * 5, "b", [0.0] * 5)  # every run starved: no difference, no NaN
+    assert same.a12 == 0.5 and same.p_value == 1.0 and same.magnitude == "negligible"
+    rng = np.random.default_rng(3)
+    a, b = rng.normal(0, 1, 30), rng.normal(0.5, 1, 30)
+    t = compare_samples("x", "a", a, "b", b)
+    assert t.a12 == pytest.approx(stats.mannwhitneyu(b, a).statistic / 900)
+    assert magnitude(0.5) == "negligible" and magnitude(0.36) == "medium" and magnitude(0.9) == "large"
+    with pytest.raises(ValueError, match="non-finite"):
+        compare_samples("x", "a", [float("nan")], "b", [1.0])
+    with pytest.raises(ValueError, match="at least one run"):
+        compare_samples("x", "a", [], "b", [1.0])
