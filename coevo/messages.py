@@ -1,10 +1,9 @@
 """Bus messages: frozen pydantic models carried as msgpack maps with a schema version.
 
 Every message is a msgpack map with ``kind`` and ``schema_version`` first-class
-fields.  :func:`encode` and :func:`decode` are the only way in and out; a payload
-that is not msgpack, fails validation, has an unknown schema version, is too large
-or claims a key it was not published on becomes a :class:`MessageError` with a
-short ``reason`` (a counter name) — never a crash.
+fields.  :func:`encode` and :func:`decode` are the only way in and out; a bad
+payload becomes a :class:`MessageError` whose ``reason`` (a counter name, see
+:data:`REASONS`) says what was wrong — never a crash.
 """
 
 from __future__ import annotations
@@ -20,10 +19,26 @@ from coevo.behaviours import Behaviour
 from coevo.errors import MessageError, RuleSetError
 from coevo.policy.rules import RuleSet
 
-__all__ = ["SCHEMA_VERSION", "MAX_BYTES", "PolicyUpdate", "Status", "Control", "Message", "encode", "decode"]
+__all__ = ["SCHEMA_VERSION", "MAX_BYTES", "REASONS", "PolicyUpdate", "Status", "BrokerStatus", "Control", "Message", "encode",
+           "decode"]
 
 SCHEMA_VERSION = 1
 MAX_BYTES = 1 << 20  # a 64-rule policy is ~5 KB; anything near a megabyte is not ours
+
+#: Why a message is rejected: the keys of every ``rejected`` counter (status, broker stats, logs).
+REASONS = {
+    "oversize": f"payload over {MAX_BYTES} bytes (not even decoded)",
+    "not_msgpack": "bytes that are not msgpack",
+    "truncated": "msgpack cut short",
+    "invalid": "msgpack, but not a message: wrong or missing fields, wrong types",
+    "non_finite": "a NaN or infinite fitness",
+    "bad_rules": "a rule set that cannot be (impossible intervals, unknown actions, wrong shapes)",
+    "schema_version": f"a schema version other than {SCHEMA_VERSION}",
+    "wrong_run": "a message naming another run than its key",
+    "wrong_behaviour": "a message naming another behaviour (or worker) than its key",
+    "wrong_key": "a message of a kind that does not belong on its key",
+    "flood": "dropped unread: more arrived than a receiver keeps between two reads",
+}
 
 
 class _Msg(BaseModel):
@@ -81,7 +96,17 @@ class Status(_Msg):
     best_fitness: float
     partner_versions: dict[str, int] = Field(default_factory=dict)
     rejected: dict[str, int] = Field(default_factory=dict)
+    buffered: int = Field(default=0, ge=0)  # published versions the broker's store has not confirmed yet
     done: bool = False
+
+
+class BrokerStatus(_Msg):
+    """The broker's account of one run, every few seconds: what it stored and what it rejected."""
+
+    kind: Literal["broker"] = "broker"
+    stored: dict[str, int] = Field(default_factory=dict)  # behaviour -> policies held
+    rejected: dict[str, int] = Field(default_factory=dict)  # reason -> count, for messages on this run's keys
+    dropped: int = Field(default=0, ge=0)  # of those, dropped unread because the broker's inbox was full
 
 
 class Control(_Msg):
@@ -91,22 +116,23 @@ class Control(_Msg):
     command: Literal["stop"]
 
 
-Message = Annotated[Union[PolicyUpdate, Status, Control], Field(discriminator="kind")]
+Message = Annotated[Union[PolicyUpdate, Status, BrokerStatus, Control], Field(discriminator="kind")]
 _ADAPTER: TypeAdapter[Any] = TypeAdapter(Message)
 
 
-def encode(msg: PolicyUpdate | Status | Control) -> bytes:
+def encode(msg: PolicyUpdate | Status | BrokerStatus | Control) -> bytes:
     return msgpack.packb(msg.model_dump(mode="json"), use_bin_type=True)
 
 
-def decode(payload: bytes, *, key: str | None = None) -> PolicyUpdate | Status | Control:
+def decode(payload: bytes, *, key: str | None = None) -> PolicyUpdate | Status | BrokerStatus | Control:
     """Bytes -> message, checking it against the key it arrived on (if given)."""
     if len(payload) > MAX_BYTES:
         raise MessageError("oversize", f"{len(payload)} bytes > {MAX_BYTES}")
     try:
         data = msgpack.unpackb(payload, raw=False, strict_map_key=True)
     except Exception as exc:  # msgpack raises several unrelated types
-        raise MessageError("not_msgpack", f"{type(exc).__name__}: {exc}") from None
+        reason = "truncated" if "incomplete" in str(exc) else "not_msgpack"
+        raise MessageError(reason, f"{type(exc).__name__}: {exc}") from None
     if not isinstance(data, dict):
         raise MessageError("invalid", f"expected a map, got {type(data).__name__}")
     version = data.get("schema_version")
@@ -116,25 +142,33 @@ def decode(payload: bytes, *, key: str | None = None) -> PolicyUpdate | Status |
         msg = _ADAPTER.validate_python(data)
     except ValidationError as exc:
         first = exc.errors()[0]
+        field = str(first["loc"][-1]) if first["loc"] else ""
         where = ".".join(str(p) for p in first["loc"])
-        raise MessageError("invalid", f"{where}: {first['msg']}") from None
+        reason = "invalid"
+        if field == "fitness" and first["type"] == "value_error":
+            reason = "non_finite"
+        elif field == "rules" and first["type"] == "value_error":
+            reason = "bad_rules"
+        raise MessageError(reason, f"{where}: {first['msg']}") from None
+    if isinstance(msg, PolicyUpdate) and msg.rules.get("behaviour") != msg.behaviour.value:
+        raise MessageError("bad_rules", f"a {msg.behaviour.value} policy carrying {msg.rules.get('behaviour')!r} rules")
     if key is not None:
         _check_key(msg, key)
     return msg
 
 
-def _check_key(msg: PolicyUpdate | Status | Control, key: str) -> None:
+def _check_key(msg: PolicyUpdate | Status | BrokerStatus | Control, key: str) -> None:
     k = keys.parse(key)
     if not k:
         raise MessageError("wrong_key", f"{key!r} is not a coevo key")
     if k["run"] != msg.run:
         raise MessageError("wrong_run", f"message for run {msg.run!r} on {key!r}")
-    topics = {"policy": ("policy", "current"), "status": ("status",), "control": ("control",)}[msg.kind]
+    topics = {"policy": ("policy", "current"), "status": ("status",), "broker": ("broker",), "control": ("control",)}[msg.kind]
     if k["topic"] not in topics:
         raise MessageError("wrong_key", f"{msg.kind} message on {key!r}")
     beh = getattr(msg, "behaviour", None)
     if beh is not None and k.get("behaviour") != beh.value:
-        raise MessageError("wrong_key", f"{beh.value} {msg.kind} on {key!r}")
+        raise MessageError("wrong_behaviour", f"{beh.value} {msg.kind} on {key!r}")
     worker = getattr(msg, "worker", None)
     if msg.kind == "status" and k.get("worker") != worker:
-        raise MessageError("wrong_key", f"status of worker {worker!r} on {key!r}")
+        raise MessageError("wrong_behaviour", f"status of worker {worker!r} on {key!r}")

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from coevo import keys
 from coevo.errors import ConfigError, MessageError
-from coevo.messages import MAX_BYTES, Control, PolicyUpdate, Status, decode, encode
+from coevo.messages import MAX_BYTES, REASONS, Control, PolicyUpdate, Status, decode, encode
 from coevo.policy import random_ruleset
 
 
@@ -46,29 +46,35 @@ def test_status_and_control_round_trip() -> None:
     "payload,reason",
     [
         (b"\xc1\xc1garbage", "not_msgpack"),
-        (encode(policy_msg())[:-7], "not_msgpack"),  # truncated
+        (encode(policy_msg())[:-7], "truncated"),
         (msgpack.packb([1, 2, 3]), "invalid"),
         (msgpack.packb({"kind": "policy", "schema_version": 1, "run": "r1"}), "invalid"),
         (msgpack.packb({**policy_msg().model_dump(mode="json"), "schema_version": 99}), "schema_version"),
-        (msgpack.packb({**policy_msg().model_dump(mode="json"), "fitness": math.nan}), "invalid"),
-        (msgpack.packb({**policy_msg().model_dump(mode="json"), "fitness": math.inf}), "invalid"),
+        (msgpack.packb({**policy_msg().model_dump(mode="json"), "fitness": math.nan}), "non_finite"),
+        (msgpack.packb({**policy_msg().model_dump(mode="json"), "fitness": math.inf}), "non_finite"),
         (msgpack.packb({**policy_msg().model_dump(mode="json"), "fitness": "high"}), "invalid"),
         (msgpack.packb({**policy_msg().model_dump(mode="json"), "extra": 1}), "invalid"),
         (msgpack.packb({**policy_msg().model_dump(mode="json"), "rules": {"behaviour": "docking", "lo": [[200] * 8],
-                        "hi": [[0] * 8], "action": [[0, 0]], "strength": [0.5]}}), "invalid"),
+                        "hi": [[0] * 8], "action": [[0, 0]], "strength": [0.5]}}), "bad_rules"),
+        (msgpack.packb({**policy_msg().model_dump(mode="json"),
+                        "rules": random_ruleset("tracking", 3, np.random.default_rng(1)).to_dict()}), "bad_rules"),
+        (msgpack.packb({**policy_msg().model_dump(mode="json"), "version": [3]}), "invalid"),
         (b"\x00" * (MAX_BYTES + 1), "oversize"),
     ],
 )
 def test_bad_payloads_are_rejected_with_a_reason(payload: bytes, reason: str) -> None:
     with pytest.raises(MessageError) as err:
         decode(payload, key=keys.policy("r1", "docking"))
-    assert err.value.reason == reason
+    assert err.value.reason == reason and reason in REASONS
 
 
 def test_message_on_the_wrong_key_or_run_is_rejected() -> None:
     data = encode(policy_msg())
     with pytest.raises(MessageError) as err:
         decode(data, key=keys.policy("r1", "tracking"))  # a docking policy on tracking's key
+    assert err.value.reason == "wrong_behaviour"
+    with pytest.raises(MessageError) as err:
+        decode(data, key=keys.status("r1", "docking", "w-1"))  # a policy on a status key
     assert err.value.reason == "wrong_key"
     with pytest.raises(MessageError) as err:
         decode(data, key=keys.policy("other", "docking"))
