@@ -18,7 +18,7 @@ from typing import Any
 
 from coevo.errors import RunDirError
 
-__all__ = ["staged_dir", "write_json", "write_text", "write_csv"]
+__all__ = ["staged_dir", "write_bytes", "write_json", "write_text", "write_csv"]
 
 
 @contextmanager
@@ -39,12 +39,16 @@ def staged_dir(final: Path) -> Iterator[Path]:
     os.replace(tmp, final)
 
 
-def write_text(path: Path, text: str) -> None:
+def write_bytes(path: Path, data: bytes) -> None:
+    """Write ``path`` atomically: a temporary sibling, fsynced, renamed over it, the directory fsynced.
+
+    A crash at any moment leaves either the old file or the new one, never a torn one.
+    """
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
@@ -52,6 +56,15 @@ def write_text(path: Path, text: str) -> None:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+    dfd = os.open(path.parent, os.O_RDONLY)
+    try:
+        os.fsync(dfd)
+    finally:
+        os.close(dfd)
+
+
+def write_text(path: Path, text: str) -> None:
+    write_bytes(path, text.encode("utf-8"))
 
 
 def write_json(path: Path, data: Any) -> None:

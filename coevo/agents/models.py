@@ -19,8 +19,9 @@ generation on its own key) and ``recent`` (each generation, one of the last
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -75,6 +76,20 @@ class PartnerModels:
         self.versions[behaviour] = version
         self._bests[behaviour] = (self._bests[behaviour] + [rules])[-self.recent :]
         return True
+
+    def state_dict(self) -> dict[str, Any]:
+        """The models, versions and generator state, as plain data (for checkpoints)."""
+        return {
+            "versions": {b.value: v for b, v in self.versions.items()},
+            "bests": {b.value: [r.to_dict() for r in rs] for b, rs in self._bests.items()},
+            "rng": json.dumps(self._rng.bit_generator.state),
+        }
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        for b in self.needed:
+            self.versions[b] = int(state["versions"][b.value])
+            self._bests[b] = [RuleSet.from_dict(d) for d in state["bests"][b.value]]
+        self._rng.bit_generator.state = json.loads(state["rng"])
 
     def partners(self) -> Partners:
         """The models for the next generation (draws, for ``recent``, from this worker's own RNG)."""

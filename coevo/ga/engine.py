@@ -16,8 +16,10 @@ give every individual a 3-bit control gene: ``GA.genes[i]`` (uint8, 0..7) belong
 
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -90,6 +92,40 @@ class GA:
         self.current_fitness = 0.0
         self.best_fitness = -np.inf
         self.last: Evaluation | None = None
+
+    # ------------------------------------------------------------ checkpoints
+    def state_dict(self) -> dict[str, Any]:
+        """Everything the next generation depends on, as plain data (msgpack/JSON-able).
+
+        A GA loaded from it with :meth:`load_state` breeds, evaluates and reports
+        exactly as this one would have: the population with its learned strengths,
+        the control genes, the best and current policies and the generator's state.
+        """
+        return {
+            "generation": self.generation_no,
+            "population": [p.to_dict() for p in self.population],
+            "genes": self.genes.tolist(),
+            "rng": json.dumps(self.rng.bit_generator.state),  # 128-bit integers: JSON keeps them exact
+            "best": None if self.best is None else self.best.to_dict(),
+            "best_fitness": float(self.best_fitness),
+            "current": None if self.current is None else self.current.to_dict(),
+            "current_fitness": float(self.current_fitness),
+        }
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Continue from :meth:`state_dict` of a GA with the same behaviour and settings."""
+        population = [RuleSet.from_dict(d) for d in state["population"]]
+        if len(population) != self.cfg.population or any(p.behaviour is not self.behaviour for p in population):
+            raise ConfigError(f"checkpointed population ({len(population)} rule sets) does not fit a "
+                              f"{self.behaviour} GA of population {self.cfg.population}")
+        self.population = population
+        self.genes = np.asarray(state["genes"], dtype=np.uint8)
+        self.rng.bit_generator.state = json.loads(state["rng"])
+        self.generation_no = int(state["generation"])
+        self.best = None if state["best"] is None else RuleSet.from_dict(state["best"])
+        self.best_fitness = float(state["best_fitness"])
+        self.current = None if state["current"] is None else RuleSet.from_dict(state["current"])
+        self.current_fitness = float(state["current_fitness"])
 
     def _random_genes(self, n: int) -> np.ndarray:
         if not self.mutation.controlled:
