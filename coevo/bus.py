@@ -31,7 +31,7 @@ import zenoh
 from coevo.errors import ConfigError
 
 __all__ = ["DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
-           "make_config", "open_session", "sigterm_as_exit"]
+           "drain", "make_config", "open_session", "ring_subscriber", "sigterm_as_exit"]
 
 log = logging.getLogger(__name__)
 
@@ -278,6 +278,27 @@ def open_session(conf: zenoh.Config, *, what: str = "session") -> Iterator[Any]:
         yield session
     finally:
         session.close()
+
+
+def ring_subscriber(session: Any, key: str, capacity: int) -> Any:
+    """A subscriber whose samples wait in a ring of the newest ``capacity``, drained with :func:`drain`.
+
+    Nothing runs in Python per arriving sample: a flood on the key costs the
+    receiving process no GIL time and cannot stall its connection (a callback that
+    falls behind does, see ZENOH-NOTES); beyond ``capacity`` the oldest are dropped.
+    """
+    return session.declare_subscriber(key, zenoh.handlers.RingChannel(capacity))
+
+
+def drain(subscriber: Any, limit: int) -> list[tuple[str, bytes]]:
+    """Up to ``limit`` waiting samples of a ring subscriber as (key, payload), oldest first; never blocks."""
+    out: list[tuple[str, bytes]] = []
+    while len(out) < limit:
+        sample = subscriber.try_recv()
+        if sample is None:
+            break
+        out.append((str(sample.key_expr), bytes(sample.payload.to_bytes())))
+    return out
 
 
 def sigterm_as_exit() -> Any:

@@ -79,8 +79,45 @@ def test_an_absent_partner_is_waited_for_once_then_not_until_it_reports(sessions
         _report(client, "docking", 1)  # it comes back, behind
         deadline = time.monotonic() + 5
         while Behaviour.DOCKING in pacer._absent and time.monotonic() < deadline:
+            pacer._poll()
             time.sleep(0.05)
         assert pacer.wait(4, stop) >= 0.5  # waited for again
+    finally:
+        pacer.close()
+
+
+def test_a_partner_whose_token_goes_is_not_waited_for_until_it_is_back(sessions) -> None:
+    router, client = sessions
+    pacer = Pacer(router, RUN, [Behaviour.TRACKING], max_lead=0, wait_limit=30)
+    stop = threading.Event()
+    try:
+        token = client.liveliness().declare_token(keys.alive(RUN, Behaviour.TRACKING, "tracking-0"))
+        _report(client, "tracking", 1)
+        assert pacer.wait(1, stop) < 1.0
+        token.undeclare()  # the partner dies (SIGKILL looks the same to the router)
+        t0 = time.monotonic()
+        assert pacer.wait(5, stop) < 2.0, "a dead partner must not hold the others back"
+        assert time.monotonic() - t0 < 2.0
+        token = client.liveliness().declare_token(keys.alive(RUN, Behaviour.TRACKING, "tracking-0"))  # resumed
+        deadline = time.monotonic() + 5
+        while Behaviour.TRACKING in pacer._absent and time.monotonic() < deadline:
+            time.sleep(0.02)
+        timer = threading.Timer(1.0, _report, (client, "tracking", 6))
+        timer.start()
+        assert 0.8 < pacer.wait(6, stop) < 10  # waited for again, released by its heartbeat
+        timer.join()
+        token.undeclare()
+    finally:
+        pacer.close()
+
+
+def test_a_partner_never_seen_is_not_waited_for_after_the_grace(sessions) -> None:
+    """A restarted worker whose partner finished meanwhile: no token, no heartbeat ever comes."""
+    router, _ = sessions
+    pacer = Pacer(router, RUN, [Behaviour.EXECUTIVE], max_lead=0, wait_limit=60, grace=1.0)
+    try:
+        assert 0.5 < pacer.wait(7, threading.Event()) < 5
+        assert pacer.wait(8, threading.Event()) < 0.2
     finally:
         pacer.close()
 
@@ -96,6 +133,7 @@ def test_a_finished_partner_or_a_stop_releases_at_once(sessions) -> None:
         _report(client, "executive", 3, done=True)
         deadline = time.monotonic() + 5
         while Behaviour.EXECUTIVE not in pacer._finished and time.monotonic() < deadline:
+            pacer._poll()
             time.sleep(0.05)
         assert pacer.wait(8, stop) < 0.1
     finally:

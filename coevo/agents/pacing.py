@@ -10,10 +10,15 @@ with a lead of 1 generation)* restores the report's setting without making the
 run synchronous: each worker still runs at its own pace and adopts whatever
 arrived, but before starting generation ``g+1`` it waits until every partner it
 models has reported finishing generation ``g - max_lead`` (or finished its run,
-or ``wait_limit`` seconds passed: a dead or never-started partner must not stall
-the others, so after one timeout it counts as absent, and is not waited for
-again until it reports).  Progress is read from the partners' status heartbeats, so pacing
-needs nothing beyond what status already publishes.  While it waits, the worker
+or is absent).  A partner is absent from the moment its liveliness token goes
+(it died, or the router between us did), when it has shown neither a token nor a
+heartbeat within ``grace`` seconds of this worker's start (it finished before this
+worker was restarted, or was never started), and after ``wait_limit`` seconds of
+waiting for one that stopped reporting: a dead partner must not stall the others.  It is waited for again once it is back (a resumed worker),
+so the run closes up again behind it.  Progress is read from the partners' status
+heartbeats, kept in rings inside Zenoh (no Python runs per heartbeat, so a flood
+on the status keys cannot slow the worker), so pacing needs nothing beyond what
+status already publishes.  While it waits, the worker
 keeps its own heartbeat going (``tick``), so status never mistakes a paced worker
 for a stalled one and its rejection counts stay current.  ``max_lead=None`` turns
 it off.
@@ -29,6 +34,7 @@ from typing import Any
 
 from coevo import keys
 from coevo.behaviours import Behaviour
+from coevo.bus import drain, ring_subscriber
 from coevo.errors import ConfigError, MessageError
 from coevo.messages import Status, decode
 
@@ -53,66 +59,94 @@ def parse_max_lead(value: str | int | None) -> int | None:
 
 
 class Pacer:
-    """Follows the partners' status heartbeats and holds a worker back when it is too far ahead."""
+    """Follows the partners' heartbeats and liveliness and holds a worker back when it is too far ahead."""
 
     def __init__(self, session: Any, run: str, partners: Iterable[Behaviour], *, max_lead: int | None,
-                 wait_limit: float = 120.0) -> None:
+                 wait_limit: float = 120.0, grace: float = 10.0) -> None:
         self.run = run
         self.partners = tuple(partners)
         self.max_lead = max_lead
         self.wait_limit = wait_limit
+        self.grace = grace
         self.waited = 0.0
+        self._t0 = time.monotonic()
+        self._seen: set[Behaviour] = set()
         self._progress: dict[Behaviour, int] = {b: 0 for b in self.partners}
         self._finished: set[Behaviour] = set()
         self._absent: set[Behaviour] = set()
-        self._cond = threading.Condition()
-        self._subs = [] if max_lead is None else [
-            session.declare_subscriber(keys.status(run, b), self._on_status) for b in self.partners
-        ]
+        self._live: dict[Behaviour, set[str]] = {b: set() for b in self.partners}
+        self._lock = threading.Lock()
+        on = max_lead is not None and bool(self.partners)
+        self._subs = [ring_subscriber(session, keys.status(run, b), 64) for b in self.partners] if on else []
+        self._tokens = [session.liveliness().declare_subscriber(keys.alive(run), self._on_token, history=True)] if on else []
 
-    def _on_status(self, sample: Any) -> None:
+    def _on_token(self, sample: Any) -> None:
+        parts = keys.parse(str(sample.key_expr))
         try:
-            msg = decode(bytes(sample.payload.to_bytes()), key=str(sample.key_expr))
-        except MessageError:
-            return  # bad messages on the status keys are not pacing's business; status counts them
-        if not isinstance(msg, Status) or msg.behaviour not in self._progress:
+            beh = Behaviour(parts.get("behaviour", ""))
+        except ValueError:
             return
-        with self._cond:
-            self._progress[msg.behaviour] = max(self._progress[msg.behaviour], msg.generation)
-            if msg.done or msg.generation >= msg.generations:
-                self._finished.add(msg.behaviour)
-            self._absent.discard(msg.behaviour)
-            self._cond.notify_all()
+        if beh not in self._live:
+            return
+        with self._lock:
+            if str(sample.kind).endswith("PUT"):
+                self._live[beh].add(parts.get("worker", ""))
+                self._absent.discard(beh)
+                self._seen.add(beh)
+            else:
+                self._live[beh].discard(parts.get("worker", ""))
+                if not self._live[beh]:
+                    self._absent.add(beh)
+
+    def _poll(self) -> None:
+        for sub in self._subs:
+            for key, payload in drain(sub, 64):
+                try:
+                    msg = decode(payload, key=key)
+                except MessageError:
+                    continue  # bad messages on the status keys are not pacing's business; status counts them
+                if not isinstance(msg, Status) or msg.behaviour not in self._progress:
+                    continue
+                with self._lock:
+                    self._progress[msg.behaviour] = max(self._progress[msg.behaviour], msg.generation)
+                    if msg.done or msg.generation >= msg.generations:
+                        self._finished.add(msg.behaviour)
+                    self._absent.discard(msg.behaviour)
+                    self._seen.add(msg.behaviour)
 
     def _behind(self, need: int) -> list[Behaviour]:
-        return [b for b in self.partners
-                if b not in self._finished and b not in self._absent and self._progress[b] < need]
+        late = time.monotonic() - self._t0 > self.grace
+        with self._lock:
+            return [b for b in self.partners
+                    if b not in self._finished and b not in self._absent and self._progress[b] < need
+                    and not (late and b not in self._seen)]
 
     def wait(self, completed: int, stop: threading.Event, tick: Callable[[], None] | None = None,
              tick_every: float = 1.0) -> float:
         """Block before the generation after ``completed`` ones until the partners are close enough.
 
-        ``tick`` is called about every ``tick_every`` seconds while waiting (outside the lock).
+        ``tick`` is called about every ``tick_every`` seconds while waiting.
         """
-        if self.max_lead is None or not self.partners:
+        if not self._subs:
             return 0.0
         need = completed - self.max_lead
         t0 = time.monotonic()
         end = t0 + self.wait_limit
         next_tick = t0 + tick_every
         while True:
-            with self._cond:
-                behind = self._behind(need)
-                if not behind or stop.is_set():
-                    break
-                now = time.monotonic()
-                if now >= end:
-                    log.warning("pacing: partners %s still behind generation %d after %.0f s; going on "
-                                "without waiting for them until they report again",
-                                [b.value for b in behind], need, self.wait_limit)
+            self._poll()
+            behind = self._behind(need)
+            if not behind or stop.is_set():
+                break
+            now = time.monotonic()
+            if now >= end:
+                log.warning("pacing: partners %s still behind generation %d after %.0f s; going on "
+                            "without waiting for them until they report again",
+                            [b.value for b in behind], need, self.wait_limit)
+                with self._lock:
                     self._absent.update(behind)
-                    break
-                self._cond.wait(min(end - now, next_tick - now, 0.5))
+                break
+            stop.wait(0.05)
             if tick is not None and time.monotonic() >= next_tick:
                 tick()
                 next_tick = time.monotonic() + tick_every
@@ -121,6 +155,6 @@ class Pacer:
         return waited
 
     def close(self) -> None:
-        for s in self._subs:
+        for s in self._subs + self._tokens:
             s.undeclare()
-        self._subs = []
+        self._subs, self._tokens = [], []

@@ -8,6 +8,7 @@ the learner.  All individuals of a population run in one batched world: individu
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -55,6 +56,7 @@ class Evaluator:
         self.world_cfg = world
         self.ga = ga
         self._worlds: dict[int, BatchWorld] = {}
+        self.tick: Callable[[], None] | None = None  # called between episode rounds (a worker's heartbeat)
 
     def _world(self, lanes: int) -> BatchWorld:
         if lanes not in self._worlds:
@@ -96,7 +98,7 @@ class Evaluator:
         out = run_lanes(
             world, lane_episodes=k, executive=executive, tracking=tracking, docking=docking,
             restart_epochs=restart, rng=rng, learner=beh, conflict=self.ga.conflict,
-            scenarios=per if self.ga.common_scenarios else None,
+            scenarios=per if self.ga.common_scenarios else None, tick=self.tick,
         )
         fitness = np.zeros(P)
         count = np.zeros(P, dtype=np.int64)

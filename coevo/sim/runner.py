@@ -22,6 +22,7 @@ its own scenario.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -117,8 +118,13 @@ def run_lanes(
     learner: Behaviour | str | None = None,
     conflict: str = "strongest",
     scenarios: int | None = None,
+    tick: Callable[[], None] | None = None,
 ) -> Outcome:
-    """Run every lane of ``world`` for ``lane_episodes`` episodes; see the module docstring."""
+    """Run every lane of ``world`` for ``lane_episodes`` episodes; see the module docstring.
+
+    ``tick``, if given, is called before every episode round (a fraction of a second
+    apart): a worker's heartbeat, so a long evaluation still shows it progressing.
+    """
     cfg = world.cfg
     L, K, T = world.n, lane_episodes, cfg.episode_steps
     g = L if scenarios is None else scenarios
@@ -167,6 +173,8 @@ def run_lanes(
         live = np.flatnonzero(alive)
         if live.size == 0:
             break
+        if tick is not None:
+            tick()
         # The Executive picks this episode's task.
         if isinstance(executive, Trivial):
             task[live, k] = executive.task
