@@ -8,6 +8,8 @@
     coevo/<run>/alive/<behaviour>/<worker>      liveliness token of a worker
     coevo/<run>/store/latest/<behaviour>        broker queryable: the latest PolicyUpdate
     coevo/<run>/store/history/<behaviour>       broker queryable: every PolicyUpdate, in order
+    coevo/<run>/store/versions/<behaviour>      broker queryable: the versions it holds, per worker
+    coevo/<run>/broker                          BrokerStatus: what the broker stored and rejected
     coevo/_broker                               liveliness token of a broker with its store up
 
 Run ids and worker ids are single key chunks: letters, digits, ``_``, ``-``, ``.``.
@@ -20,7 +22,8 @@ import re
 from coevo.behaviours import Behaviour
 from coevo.errors import ConfigError
 
-__all__ = ["ROOT", "BROKER", "check_id", "policy", "current", "status", "control", "alive", "store_latest", "store_history", "parse"]
+__all__ = ["ROOT", "BROKER", "check_id", "valid_id", "policy", "current", "status", "control", "alive", "store_latest", "store_history",
+           "store_versions", "broker_status", "parse"]
 
 ROOT = "coevo"
 BROKER = f"{ROOT}/_broker"
@@ -29,9 +32,13 @@ _ID = re.compile(r"^[A-Za-z0-9_.-]{1,64}$")
 
 def check_id(kind: str, value: str) -> str:
     """``value`` if it is a valid single key chunk, else a ConfigError naming it."""
-    if not isinstance(value, str) or not _ID.match(value) or value in (".", ".."):
+    if not valid_id(value):
         raise ConfigError(f"{kind} {value!r} is not valid: use 1-64 letters, digits, '_', '-' or '.'")
     return value
+
+
+def valid_id(value: str) -> bool:
+    return isinstance(value, str) and bool(_ID.match(value)) and value not in (".", "..")
 
 
 def _b(behaviour: Behaviour | str) -> str:
@@ -73,6 +80,14 @@ def store_latest(run: str, behaviour: Behaviour | str | None = None) -> str:
 
 def store_history(run: str, behaviour: Behaviour | str | None = None) -> str:
     return f"{ROOT}/{check_id('run id', run)}/store/history/{_w(behaviour)}"
+
+
+def store_versions(run: str, behaviour: Behaviour | str | None = None) -> str:
+    return f"{ROOT}/{check_id('run id', run)}/store/versions/{_w(behaviour)}"
+
+
+def broker_status(run: str) -> str:
+    return f"{ROOT}/{check_id('run id', run)}/broker"
 
 
 def parse(key: str) -> dict[str, str]:

@@ -1,10 +1,15 @@
 """``coevo broker``: the Zenoh router workers meet at, plus the policy store.
 
 A Python zenoh session in router mode (there is no zenohd here) listens for
-clients.  A subscriber on ``coevo/*/policy/*`` feeds a queue; one thread decodes,
-validates and stores what arrives (callbacks stay trivial, so a slow disk never
-stalls the connection).  Queryables on ``coevo/*/store/latest/*`` and
-``coevo/*/store/history/*`` answer from memory.
+clients.  A subscriber on ``coevo/*/policy/*`` feeds a bounded inbox; one thread
+decodes, validates and stores what arrives (the callback only checks the size and
+queues, so a slow disk never stalls the connection).  The inbox holds at most
+``inbox_bytes`` bytes: a flood beyond that is dropped unread and counted
+(``flood``), and the workers' store sync republishes any real policy that was
+among it.  Queryables on ``coevo/*/store/{latest,history,versions}/*`` answer from
+memory.  Every ``status_every`` seconds the broker publishes, for each run it has
+heard of, a :class:`~coevo.messages.BrokerStatus` (policies stored, messages
+rejected by reason) on ``coevo/RUN/broker``.
 """
 
 from __future__ import annotations
@@ -12,14 +17,17 @@ from __future__ import annotations
 import logging
 import queue
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
+import msgpack
+
 from coevo import keys
+from coevo.broker.store import PolicyStore
 from coevo.bus import open_session
 from coevo.errors import MessageError
-from coevo.messages import PolicyUpdate, decode, encode
-from coevo.broker.store import PolicyStore
+from coevo.messages import MAX_BYTES, BrokerStatus, PolicyUpdate, decode, encode
 
 __all__ = ["Broker"]
 
@@ -29,24 +37,30 @@ log = logging.getLogger(__name__)
 class Broker:
     """Router + store; use as a context manager, or call :meth:`serve_forever`."""
 
-    def __init__(self, conf: Any, data_dir: Path) -> None:
+    def __init__(self, conf: Any, data_dir: Path, *, inbox_bytes: int = 64 << 20, status_every: float = 2.0) -> None:
         self.conf = conf
         self.store = PolicyStore(Path(data_dir))
+        self.inbox_bytes = inbox_bytes
+        self.status_every = status_every
         self._inbox: queue.Queue[tuple[str, bytes] | None] = queue.Queue()
+        self._queued = 0  # bytes waiting in the inbox
+        self._qlock = threading.Lock()
         self._stop = threading.Event()
         self._session_cm: Any = None
         self._decls: list[Any] = []
-        self._worker: threading.Thread | None = None
+        self._threads: list[threading.Thread] = []
 
     def __enter__(self) -> Broker:
         self._session_cm = open_session(self.conf, what="router")
         s = self._session_cm.__enter__()
         self.session = s
-        self._worker = threading.Thread(target=self._drain, name="coevo-store", daemon=True)
-        self._worker.start()
+        self._threads = [threading.Thread(target=self._drain, name="coevo-store", daemon=True),
+                         threading.Thread(target=self._report, name="coevo-broker-status", daemon=True)]
+        for t in self._threads:
+            t.start()
         self._decls.append(s.declare_subscriber(f"{keys.ROOT}/*/policy/*", self._on_policy))
-        self._decls.append(s.declare_queryable(f"{keys.ROOT}/*/store/latest/*", self._on_query))
-        self._decls.append(s.declare_queryable(f"{keys.ROOT}/*/store/history/*", self._on_query))
+        for topic in ("latest", "history", "versions"):
+            self._decls.append(s.declare_queryable(f"{keys.ROOT}/*/store/{topic}/*", self._on_query))
         self._decls.append(s.liveliness().declare_token(keys.BROKER))  # last: the store is ready
         return self
 
@@ -62,9 +76,11 @@ class Broker:
             except Exception:  # already gone with the session
                 pass
         self._decls.clear()
+        self._stop.set()
         self._inbox.put(None)
-        if self._worker is not None:
-            self._worker.join(timeout=5)
+        for t in self._threads:
+            t.join(timeout=5)
+        self.store.flush_log()
         cm, self._session_cm = self._session_cm, None
         cm.__exit__(None, None, None)
 
@@ -74,9 +90,22 @@ class Broker:
     def stop(self) -> None:
         self._stop.set()
 
-    # Callbacks: store and return.
+    # Callbacks: check the size, queue and return.
     def _on_policy(self, sample: Any) -> None:
-        self._inbox.put((str(sample.key_expr), bytes(sample.payload.to_bytes())))
+        key = str(sample.key_expr)
+        payload = bytes(sample.payload.to_bytes())
+        if len(payload) > MAX_BYTES:
+            self.store.reject(MessageError("oversize", f"{len(payload)} bytes > {MAX_BYTES}"), key)
+            return
+        with self._qlock:
+            full = self._queued + len(payload) > self.inbox_bytes
+            if not full:
+                self._queued += len(payload)
+        if full:
+            self.store.reject(MessageError("flood", f"inbox holds over {self.inbox_bytes} bytes; dropped unread"), key,
+                              dropped=True)
+            return
+        self._inbox.put((key, payload))
 
     def _drain(self) -> None:
         while True:
@@ -84,6 +113,8 @@ class Broker:
             if item is None:
                 return
             key, payload = item
+            with self._qlock:
+                self._queued -= len(payload)
             try:
                 msg = decode(payload, key=key)
                 if not isinstance(msg, PolicyUpdate):
@@ -94,10 +125,26 @@ class Broker:
             if self.store.add(msg):
                 log.info("stored %s v%d of %s (fitness %.3f)", msg.behaviour, msg.version, msg.run, msg.fitness)
 
+    def _report(self) -> None:
+        """Publish each known run's BrokerStatus every ``status_every`` s."""
+        while not self._stop.wait(self.status_every):
+            for run, (stored, rejected, dropped) in self.store.accounts().items():
+                try:
+                    self.session.put(keys.broker_status(run), encode(BrokerStatus(
+                        run=run, stored=stored, rejected=rejected, dropped=dropped, sent_at=time.time())))
+                except Exception as exc:  # the session is closing
+                    log.debug("broker status not sent: %s", exc)
+                    return
+
     def _on_query(self, query: Any) -> None:
         parts = keys.parse(str(query.key_expr))
-        latest = parts.get("topic") == "store/latest"
+        topic = parts.get("topic", "")
         for run, beh in self.store.matching(parts.get("run", "*"), parts.get("behaviour", "*")):
+            if topic == "store/versions":
+                query.reply(keys.store_versions(run, beh), msgpack.packb(
+                    {"run": run, "behaviour": beh.value, "workers": self.store.versions(run, beh)}))
+                continue
+            latest = topic == "store/latest"
             key = PolicyStore.key_of(run, beh, latest)
             msgs = [self.store.latest(run, beh)] if latest else self.store.history(run, beh)
             for m in msgs:
@@ -106,8 +153,6 @@ class Broker:
 
     def wait_idle(self, timeout: float = 5.0) -> None:
         """Block until everything received so far is stored (for tests and shutdown)."""
-        import time
-
         end = time.monotonic() + timeout
         while not self._inbox.empty() and time.monotonic() < end:
             time.sleep(0.01)

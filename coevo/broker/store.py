@@ -1,9 +1,12 @@
 """The policy store: latest and full history of every published policy, per run and behaviour.
 
 It keeps everything in memory for queries and appends each accepted update to
-``<data_dir>/<run>/store/<behaviour>.jsonl`` (flushed and fsynced), so a broker
-that restarts reloads what it had.  An update whose (worker, version) is already
-stored is a duplicate (a worker republishing after a reconnect) and is ignored.
+``<data_dir>/<run>/store/<behaviour>.jsonl`` (flushed and fsynced before it counts
+as stored), so a broker that restarts reloads what it had.  A broker killed
+mid-write leaves at most a torn last line; the reload cuts it off (that update was
+never confirmed to its worker, which publishes it again).  An update whose
+(worker, version) is already stored is a duplicate (a worker republishing) and is
+ignored.  Rejected messages are counted per run, by reason.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from coevo import keys
 from coevo.behaviours import Behaviour
 from coevo.errors import MessageError
 from coevo.messages import PolicyUpdate
+from coevo.rejections import Rejections
 
 __all__ = ["PolicyStore"]
 
@@ -31,7 +35,9 @@ class PolicyStore:
         self._lock = threading.Lock()
         self._history: dict[tuple[str, Behaviour], list[PolicyUpdate]] = {}
         self._seen: set[tuple[str, str, str, int]] = set()
-        self.rejected: Counter[str] = Counter()
+        self._rejected: dict[str, Rejections] = {}  # per run (the key's run chunk)
+        self._dropped: Counter[str] = Counter()  # per run: dropped unread (flood)
+        self._active: set[str] = set()  # runs heard of since this broker started
         self._load()
 
     def _file(self, run: str, behaviour: Behaviour) -> Path:
@@ -41,12 +47,13 @@ class PolicyStore:
         if not self.data_dir.exists():
             return
         for f in sorted(self.data_dir.glob("*/store/*.jsonl")):
+            _cut_torn_tail(f)
             for n, line in enumerate(f.read_text(encoding="utf-8").splitlines(), start=1):
                 if not line.strip():
                     continue
                 try:
                     msg = PolicyUpdate.model_validate(json.loads(line))
-                except Exception as exc:  # a torn last line after a crash mid-write
+                except Exception as exc:  # damaged in the middle: keep the rest
                     log.warning("store %s line %d unreadable, skipped: %s", f, n, exc)
                     continue
                 self._remember(msg)
@@ -64,6 +71,7 @@ class PolicyStore:
     def add(self, msg: PolicyUpdate) -> bool:
         """Store and persist an update; False if it was a duplicate."""
         with self._lock:
+            self._active.add(msg.run)
             if not self._remember(msg):
                 return False
             f = self._file(msg.run, msg.behaviour)
@@ -74,10 +82,42 @@ class PolicyStore:
                 os.fsync(fh.fileno())
             return True
 
-    def reject(self, err: MessageError, key: str) -> None:
+    def reject(self, err: MessageError, key: str, *, dropped: bool = False) -> None:
+        run = keys.parse(key).get("run", "?")
         with self._lock:
-            self.rejected[err.reason] += 1
-        log.warning("rejected message on %s: %s", key, err)
+            if run not in self._rejected:
+                self._rejected[run] = Rejections(f"broker (run {run})", log)
+            self._active.add(run)
+            if dropped:
+                self._dropped[run] += 1
+            counter = self._rejected[run]
+        counter.note(err, key)
+
+    def rejected(self, run: str) -> dict[str, int]:
+        with self._lock:
+            counter = self._rejected.get(run)
+        return counter.as_dict() if counter is not None else {}
+
+    def flush_log(self) -> None:
+        with self._lock:
+            counters = list(self._rejected.values())
+        for c in counters:
+            c.flush()
+
+    def accounts(self) -> dict[str, tuple[dict[str, int], dict[str, int], int]]:
+        """For each run heard of since start: (policies stored per behaviour, rejections by reason, dropped)."""
+        with self._lock:
+            runs = sorted(r for r in self._active if keys.valid_id(r))
+            stored = {r: {b.value: len(h) for (rr, b), h in self._history.items() if rr == r} for r in runs}
+            dropped = {r: self._dropped[r] for r in runs}
+        return {r: (stored[r], self.rejected(r), dropped[r]) for r in runs}
+
+    def versions(self, run: str, behaviour: Behaviour) -> dict[str, list[int]]:
+        """The versions held of each worker's policies for (run, behaviour)."""
+        out: dict[str, list[int]] = {}
+        for m in self.history(run, behaviour):
+            out.setdefault(m.worker, []).append(m.version)
+        return {w: sorted(v) for w, v in out.items()}
 
     def latest(self, run: str, behaviour: Behaviour) -> PolicyUpdate | None:
         with self._lock:
@@ -104,3 +144,14 @@ class PolicyStore:
     @staticmethod
     def key_of(run: str, behaviour: Behaviour, latest: bool) -> str:
         return keys.store_latest(run, behaviour) if latest else keys.store_history(run, behaviour)
+
+
+def _cut_torn_tail(f: Path) -> None:
+    """Cut a last line that a crash left without its newline (it was never fsynced as a whole)."""
+    data = f.read_bytes()
+    if data and not data.endswith(b"\n"):
+        keep = data.rfind(b"\n") + 1
+        log.warning("store %s: cut a torn last line of %d bytes (a crash mid-write)", f, len(data) - keep)
+        with open(f, "r+b") as fh:
+            fh.truncate(keep)
+            os.fsync(fh.fileno())
