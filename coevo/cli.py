@@ -168,7 +168,9 @@ def cmd_broker(args: argparse.Namespace) -> int:
 
     _router_listen(args)
     sigterm_as_exit()
-    with Broker(config_from_args(args), Path(args.data_dir)) as broker:
+    if args.inbox_mb <= 0:
+        raise ConfigError(f"--inbox-mb must be positive, got {args.inbox_mb}")
+    with Broker(config_from_args(args), Path(args.data_dir), inbox_bytes=int(args.inbox_mb * (1 << 20))) as broker:
         logging.getLogger("coevo.broker").info("broker listening on %s, store in %s", args.listen, args.data_dir)
         print(f"coevo broker listening on {', '.join(_router_listen(args))}; store in {args.data_dir}", flush=True)
         try:
@@ -192,7 +194,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
     sigterm_as_exit()
     w = Worker(behaviour=behaviour, regime=args.regime, run=args.run, worker_id=worker_id, seed=args.seed,
                world=world, ga=ga, out_dir=out, conf=config_from_args(args), model=args.model,
-               max_lead=parse_max_lead(args.max_lead))
+               max_lead=parse_max_lead(args.max_lead), resume=args.resume, final_sync=args.final_sync)
     try:
         curve = w.run()
     except KeyboardInterrupt:
@@ -201,36 +203,59 @@ def cmd_worker(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_run(args: argparse.Namespace) -> int:
-    from rich.live import Live
+def _reasons(counts: dict[str, int]) -> str:
+    return ", ".join(f"{n} {r}" for r, n in sorted(counts.items())) or "0"
+
+
+def status_table(board: Any, title: str) -> Any:
+    """The live status as a rich table: one row per worker, one for the broker."""
     from rich.table import Table
 
+    t = Table(title=title)
+    for col in ("behaviour", "worker", "generation", "best fitness", "partners", "unconfirmed", "rejected", "state"):
+        t.add_column(col)
+    styles = {"alive": "green", "done": "blue", "stalled": "yellow", "dead": "bold red"}
+    for w in board.snapshot():
+        partners = " ".join(f"{k[0].upper()}v{v}" for k, v in sorted(w["partner_versions"].items())) or "-"
+        t.add_row(w["behaviour"], w["worker"], f"{w['generation']}/{w['generations']}", f"{w['best_fitness']:.3f}",
+                  partners, str(w["buffered"]), _reasons(w["rejected_by_reason"]), w["state"], style=styles.get(w["state"]))
+    b = board.broker_view()
+    stored = " ".join(f"{k[0].upper()}:{v}" for k, v in sorted(b["stored"].items())) or "-"
+    t.add_row("broker", "store", "", "", f"stored {stored}", "", _reasons(b["rejected"]), b["state"],
+              style="green" if b["state"] == "up" else "bold red")
+    return t
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from rich.live import Live
+
     from coevo.agents.pacing import parse_max_lead
-    from coevo.run import run_local
+    from coevo.run import read_run_json, run_local
 
-    world, ga = _configs(args)
-    max_lead = parse_max_lead(args.max_lead)
-    run_id = args.run or f"{args.regime}-{time.strftime('%Y%m%d-%H%M%S')}"
-
-    def table(board: Any) -> Table:
-        t = Table(title=f"run {run_id} ({args.regime})")
-        for col in ("behaviour", "worker", "generation", "best fitness", "partners", "rejected", "state"):
-            t.add_column(col)
-        for w in board.snapshot():
-            partners = " ".join(f"{k[0].upper()}v{v}" for k, v in sorted(w["partner_versions"].items())) or "-"
-            t.add_row(w["behaviour"], w["worker"], f"{w['generation']}/{w['generations']}", f"{w['best_fitness']:.3f}",
-                      partners, str(w["rejected"]), w["state"])
-        return t
+    if args.resume:
+        given = [f"--{n}" for n in ("regime", "run", "generations", "population", "episodes", "world", "ga", "seed", "model")
+                 if getattr(args, n, None) is not None]
+        if given or args.max_lead is not None:
+            raise ConfigError(f"--resume takes every setting from the run's run.json; drop {', '.join(given or ['--max-lead'])}")
+        meta = read_run_json(Path(args.resume))
+        run_id, root, regime = meta["run"], Path(args.resume).parent, meta["regime"]
+        settings = dict(world=meta["world"], ga=meta["ga"], seed=meta["seed"], model=meta["model"], max_lead=meta["max_lead"])
+    else:
+        world, ga = _configs(args)
+        regime = args.regime or "independent"
+        run_id = args.run or f"{regime}-{time.strftime('%Y%m%d-%H%M%S')}"
+        root = Path(args.root)
+        settings = dict(world=world, ga=ga, seed=args.seed or 0, model=args.model or "best",
+                        max_lead=parse_max_lead("1" if args.max_lead is None else args.max_lead))
 
     with Live(auto_refresh=False, transient=False) as live:
         def show(board: Any) -> None:
             if not args.quiet:
-                live.update(table(board), refresh=True)
+                live.update(status_table(board, f"run {run_id} ({regime})"), refresh=True)
 
-        summary = run_local(regime=args.regime, run=run_id, root=Path(args.root), world=world, ga=ga, seed=args.seed,
-                            model=args.model, max_lead=max_lead, measure_epochs=args.measure_epochs, on_status=show,
-                            log_level=args.log_level)
-    print(f"run directory: {Path(args.root) / run_id} ({summary['seconds']:.1f} s)")
+        summary = run_local(regime=regime, run=run_id, root=root, measure_epochs=args.measure_epochs, on_status=show,
+                            log_level=args.log_level, resume=bool(args.resume), **settings)
+    print(f"run directory: {root / run_id} ({summary['seconds']:.1f} s)")
     if "measures" in summary:
         m = summary["measures"]
         print("combined robot: " + ", ".join(f"{k} {m[k]:.1f}" for k in
@@ -300,22 +325,58 @@ def cmd_status(args: argparse.Namespace) -> int:
     with open_session(config_from_args(args), what="status session") as s:
         board = StatusBoard(s, args.run, stall=args.stall)
         try:
-            while end is None or time.monotonic() < end:
-                board.changed.wait(1.0)
-                board.changed.clear()
-                if args.json:
+            if args.json:
+                while end is None or time.monotonic() < end:
+                    board.changed.wait(args.every)
+                    board.changed.clear()
                     print(board.json_line(), flush=True)
-                else:
-                    rows = board.snapshot()
-                    print(time.strftime("%H:%M:%S"), " | ".join(
-                        f"{w['behaviour']}/{w['worker']} gen {w['generation']}/{w['generations']} best {w['best_fitness']:.3f} "
-                        f"partners {w['partner_versions']} rejected {w['rejected']} {w['state']}" for w in rows) or "(no workers yet)",
-                        flush=True)
+            else:
+                from rich.live import Live
+
+                with Live(auto_refresh=False) as live:
+                    while end is None or time.monotonic() < end:
+                        board.changed.wait(args.every)
+                        board.changed.clear()
+                        live.update(status_table(board, f"run {args.run} at {time.strftime('%H:%M:%S')}"), refresh=True)
         except KeyboardInterrupt:
             pass
         finally:
             board.close()
     return 0
+
+
+def cmd_chaos(args: argparse.Namespace) -> int:
+    from coevo.chaos import ChaosPlan, run_chaos, summary_lines
+
+    world, ga = _configs(args)
+    plan = ChaosPlan(faults=args.faults, kinds=tuple(args.kinds), gap=tuple(args.gap), down=tuple(args.down), seed=args.seed)
+    run_id = args.run or f"chaos-{args.regime}-{time.strftime('%Y%m%d-%H%M%S')}"
+
+    def say(text: str) -> None:
+        if not args.quiet:
+            print(f"{time.strftime('%H:%M:%S')} {text}", flush=True)
+
+    report = run_chaos(regime=args.regime, run=run_id, root=Path(args.root), world=world, ga=ga, seed=args.seed,
+                       plan=plan, model=args.model, measure_epochs=args.measure_epochs, on_event=say, log_level=args.log_level)
+    for line in summary_lines(report):
+        print(line)
+    print(f"report: {Path(args.root) / run_id / 'chaos.json'}")
+    return 0 if report["complete"] else 1
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    from coevo.check import check_run
+
+    res = check_run(Path(args.run_dir), replay=not args.no_replay)
+    for beh, facts in sorted((k, v) for k, v in res.facts.items() if isinstance(v, dict)):
+        print(f"{beh}: {facts['generations']} generations, {facts['published']} versions published, "
+              f"{facts['adoptions']} adoptions")
+    if res.ok:
+        print("complete" + (" (replay exact)" if res.facts.get("replayed") else ""))
+        return 0
+    for p in res.problems:
+        print(f"PROBLEM: {p}")
+    return 1
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
@@ -366,6 +427,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("broker", help="the Zenoh router workers meet at, plus the policy store")
     add_connection_args(p, default_mode="router")
     p.add_argument("--data-dir", default="runs", help="where the store keeps each run's policies (default runs/)")
+    p.add_argument("--inbox-mb", type=float, default=64.0,
+                   help="policy messages waiting to be stored at most (default 64 MB); a flood beyond is dropped and counted")
     p.set_defaults(func=cmd_broker)
 
     p = sub.add_parser("router", help="a plain Zenoh router, no store: another site's meeting point (--connect to the broker)")
@@ -380,20 +443,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--model", default="best", choices=["best", "current", "recent"], help="how partners are modelled (default best so far)")
     p.add_argument("--out", help="worker directory (default runs/RUN/workers/BEHAVIOUR)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue from the checkpoint in --out (or start afresh if there is none yet)")
+    p.add_argument("--final-sync", type=float, default=30.0, metavar="SECONDS",
+                   help="at the end, wait this long for the broker's store to hold every published version (default 30)")
     _add_max_lead(p)
     _add_settings(p)
     add_connection_args(p)
     p.set_defaults(func=cmd_worker)
 
     p = sub.add_parser("run", help="broker + three workers on this machine, with a live status")
-    p.add_argument("--regime", default="independent", choices=["mutual", "independent"])
+    p.add_argument("--regime", choices=["mutual", "independent"], help="default independent")
     p.add_argument("--run", help="run id (default REGIME-TIME)")
     p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--model", default="best", choices=["best", "current", "recent"])
+    p.add_argument("--resume", metavar="RUN_DIR", help="continue this run from its workers' checkpoints, with its settings")
+    p.add_argument("--seed", type=int, help="default 0")
+    p.add_argument("--model", choices=["best", "current", "recent"], help="default best")
     p.add_argument("--measure-epochs", type=int, default=100)
     p.add_argument("--quiet", action="store_true")
-    _add_max_lead(p)
+    p.add_argument("--max-lead", metavar="N|off",
+                   help="pacing: start a generation only when every partner is at most N generations behind (default 1; off = unpaced)")
     _add_settings(p)
     p.set_defaults(func=cmd_run)
 
@@ -421,10 +490,35 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("run_dir")
     p.set_defaults(func=cmd_replay)
 
+    p = sub.add_parser("chaos", help="a whole run while random processes are killed and restarted; then check it")
+    p.add_argument("--regime", default="mutual", choices=["mutual", "independent"])
+    p.add_argument("--run", help="run id (default chaos-REGIME-TIME)")
+    p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
+    p.add_argument("--seed", type=int, default=0, help="seeds the workers and the choice of faults")
+    p.add_argument("--model", default="best", choices=["best", "current", "recent"])
+    p.add_argument("--faults", type=int, default=8, help="faults to inject (default 8)")
+    p.add_argument("--kinds", nargs="+", default=["kill-worker", "kill-broker", "pause-worker"], metavar="KIND",
+                   help="kill-worker kill-broker pause-worker (default all three)")
+    p.add_argument("--gap", type=float, nargs=2, default=[1.0, 4.0], metavar=("MIN", "MAX"),
+                   help="seconds between faults (default 1 4)")
+    p.add_argument("--down", type=float, nargs=2, default=[0.5, 3.0], metavar=("MIN", "MAX"),
+                   help="seconds a killed process stays down or a paused one stopped (default 0.5 3)")
+    p.add_argument("--measure-epochs", type=int, default=20)
+    p.add_argument("--quiet", action="store_true")
+    _add_settings(p)
+    p.set_defaults(func=cmd_chaos)
+
+    p = sub.add_parser("check", help="is a finished run directory complete? (every generation, every version stored, replay)")
+    p.add_argument("run_dir")
+    p.add_argument("--no-replay", action="store_true", help="skip re-running the GAs")
+    p.set_defaults(func=cmd_check)
+
     p = sub.add_parser("status", help="follow a run's workers")
     p.add_argument("--run", required=True)
     p.add_argument("--json", action="store_true", help="one JSON object per update")
-    p.add_argument("--stall", type=float, default=10.0, help="seconds without a heartbeat before a live worker counts as stalled")
+    p.add_argument("--stall", type=float, default=3.0,
+                   help="seconds without a heartbeat before a live worker counts as stalled (default 3; workers beat every second)")
+    p.add_argument("--every", type=float, default=0.5, help="refresh period in seconds (default 0.5; changes show at once)")
     p.add_argument("--duration", type=float, help="stop after this many seconds (default: until Ctrl-C)")
     add_connection_args(p)
     p.set_defaults(func=cmd_status)

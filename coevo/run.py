@@ -4,13 +4,20 @@ Starts ``coevo broker`` and one ``coevo worker`` per behaviour as separate
 processes (``subprocess``: fork+exec, never a fork of a process with a session),
 shows the live status, and at the end measures the final combined robot from the
 store's latest policies.  Ctrl-C (or SIGTERM) asks the workers to stop, then ends
-every child; nothing is left running.
+every child; nothing is left running.  ``coevo run --resume RUN_DIR`` starts a
+new broker (its store reloads the run's policies from disk) and every worker with
+``--resume`` (each continues from its last checkpoint), with the settings of the
+run's ``run.json``.
+
+:class:`LocalRun` owns the processes of one run directory; ``coevo chaos`` uses it
+to kill and restart them.
 """
 
 from __future__ import annotations
 
 import json
 import logging
+import os
 import signal
 import socket
 import subprocess
@@ -31,7 +38,7 @@ from coevo.robot import measure_robot
 from coevo.rundir import write_csv, write_json
 from coevo.status import StatusBoard
 
-__all__ = ["free_port", "run_local", "fetch_latest"]
+__all__ = ["free_port", "LocalRun", "run_local", "fetch_latest", "read_run_json"]
 
 log = logging.getLogger(__name__)
 
@@ -62,6 +69,124 @@ def fetch_latest(session: Any, run: str, timeout: float = 5.0) -> dict[Behaviour
     return out
 
 
+def read_run_json(run_dir: Path) -> dict[str, Any]:
+    """The settings of an existing run directory (for ``--resume``), checked."""
+    f = Path(run_dir) / "run.json"
+    if not f.exists():
+        raise RunDirError(f"{str(run_dir)!r} holds no run.json: not a coevo run directory")
+    try:
+        meta = json.loads(f.read_text(encoding="utf-8"))
+        meta["world"], meta["ga"] = WorldConfig(**meta["world"]), GAConfig(**meta["ga"])
+        for k in ("run", "regime", "seed", "model", "max_lead"):
+            meta[k]  # noqa: B018 - present?
+    except (ValueError, KeyError, TypeError) as exc:
+        raise RunDirError(f"{str(f)!r} cannot be read: {type(exc).__name__}: {exc}") from None
+    if meta["run"] != Path(run_dir).name:
+        raise RunDirError(f"{str(f)!r} is for run {meta['run']!r}, but the directory is named {Path(run_dir).name!r}")
+    return meta
+
+
+class LocalRun:
+    """The broker and worker processes of one run directory on this machine."""
+
+    def __init__(self, *, regime: str, run: str, root: Path, world: WorldConfig, ga: GAConfig, seed: int,
+                 model: str = "best", max_lead: int | None = DEFAULT_MAX_LEAD, log_level: str = "WARNING",
+                 endpoint: str | None = None, worker_env: dict[str, str] | None = None) -> None:
+        self.regime, self.run, self.root = regime, keys.check_id("run id", run), Path(root)
+        self.world, self.ga, self.seed, self.model, self.max_lead = world, ga, seed, model, max_lead
+        self.dir = self.root / run
+        self.endpoint = endpoint or f"tcp/127.0.0.1:{free_port()}"
+        self.log_level = log_level
+        self.worker_env = worker_env or {}
+        self.broker: subprocess.Popen[bytes] | None = None
+        self.workers: dict[Behaviour, subprocess.Popen[bytes]] = {}
+        self._all: list[subprocess.Popen[bytes]] = []
+        self.starts: dict[str, int] = {}  # process name -> times started
+
+    def write_run_json(self) -> None:
+        write_json(self.dir / "run.json", {
+            "run": self.run, "regime": self.regime, "seed": self.seed, "model": self.model, "max_lead": self.max_lead,
+            "endpoint": self.endpoint, "world": self.world.model_dump(), "ga": self.ga.model_dump(), "started": time.time()})
+
+    def _spawn(self, name: str, args: list[str], env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
+        logs = self.dir / "logs"
+        logs.mkdir(parents=True, exist_ok=True)
+        self.starts[name] = self.starts.get(name, 0) + 1
+        with open(logs / f"{name}.log", "ab") as f:  # appended: a restarted process keeps its predecessor's log
+            f.write(f"--- start {self.starts[name]} at {time.strftime('%H:%M:%S')}\n".encode())
+            f.flush()
+            p = subprocess.Popen([sys.executable, "-m", "coevo", "--log-level", self.log_level, *args], stdout=f,
+                                 stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                 env={**os.environ, **(env or {})})
+        self._all.append(p)
+        return p
+
+    def start_broker(self) -> subprocess.Popen[bytes]:
+        self.broker = self._spawn("broker", ["broker", "--listen", self.endpoint, "--data-dir", str(self.root)])
+        return self.broker
+
+    def worker_dir(self, b: Behaviour) -> Path:
+        return self.dir / "workers" / b.value
+
+    def start_worker(self, b: Behaviour, *, resume: bool, env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
+        i = list(Behaviour).index(b)
+        args = ["worker", "--behaviour", b.value, "--regime", self.regime, "--run", self.run, "--connect", self.endpoint,
+                "--connect-timeout", "-1", "--seed", str(self.seed + i), "--model", self.model,
+                "--out", str(self.worker_dir(b)), "--max-lead", "off" if self.max_lead is None else str(self.max_lead),
+                *_settings_args(self.world, self.ga)]
+        if resume:
+            args.append("--resume")
+        self.workers[b] = self._spawn(f"worker-{b.value}", args, {**self.worker_env, **(env or {})})
+        return self.workers[b]
+
+    def start(self, *, resume: bool) -> None:
+        self.start_broker()
+        for b in Behaviour:
+            self.start_worker(b, resume=resume)
+
+    def workers_running(self) -> bool:
+        return any(p.poll() is None for p in self.workers.values())
+
+    def ask_stop(self, session: Any) -> None:
+        session.put(keys.control(self.run), encode(Control(run=self.run, command="stop", sent_at=time.time())))
+
+    def end_all(self) -> None:
+        """Terminate whatever still runs (SIGTERM, then SIGKILL after 10 s)."""
+        for p in reversed(self._all):
+            if p.poll() is None:
+                p.terminate()
+        _wait(self._all, 10.0)
+        for p in self._all:
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+
+    def client_config(self) -> Any:
+        return make_config(mode="client", connect=[self.endpoint], connect_timeout=30)
+
+    def finish(self, latest: dict[Behaviour, PolicyUpdate], *, seconds: float, interrupted: bool,
+               measure_epochs: int, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+        """Measure the combined robot and write ``measures.json``, ``curves.csv`` and ``summary.json``."""
+        summary: dict[str, Any] = {"run": self.run, "regime": self.regime, "seconds": seconds, "interrupted": interrupted,
+                                   "versions": {b.value: m.version for b, m in latest.items()},
+                                   "best_fitness": {b.value: m.fitness for b, m in latest.items()}, **(extra or {})}
+        if len(latest) == 3:
+            m = measure_robot(self.world, executive=latest[Behaviour.EXECUTIVE].ruleset(),
+                              tracking=latest[Behaviour.TRACKING].ruleset(), docking=latest[Behaviour.DOCKING].ruleset(),
+                              epochs=measure_epochs, seed=self.seed + 99)
+            summary["measures"] = m.as_dict()
+            write_json(self.dir / "measures.json", m.as_dict())
+        rows = []
+        for b in Behaviour:
+            f = self.worker_dir(b) / "curve.jsonl"
+            if f.exists():
+                for line in f.read_text().splitlines():
+                    rows.append({"behaviour": b.value, **json.loads(line)})
+        write_csv(self.dir / "curves.csv", rows)
+        write_json(self.dir / "summary.json", summary)
+        return summary
+
+
 def run_local(
     *,
     regime: str,
@@ -75,91 +200,52 @@ def run_local(
     measure_epochs: int = 100,
     on_status: Callable[[StatusBoard], None] | None = None,
     log_level: str = "WARNING",
+    resume: bool = False,
 ) -> dict[str, Any]:
-    keys.check_id("run id", run)
-    run_dir = Path(root) / run
-    if run_dir.exists() and any(run_dir.iterdir()):
-        raise RunDirError(f"run directory {str(run_dir)!r} already exists; choose another --run or --root")
-    run_dir.mkdir(parents=True, exist_ok=True)
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    py = [sys.executable, "-m", "coevo", "--log-level", log_level]
-    write_json(run_dir / "run.json", {"run": run, "regime": regime, "seed": seed, "model": model, "max_lead": max_lead,
-                                      "endpoint": endpoint,
-                                      "world": world.model_dump(), "ga": ga.model_dump(), "started": time.time()})
-    children: list[subprocess.Popen[bytes]] = []
-    logs = run_dir / "logs"
-    logs.mkdir(exist_ok=True)
-
-    def spawn(name: str, args: list[str]) -> subprocess.Popen[bytes]:
-        f = open(logs / f"{name}.log", "wb")
-        p = subprocess.Popen(py + args, stdout=f, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
-        f.close()
-        children.append(p)
-        return p
-
+    lr = LocalRun(regime=regime, run=run, root=root, world=world, ga=ga, seed=seed, model=model, max_lead=max_lead,
+                  log_level=log_level)
+    if resume:
+        if not (lr.dir / "run.json").exists():
+            raise RunDirError(f"{str(lr.dir)!r} holds no run.json: nothing to resume")
+        (lr.dir / "summary.json").unlink(missing_ok=True)  # written again at the end
+    else:
+        if lr.dir.exists() and any(lr.dir.iterdir()):
+            raise RunDirError(f"run directory {str(lr.dir)!r} already exists; choose another --run or --root, "
+                              f"or continue it with --resume {lr.dir}")
+        lr.dir.mkdir(parents=True, exist_ok=True)
+        lr.write_run_json()
     t0 = time.time()
     interrupted = False
     previous = sigterm_as_exit()
     try:
-        spawn("broker", ["broker", "--listen", endpoint, "--data-dir", str(root)])
-        workers = {
-            b: spawn(f"worker-{b.value}", [
-                "worker", "--behaviour", b.value, "--regime", regime, "--run", run, "--connect", endpoint,
-                "--seed", str(seed + i), "--model", model, "--out", str(run_dir / "workers" / b.value),
-                "--max-lead", "off" if max_lead is None else str(max_lead),
-                *_settings_args(world, ga),
-            ])
-            for i, b in enumerate(Behaviour)
-        }
-        conf = make_config(mode="client", connect=[endpoint], connect_timeout=30)
-        with open_session(conf, what="status session") as s:
+        lr.start(resume=resume)
+        with open_session(lr.client_config(), what="status session") as s:
             board = StatusBoard(s, run)
             try:
-                while any(p.poll() is None for p in workers.values()):
+                while lr.workers_running():
                     board.changed.wait(0.5)
                     board.changed.clear()
                     if on_status:
                         on_status(board)
-                    if children[0].poll() is not None:
-                        raise RunDirError(f"the broker exited with status {children[0].returncode}; see {logs / 'broker.log'}")
+                    if lr.broker is not None and lr.broker.poll() is not None:
+                        raise RunDirError(f"the broker exited with status {lr.broker.returncode}; "
+                                          f"see {lr.dir / 'logs' / 'broker.log'}")
             except KeyboardInterrupt:
                 interrupted = True
-                s.put(keys.control(run), encode(Control(run=run, command="stop", sent_at=time.time())))
-                _wait(list(workers.values()), 15.0)
+                lr.ask_stop(s)
+                _wait(list(lr.workers.values()), 15.0)
             if on_status:
                 on_status(board)
             board.close()
             latest = fetch_latest(s, run)
-        failed = {b.value: p.returncode for b, p in workers.items() if p.returncode not in (0, None)}
+        failed = {b.value: p.returncode for b, p in lr.workers.items() if p.returncode not in (0, None)}
         if failed and not interrupted:
-            raise RunDirError(f"workers failed {failed}; see {logs}")
+            raise RunDirError(f"workers failed {failed}; see {lr.dir / 'logs'} (continue with --resume {lr.dir})")
     finally:
         signal.signal(signal.SIGTERM, previous)
-        for p in reversed(children):
-            if p.poll() is None:
-                p.terminate()
-        _wait(children, 10.0)
-        for p in children:
-            if p.poll() is None:
-                p.kill()
-                p.wait()
-    summary: dict[str, Any] = {"run": run, "regime": regime, "seconds": time.time() - t0, "interrupted": interrupted,
-                               "versions": {b.value: m.version for b, m in latest.items()},
-                               "best_fitness": {b.value: m.fitness for b, m in latest.items()}}
-    if len(latest) == 3:
-        m = measure_robot(world, executive=latest[Behaviour.EXECUTIVE].ruleset(), tracking=latest[Behaviour.TRACKING].ruleset(),
-                          docking=latest[Behaviour.DOCKING].ruleset(), epochs=measure_epochs, seed=seed + 99)
-        summary["measures"] = m.as_dict()
-        write_json(run_dir / "measures.json", m.as_dict())
-    rows = []
-    for b in Behaviour:
-        f = run_dir / "workers" / b.value / "curve.jsonl"
-        if f.exists():
-            for line in f.read_text().splitlines():
-                rows.append({"behaviour": b.value, **json.loads(line)})
-    write_csv(run_dir / "curves.csv", rows)
-    write_json(run_dir / "summary.json", summary)
-    return summary
+        lr.end_all()
+    return lr.finish(latest, seconds=time.time() - t0, interrupted=interrupted, measure_epochs=measure_epochs,
+                     extra={"resumed": resume})
 
 
 def _wait(procs: list[subprocess.Popen[bytes]], timeout: float) -> None:

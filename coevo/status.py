@@ -1,9 +1,16 @@
-"""``coevo status``: follow the workers of a run (heartbeats plus liveliness tokens).
+"""``coevo status``: follow the workers of a run (heartbeats plus liveliness tokens) and its broker.
 
 A worker is *alive* while its liveliness token exists and its last heartbeat is
 recent, *stalled* when the token exists but no heartbeat came for ``stall``
-seconds (a token proves the process exists, not that it progresses), *dead* when
-its token is gone, and *done* when it said so.
+seconds (a token proves the process exists, not that it progresses; a worker
+heartbeats about every second, even in the middle of a generation), *dead* when
+its token is gone (its process died: seen within milliseconds on a LAN, or its
+link stayed silent for a lease), and *done* when it said so.  The broker is *up*
+while its token exists; its last :class:`~coevo.messages.BrokerStatus` says what
+it stored and rejected for this run.
+
+Heartbeats wait in a ring inside Zenoh and are decoded when the board is read, so
+a flood on the status keys costs nothing until then and never stalls the session.
 """
 
 from __future__ import annotations
@@ -15,10 +22,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from coevo import keys
+from coevo.bus import drain, ring_subscriber
 from coevo.errors import MessageError
-from coevo.messages import Status, decode
+from coevo.messages import BrokerStatus, Status, decode
 
-__all__ = ["WorkerView", "StatusBoard"]
+__all__ = ["DEFAULT_STALL", "WorkerView", "StatusBoard"]
+
+DEFAULT_STALL = 3.0  # seconds without a heartbeat; workers send one about every second
 
 
 @dataclass
@@ -30,10 +40,12 @@ class WorkerView:
     generations: int = 0
     best_fitness: float = 0.0
     partner_versions: dict[str, int] = field(default_factory=dict)
-    rejected: int = 0
+    rejected: dict[str, int] = field(default_factory=dict)
+    buffered: int = 0
     token: bool = False
     done: bool = False
     last_heartbeat: float = 0.0
+    died_at: float | None = None
 
     def state(self, now: float, stall: float) -> str:
         if self.done:
@@ -48,28 +60,32 @@ class WorkerView:
         return {
             "behaviour": self.behaviour, "worker": self.worker, "regime": self.regime,
             "generation": self.generation, "generations": self.generations, "best_fitness": self.best_fitness,
-            "partner_versions": self.partner_versions, "rejected": self.rejected, "state": self.state(now, stall),
+            "partner_versions": self.partner_versions, "rejected": sum(self.rejected.values()),
+            "rejected_by_reason": dict(self.rejected), "buffered": self.buffered, "state": self.state(now, stall),
             "heartbeat_age": round(now - self.last_heartbeat, 3) if self.last_heartbeat else None,
         }
 
 
 class StatusBoard:
-    """Subscribes to a run's heartbeats and liveliness; thread-safe snapshot for display."""
+    """Subscribes to a run's heartbeats, liveliness and broker status; thread-safe snapshot for display."""
 
-    def __init__(self, session: Any, run: str, *, stall: float = 10.0) -> None:
+    def __init__(self, session: Any, run: str, *, stall: float = DEFAULT_STALL) -> None:
         self.run = run
         self.stall = stall
         self._lock = threading.Lock()
         self.workers: dict[str, WorkerView] = {}
-        self.rejected = 0
+        self.rejected = 0  # bad messages on the status keys themselves
+        self.broker_up = False
+        self.broker: BrokerStatus | None = None
         self.changed = threading.Event()
+        self._rings = [ring_subscriber(session, keys.status(run), 256), ring_subscriber(session, keys.broker_status(run), 16)]
         self._decls = [
-            session.declare_subscriber(keys.status(run), self._on_status),
             session.liveliness().declare_subscriber(keys.alive(run), self._on_token, history=True),
+            session.liveliness().declare_subscriber(keys.BROKER, self._on_broker, history=True),
         ]
 
     def close(self) -> None:
-        for d in self._decls:
+        for d in self._decls + self._rings:
             try:
                 d.undeclare()
             except Exception:
@@ -81,23 +97,34 @@ class StatusBoard:
             v = self.workers[worker] = WorkerView(behaviour, worker)
         return v
 
-    def _on_status(self, sample: Any) -> None:
-        try:
-            msg = decode(bytes(sample.payload.to_bytes()), key=str(sample.key_expr))
-        except MessageError:
-            with self._lock:
-                self.rejected += 1
-            return
-        if not isinstance(msg, Status):
-            return
-        with self._lock:
-            v = self._view(msg.behaviour.value, msg.worker)
-            v.regime, v.generation, v.generations = msg.regime, msg.generation, msg.generations
-            v.best_fitness, v.partner_versions = msg.best_fitness, msg.partner_versions
-            v.rejected, v.done, v.last_heartbeat = sum(msg.rejected.values()), msg.done, time.time()
-            if not msg.done:
-                v.token = True  # a heartbeat proves the process is there
-        self.changed.set()
+    def poll(self) -> None:
+        """Take in the heartbeats and broker reports that arrived since the last call."""
+        for ring in self._rings:
+            for key, payload in drain(ring, 4096):
+                try:
+                    msg = decode(payload, key=key)
+                except MessageError:
+                    with self._lock:
+                        self.rejected += 1
+                    continue
+                with self._lock:
+                    if isinstance(msg, BrokerStatus):
+                        self.broker = msg
+                    elif isinstance(msg, Status):
+                        self._take(msg)
+
+    def _take(self, msg: Status) -> None:
+        v = self._view(msg.behaviour.value, msg.worker)
+        if msg.generation < v.generation and not v.died_at:
+            return  # an older heartbeat overtaken by a newer one
+        v.regime, v.generation, v.generations = msg.regime, msg.generation, msg.generations
+        v.best_fitness, v.partner_versions = msg.best_fitness, msg.partner_versions
+        v.rejected, v.buffered, v.done = dict(msg.rejected), msg.buffered, msg.done
+        v.last_heartbeat = time.time()
+        if v.died_at is None:
+            v.token = True  # a heartbeat proves the process is there (its token may still be on its way)
+        elif msg.sent_at > v.died_at:
+            v.token, v.died_at = True, None  # sent after the death: a restarted worker
 
     def _on_token(self, sample: Any) -> None:
         parts = keys.parse(str(sample.key_expr))
@@ -107,12 +134,28 @@ class StatusBoard:
         with self._lock:
             v = self._view(parts.get("behaviour", "?"), parts["worker"])
             v.token = alive
+            v.died_at = None if alive else time.time()
+        self.changed.set()
+
+    def _on_broker(self, sample: Any) -> None:
+        with self._lock:
+            self.broker_up = str(sample.kind).endswith("PUT")
         self.changed.set()
 
     def snapshot(self) -> list[dict[str, Any]]:
+        self.poll()
         now = time.time()
         with self._lock:
             return [self.workers[k].as_dict(now, self.stall) for k in sorted(self.workers)]
 
+    def broker_view(self) -> dict[str, Any]:
+        self.poll()
+        with self._lock:
+            b = self.broker
+            return {"state": "up" if self.broker_up else "down",
+                    "stored": dict(b.stored) if b else {}, "rejected": dict(b.rejected) if b else {},
+                    "dropped": b.dropped if b else 0}
+
     def json_line(self) -> str:
-        return json.dumps({"run": self.run, "time": time.time(), "workers": self.snapshot()})
+        workers = self.snapshot()
+        return json.dumps({"run": self.run, "time": time.time(), "workers": workers, "broker": self.broker_view()})
