@@ -31,7 +31,7 @@ def poll(check, timeout: float, what: str):
         if value:
             return value
         time.sleep(0.05)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+    raise AssertionError(f"timed out after {timeout} s waiting for {what() if callable(what) else what}")
 
 
 def coevo_proc(*args: str, log: Path) -> subprocess.Popen:
@@ -82,7 +82,7 @@ def test_broker_stores_answers_and_rejects(broker, tmp_path: Path) -> None:
     lines = (data / "r1" / "store" / "tracking.jsonl").read_text().splitlines()
     assert len(lines) == 1 and not (data / "r1" / "store" / "docking.jsonl").exists()
     log = (tmp_path / "broker.log").read_text()
-    assert "not_msgpack" in log and "wrong_key" in log
+    assert "not_msgpack" in log and "wrong_behaviour" in log
 
 
 def test_late_worker_gets_partners_best_from_the_store_and_logs_adoption(broker, tmp_path: Path) -> None:

@@ -1,0 +1,209 @@
+"""``coevo chaos``: a whole run on this machine while random processes are killed and restarted.
+
+One fault at a time, at random (seeded) moments while the workers evolve:
+
+* ``kill-worker``: SIGKILL a running worker, wait a moment, restart it with
+  ``--resume`` (it continues from its last checkpoint);
+* ``kill-broker``: SIGKILL the broker, wait a moment, restart it on the same
+  endpoint (its store reloads from disk; the workers reconnect and republish what
+  it missed);
+* ``pause-worker``: SIGSTOP a worker for a moment, then SIGCONT (a frozen process).
+
+For every worker kill it measures how long the status board took to show the
+worker dead.  At the end it checks the run directory (:mod:`coevo.check`: every
+generation, every published version in the store, replay exact) and writes
+``chaos.json`` beside the run's other files.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import signal
+import time
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from coevo.behaviours import Behaviour
+from coevo.bus import open_session, sigterm_as_exit
+from coevo.check import check_run
+from coevo.config import GAConfig, WorldConfig
+from coevo.errors import ConfigError, RunDirError
+from coevo.run import LocalRun, _wait, fetch_latest
+from coevo.rundir import write_json
+from coevo.status import StatusBoard
+
+__all__ = ["FAULTS", "ChaosPlan", "run_chaos", "summary_lines"]
+
+log = logging.getLogger(__name__)
+
+FAULTS = ("kill-worker", "kill-broker", "pause-worker")
+
+
+@dataclass(frozen=True)
+class ChaosPlan:
+    faults: int = 8  # how many to inject (fewer if the run ends first)
+    kinds: tuple[str, ...] = FAULTS
+    gap: tuple[float, float] = (1.0, 4.0)  # seconds between one fault's recovery and the next fault
+    down: tuple[float, float] = (0.5, 3.0)  # seconds a killed process stays down / a paused one stays stopped
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.faults < 0:
+            raise ConfigError(f"--faults must be 0 or more, got {self.faults}")
+        bad = [k for k in self.kinds if k not in FAULTS]
+        if bad or not self.kinds:
+            raise ConfigError(f"unknown fault kind {bad[0] if bad else '(none)'!r} (use {', '.join(FAULTS)})")
+        for name, (lo, hi) in (("--gap", self.gap), ("--down", self.down)):
+            if not 0 <= lo <= hi:
+                raise ConfigError(f"{name} {lo} {hi}: need 0 <= MIN <= MAX seconds")
+
+
+@dataclass
+class ChaosLog:
+    events: list[dict[str, Any]] = field(default_factory=list)
+    counts: Counter[str] = field(default_factory=Counter)
+
+    def add(self, kind: str, **info: Any) -> None:
+        self.counts[kind] += 1
+        self.events.append({"time": time.time(), "fault": kind, **info})
+        log.info("chaos: %s %s", kind, info)
+
+
+def run_chaos(*, regime: str, run: str, root: Path, world: WorldConfig, ga: GAConfig, seed: int, plan: ChaosPlan,
+              model: str = "best", measure_epochs: int = 20, on_event: Callable[[str], None] | None = None,
+              log_level: str = "WARNING") -> dict[str, Any]:
+    lr = LocalRun(regime=regime, run=run, root=root, world=world, ga=ga, seed=seed, model=model, log_level=log_level)
+    if lr.dir.exists() and any(lr.dir.iterdir()):
+        raise RunDirError(f"run directory {str(lr.dir)!r} already exists; choose another --run or --root")
+    lr.dir.mkdir(parents=True, exist_ok=True)
+    lr.write_run_json()
+    rng = np.random.default_rng([seed, 4242])
+    chaos = ChaosLog()
+    say = on_event or (lambda text: None)
+    t0 = time.time()
+    restarts: Counter[str] = Counter()
+    previous = sigterm_as_exit()
+    try:
+        lr.start(resume=False)
+        with open_session(lr.client_config(), what="chaos status session") as s:
+            board = StatusBoard(s, run)
+            _until(lambda: len([w for w in board.snapshot() if w["generation"] >= 1]) == 3 or not lr.workers_running(),
+                   120, "every worker's first generation")
+            next_fault = time.monotonic() + rng.uniform(*plan.gap)
+            while lr.workers_running():
+                _revive_crashed(lr, restarts, chaos, say)
+                if chaos.counts.total() < plan.faults and time.monotonic() >= next_fault:
+                    _inject(lr, board, rng, plan, chaos, say)
+                    next_fault = time.monotonic() + rng.uniform(*plan.gap)
+                time.sleep(0.1)
+            latest = fetch_latest(s, run)
+            board.close()
+        if lr.broker is not None:
+            lr.broker.terminate()
+            _wait([lr.broker], 10)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        lr.end_all()
+    seconds = time.time() - t0
+    say("checking the run directory")
+    check = check_run(lr.dir)
+    report = {
+        "run": run, "regime": regime, "seconds": seconds, "faults": dict(chaos.counts), "events": chaos.events,
+        "unplanned_restarts": dict(restarts), "starts": dict(lr.starts), "complete": check.ok, "problems": check.problems,
+        "facts": check.facts,
+    }
+    lr.finish(latest, seconds=seconds, interrupted=False, measure_epochs=measure_epochs, extra={"chaos": dict(chaos.counts)})
+    write_json(lr.dir / "chaos.json", report)
+    return report
+
+
+def _until(check: Callable[[], Any], timeout: float, what: str) -> Any:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        value = check()
+        if value:
+            return value
+        time.sleep(0.05)
+    raise RunDirError(f"chaos: timed out after {timeout:.0f} s waiting for {what}")
+
+
+def _running_workers(lr: LocalRun) -> list[Behaviour]:
+    return [b for b, p in lr.workers.items() if p.poll() is None]
+
+
+def _revive_crashed(lr: LocalRun, restarts: Counter[str], chaos: ChaosLog, say: Callable[[str], None]) -> None:
+    """A worker that died on its own (not by chaos) is restarted too, at most 3 times, and reported."""
+    for b, p in list(lr.workers.items()):
+        if p.poll() is not None and p.returncode != 0:
+            if restarts[b.value] >= 3:
+                raise RunDirError(f"chaos: the {b.value} worker keeps failing (exit {p.returncode}); see "
+                                  f"{lr.dir / 'logs' / f'worker-{b.value}.log'}")
+            restarts[b.value] += 1
+            say(f"{b.value} worker exited with {p.returncode} on its own; restarting it")
+            lr.start_worker(b, resume=True)
+
+
+def _inject(lr: LocalRun, board: StatusBoard, rng: np.random.Generator, plan: ChaosPlan, chaos: ChaosLog,
+            say: Callable[[str], None]) -> None:
+    kind = str(rng.choice(plan.kinds))
+    down = float(rng.uniform(*plan.down))
+    running = _running_workers(lr)
+    if kind != "kill-broker" and not running:
+        return
+    if kind == "kill-broker":
+        assert lr.broker is not None
+        gens = {w["behaviour"]: w["generation"] for w in board.snapshot()}
+        lr.broker.send_signal(signal.SIGKILL)
+        lr.broker.wait()
+        say(f"killed the broker (workers at {gens}); down for {down:.1f} s")
+        time.sleep(down)
+        lr.start_broker()
+        _until(lambda: board.broker_up, 60, "the restarted broker")
+        chaos.add(kind, down=round(down, 2), generations=gens)
+        return
+    b = running[int(rng.integers(len(running)))]
+    p = lr.workers[b]
+    gen = next((w["generation"] for w in board.snapshot() if w["behaviour"] == b.value), None)
+    if kind == "pause-worker":
+        p.send_signal(signal.SIGSTOP)
+        say(f"paused the {b.value} worker at generation {gen} for {down:.1f} s")
+        time.sleep(down)
+        p.send_signal(signal.SIGCONT)
+        chaos.add(kind, behaviour=b.value, generation=gen, down=round(down, 2))
+        return
+    t_kill = time.monotonic()
+    os.kill(p.pid, signal.SIGKILL)
+    p.wait()
+    try:
+        _until(lambda: any(w["behaviour"] == b.value and w["state"] == "dead" for w in board.snapshot()), 10, "dead")
+        seen = time.monotonic() - t_kill
+    except RunDirError:
+        seen = None  # the broker was restarting, or the board missed it: reported as not seen
+    say(f"killed the {b.value} worker at generation {gen} (status showed it dead after "
+        f"{'-' if seen is None else f'{seen * 1000:.0f} ms'}); down for {down:.1f} s")
+    time.sleep(down)
+    lr.start_worker(b, resume=True)
+    _until(lambda: any(w["behaviour"] == b.value and w["state"] in ("alive", "done") for w in board.snapshot()), 60,
+           f"the restarted {b.value} worker")
+    chaos.add(kind, behaviour=b.value, generation=gen, down=round(down, 2),
+              dead_seen_ms=None if seen is None else round(seen * 1000, 1))
+
+
+def summary_lines(report: dict[str, Any]) -> list[str]:
+    lines = [f"chaos run {report['run']} ({report['regime']}): {report['seconds']:.0f} s, faults "
+             + (", ".join(f"{n} {k}" for k, n in sorted(report["faults"].items())) or "none")]
+    seen = [e["dead_seen_ms"] for e in report["events"] if e.get("dead_seen_ms") is not None]
+    if seen:
+        lines.append(f"worker deaths shown by status after {min(seen):.0f}-{max(seen):.0f} ms")
+    lines.append("run directory complete: every generation, every published version stored, replay exact"
+                 if report["complete"] else "run directory INCOMPLETE:\n  " + "\n  ".join(report["problems"]))
+    lines.append(json.dumps(report["facts"]))
+    return lines
+

@@ -1,0 +1,107 @@
+"""``coevo check RUN_DIR``: is a finished run directory complete and consistent?
+
+What it checks, per worker directory:
+
+* ``curve.jsonl`` holds generations 1..G in order, G = the configured generations,
+  and ``done.json`` says the worker finished;
+* ``published.jsonl`` holds versions 1..n in order, and the broker's store
+  (``store/BEHAVIOUR.jsonl``) holds every one of them, identical: nothing a worker
+  published was lost, however often the broker or the worker died;
+* every adoption in ``adoptions.jsonl`` names a version its partner published;
+* ``coevo replay`` reproduces the learning curve exactly from the logs (skipped
+  with ``replay=False``).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from coevo.errors import RunDirError
+
+__all__ = ["RunCheck", "check_run"]
+
+
+@dataclass
+class RunCheck:
+    run_dir: Path
+    problems: list[str] = field(default_factory=list)
+    facts: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems
+
+
+def _jsonl(path: Path, check: RunCheck) -> list[dict[str, Any]]:
+    if not path.exists():
+        check.problems.append(f"{path} is missing")
+        return []
+    rows = []
+    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+        try:
+            rows.append(json.loads(line))
+        except json.JSONDecodeError:
+            check.problems.append(f"{path} line {n} is not JSON")
+    return rows
+
+
+def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
+    run_dir = Path(run_dir)
+    check = RunCheck(run_dir)
+    wdirs = sorted(p for p in (run_dir / "workers").glob("*") if (p / "worker.json").exists())
+    if not wdirs:
+        raise RunDirError(f"{str(run_dir)!r} holds no workers/*/worker.json: not a coevo run directory")
+    stored: dict[tuple[str, str, int], dict[str, Any]] = {}
+    for f in sorted((run_dir / "store").glob("*.jsonl")):
+        for row in _jsonl(f, check):
+            stored[(row["behaviour"], row["worker"], int(row["version"]))] = row
+    published_all: set[tuple[str, int]] = set()
+    for w in wdirs:
+        meta = json.loads((w / "worker.json").read_text(encoding="utf-8"))
+        beh, worker, gens = meta["behaviour"], meta["worker"], int(meta["ga"]["generations"])
+        curve = _jsonl(w / "curve.jsonl", check)
+        got = [int(r["generation"]) for r in curve]
+        if got != list(range(1, gens + 1)):
+            check.problems.append(f"{beh}: curve.jsonl has generations {_span(got)}, expected 1..{gens}")
+        done = w / "done.json"
+        if not done.exists() or not json.loads(done.read_text(encoding="utf-8")).get("finished"):
+            check.problems.append(f"{beh}: done.json missing or not finished")
+        published = _jsonl(w / "published.jsonl", check)
+        versions = [int(p["version"]) for p in published]
+        if versions != list(range(1, len(versions) + 1)):
+            check.problems.append(f"{beh}: published.jsonl versions {versions} are not 1..n in order")
+        lost = []
+        for p in published:
+            s = stored.get((beh, worker, int(p["version"])))
+            if s is None:
+                lost.append(int(p["version"]))
+            elif s["rules"] != p["rules"] or s["fitness"] != p["fitness"]:
+                check.problems.append(f"{beh}: the store's v{p['version']} differs from what the worker published")
+            published_all.add((beh, int(p["version"])))
+        if lost:
+            check.problems.append(f"{beh}: versions {lost} were published but are not in the store")
+        check.facts[beh] = {"generations": len(curve), "published": len(published),
+                            "adoptions": len(_jsonl(w / "adoptions.jsonl", check))}
+    for w in wdirs:
+        beh = json.loads((w / "worker.json").read_text(encoding="utf-8"))["behaviour"]
+        model = json.loads((w / "worker.json").read_text(encoding="utf-8"))["model"]
+        for a in _jsonl(w / "adoptions.jsonl", check):
+            if model != "current" and (a["partner"], int(a["version"])) not in published_all:
+                check.problems.append(f"{beh}: adopted {a['partner']} v{a['version']}, which no worker published")
+    if replay and not check.problems:
+        from coevo.replay import replay as replay_run
+
+        for r in replay_run(run_dir):
+            if not r.reproduced:
+                check.problems.append(f"{r.behaviour}: replay differs at generation {r.first_mismatch}: {r.detail}")
+        check.facts["replayed"] = True
+    return check
+
+
+def _span(values: list[int]) -> str:
+    if not values:
+        return "none"
+    return f"{values[0]}..{values[-1]} ({len(values)} lines)" if values == list(range(values[0], values[-1] + 1)) else str(values)
