@@ -35,7 +35,7 @@ from coevo.bus import open_session, sigterm_as_exit
 from coevo.check import check_run
 from coevo.config import GAConfig, WorldConfig
 from coevo.errors import ConfigError, RunDirError
-from coevo.run import LocalRun, _wait, fetch_latest
+from coevo.run import LocalRun, _wait, fetch_latest, wait_until
 from coevo.rundir import write_json
 from coevo.status import StatusBoard
 
@@ -94,7 +94,7 @@ def run_chaos(*, regime: str, run: str, root: Path, world: WorldConfig, ga: GACo
         lr.start(resume=False)
         with open_session(lr.client_config(), what="chaos status session") as s:
             board = StatusBoard(s, run)
-            _until(lambda: len([w for w in board.snapshot() if w["generation"] >= 1]) == 3 or not lr.workers_running(),
+            wait_until(lambda: len([w for w in board.snapshot() if w["generation"] >= 1]) == 3 or not lr.workers_running(),
                    120, "every worker's first generation")
             next_fault = time.monotonic() + rng.uniform(*plan.gap)
             while lr.workers_running():
@@ -122,16 +122,6 @@ def run_chaos(*, regime: str, run: str, root: Path, world: WorldConfig, ga: GACo
     lr.finish(latest, seconds=seconds, interrupted=False, measure_epochs=measure_epochs, extra={"chaos": dict(chaos.counts)})
     write_json(lr.dir / "chaos.json", report)
     return report
-
-
-def _until(check: Callable[[], Any], timeout: float, what: str) -> Any:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        value = check()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise RunDirError(f"chaos: timed out after {timeout:.0f} s waiting for {what}")
 
 
 def _running_workers(lr: LocalRun) -> list[Behaviour]:
@@ -165,7 +155,7 @@ def _inject(lr: LocalRun, board: StatusBoard, rng: np.random.Generator, plan: Ch
         say(f"killed the broker (workers at {gens}); down for {down:.1f} s")
         time.sleep(down)
         lr.start_broker()
-        _until(lambda: board.broker_up, 60, "the restarted broker")
+        wait_until(lambda: board.broker_up, 60, "the restarted broker")
         chaos.add(kind, down=round(down, 2), generations=gens)
         return
     b = running[int(rng.integers(len(running)))]
@@ -182,7 +172,7 @@ def _inject(lr: LocalRun, board: StatusBoard, rng: np.random.Generator, plan: Ch
     os.kill(p.pid, signal.SIGKILL)
     p.wait()
     try:
-        _until(lambda: any(w["behaviour"] == b.value and w["state"] == "dead" for w in board.snapshot()), 10, "dead")
+        wait_until(lambda: any(w["behaviour"] == b.value and w["state"] == "dead" for w in board.snapshot()), 10, "dead")
         seen = time.monotonic() - t_kill
     except RunDirError:
         seen = None  # the broker was restarting, or the board missed it: reported as not seen
@@ -190,7 +180,7 @@ def _inject(lr: LocalRun, board: StatusBoard, rng: np.random.Generator, plan: Ch
         f"{'-' if seen is None else f'{seen * 1000:.0f} ms'}); down for {down:.1f} s")
     time.sleep(down)
     lr.start_worker(b, resume=True)
-    _until(lambda: any(w["behaviour"] == b.value and w["state"] in ("alive", "done") for w in board.snapshot()), 60,
+    wait_until(lambda: any(w["behaviour"] == b.value and w["state"] in ("alive", "done") for w in board.snapshot()), 60,
            f"the restarted {b.value} worker")
     chaos.add(kind, behaviour=b.value, generation=gen, down=round(down, 2),
               dead_seen_ms=None if seen is None else round(seen * 1000, 1))

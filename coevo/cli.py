@@ -151,14 +151,15 @@ def cmd_router(args: argparse.Namespace) -> int:
     from coevo.bus import config_from_args, open_session, sigterm_as_exit
 
     listen = _router_listen(args)
+    conf = config_from_args(args)
     sigterm_as_exit()
-    with open_session(config_from_args(args), what="router"):
-        print(f"coevo router listening on {', '.join(listen)}; joined to {', '.join(args.connect or ['-'])}", flush=True)
-        try:
+    try:  # SIGTERM at any moment, even while the session opens, is a clean stop
+        with open_session(conf, what="router"):
+            print(f"coevo router listening on {', '.join(listen)}; joined to {', '.join(args.connect or ['-'])}", flush=True)
             while True:
                 time.sleep(3600)
-        except KeyboardInterrupt:
-            pass
+    except KeyboardInterrupt:
+        pass
     return 0
 
 
@@ -166,17 +167,18 @@ def cmd_broker(args: argparse.Namespace) -> int:
     from coevo.broker.server import Broker
     from coevo.bus import config_from_args, sigterm_as_exit
 
-    _router_listen(args)
-    sigterm_as_exit()
+    listen = _router_listen(args)
     if args.inbox_mb <= 0:
         raise ConfigError(f"--inbox-mb must be positive, got {args.inbox_mb}")
-    with Broker(config_from_args(args), Path(args.data_dir), inbox_bytes=int(args.inbox_mb * (1 << 20))) as broker:
-        logging.getLogger("coevo.broker").info("broker listening on %s, store in %s", args.listen, args.data_dir)
-        print(f"coevo broker listening on {', '.join(_router_listen(args))}; store in {args.data_dir}", flush=True)
-        try:
+    conf = config_from_args(args)
+    sigterm_as_exit()
+    try:  # SIGTERM at any moment, even while the store loads, is a clean stop
+        with Broker(conf, Path(args.data_dir), inbox_bytes=int(args.inbox_mb * (1 << 20))) as broker:
+            logging.getLogger("coevo.broker").info("broker listening on %s, store in %s", listen, args.data_dir)
+            print(f"coevo broker listening on {', '.join(listen)}; store in {args.data_dir}", flush=True)
             broker.serve_forever()
-        except KeyboardInterrupt:
-            pass
+    except KeyboardInterrupt:
+        pass
     return 0
 
 

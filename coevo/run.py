@@ -38,7 +38,7 @@ from coevo.robot import measure_robot
 from coevo.rundir import write_csv, write_json
 from coevo.status import StatusBoard
 
-__all__ = ["free_port", "LocalRun", "run_local", "fetch_latest", "read_run_json"]
+__all__ = ["free_port", "wait_until", "LocalRun", "run_local", "fetch_latest", "read_run_json"]
 
 log = logging.getLogger(__name__)
 
@@ -47,6 +47,17 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+def wait_until(check: Callable[[], Any], timeout: float, what: str | Callable[[], str]) -> Any:
+    """Poll ``check`` every 50 ms until it returns something true (returned), or fail after ``timeout`` s."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        value = check()
+        if value:
+            return value
+        time.sleep(0.05)
+    raise RunDirError(f"timed out after {timeout:.0f} s waiting for {what() if callable(what) else what}")
 
 
 def _settings_args(world: WorldConfig, ga: GAConfig) -> list[str]:

@@ -2,6 +2,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from procs import broker  # noqa: F401  (a fixture for every test module)
 
 from coevo.config import GAConfig, WorldConfig
 

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import pytest
 from netns import Lab, unavailable
-from test_service import SMALL, coevo_proc, poll, stop
+from procs import SMALL, coevo_proc, poll, stop
 
 from coevo.run import free_port
 

@@ -23,7 +23,7 @@ from pathlib import Path
 import msgpack
 import numpy as np
 import pytest
-from test_service import SMALL, broker, coevo_proc, poll, stop  # noqa: F401  (broker is a fixture)
+from procs import SMALL, coevo_proc, poll, stop
 
 from coevo import keys
 from coevo.agents.checkpoint import CHECKPOINT, load_checkpoint, save_checkpoint

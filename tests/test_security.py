@@ -14,7 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from test_service import SMALL, coevo_proc, poll, stop
+from procs import SMALL, coevo_proc, poll, stop
 
 from coevo import keys
 from coevo.bus import PASSWORD_ENV, Security, make_config, open_session

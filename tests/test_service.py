@@ -8,11 +8,11 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
+from procs import SMALL, coevo_proc, poll, stop
 
 from coevo import keys
 from coevo.bus import make_config, open_session
@@ -20,47 +20,6 @@ from coevo.messages import PolicyUpdate, encode
 from coevo.policy import random_ruleset
 from coevo.run import free_port
 from coevo.status import StatusBoard
-
-SMALL = ["--population", "6", "--episodes", "10", "--ga", "best_episodes=10", "--ga", "initial_rules=8"]
-
-
-def poll(check, timeout: float, what: str):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        value = check()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what() if callable(what) else what}")
-
-
-def coevo_proc(*args: str, log: Path) -> subprocess.Popen:
-    f = open(log, "wb")
-    p = subprocess.Popen([sys.executable, "-m", "coevo", "--log-level", "INFO", *args], stdout=f, stderr=subprocess.STDOUT)
-    f.close()
-    return p
-
-
-def stop(p: subprocess.Popen) -> None:
-    if p.poll() is None:
-        p.terminate()
-        try:
-            p.wait(10)
-        except subprocess.TimeoutExpired:
-            p.kill()
-            p.wait()
-
-
-@pytest.fixture
-def broker(tmp_path: Path) -> Iterator[tuple[str, Path]]:
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    data = tmp_path / "data"
-    p = coevo_proc("broker", "--listen", endpoint, "--data-dir", str(data), log=tmp_path / "broker.log")
-    with open_session(make_config(mode="client", connect=[endpoint], connect_timeout=20)) as s:
-        poll(lambda: any(r.ok is not None for r in s.liveliness().get(keys.BROKER, timeout=1.0)), 20, "the broker token")
-    yield endpoint, data
-    stop(p)
-    assert p.returncode == 0, (tmp_path / "broker.log").read_text()
 
 
 def test_broker_stores_answers_and_rejects(broker, tmp_path: Path) -> None:
@@ -118,29 +77,6 @@ def test_status_sees_a_worker_die(broker, tmp_path: Path) -> None:
                 board.close()
     finally:
         stop(p)
-
-
-def test_worker_rejects_bad_partner_messages_and_keeps_evolving(broker, tmp_path: Path) -> None:
-    endpoint, _ = broker
-    out = tmp_path / "w"
-    # No partners run here, so pacing is off: the worker must keep evolving alone.
-    p = coevo_proc("worker", "--behaviour", "executive", "--regime", "independent", "--run", "bad", "--connect", endpoint,
-                   "--generations", "1000", *SMALL, "--max-lead", "off", "--out", str(out), log=tmp_path / "w.log")
-    try:
-        with open_session(make_config(mode="client", connect=[endpoint])) as s:
-            board = StatusBoard(s, "bad")
-            try:
-                poll(lambda: [w for w in board.snapshot() if w["generation"] >= 1], 60, "first heartbeat")
-                for payload in (b"\x00\x01", b"\xc1", json.dumps({"a": 1}).encode()):
-                    s.put(keys.policy("bad", "tracking"), payload)
-                poll(lambda: [w for w in board.snapshot() if w["rejected"] >= 3], 30, "rejections counted")
-                gen = board.snapshot()[0]["generation"]
-                poll(lambda: board.snapshot()[0]["generation"] > gen, 30, "more generations")
-            finally:
-                board.close()
-    finally:
-        stop(p)
-    assert not (out / "adoptions.jsonl").read_text().strip()
 
 
 @pytest.mark.parametrize("regime", ["independent", "mutual"])

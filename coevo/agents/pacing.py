@@ -73,7 +73,8 @@ class Pacer:
         self._seen: set[Behaviour] = set()
         self._progress: dict[Behaviour, int] = {b: 0 for b in self.partners}
         self._finished: set[Behaviour] = set()
-        self._absent: set[Behaviour] = set()
+        self._absent: set[Behaviour] = set()  # stopped reporting (wait_limit passed): back with a heartbeat
+        self._gone: set[Behaviour] = set()  # its token went (dead, or cut off): back only with a token
         self._live: dict[Behaviour, set[str]] = {b: set() for b in self.partners}
         self._lock = threading.Lock()
         on = max_lead is not None and bool(self.partners)
@@ -91,12 +92,13 @@ class Pacer:
         with self._lock:
             if str(sample.kind).endswith("PUT"):
                 self._live[beh].add(parts.get("worker", ""))
+                self._gone.discard(beh)
                 self._absent.discard(beh)
                 self._seen.add(beh)
             else:
                 self._live[beh].discard(parts.get("worker", ""))
                 if not self._live[beh]:
-                    self._absent.add(beh)
+                    self._gone.add(beh)  # a heartbeat still in the ring must not bring it back
 
     def _poll(self) -> None:
         for sub in self._subs:
@@ -118,7 +120,7 @@ class Pacer:
         late = time.monotonic() - self._t0 > self.grace
         with self._lock:
             return [b for b in self.partners
-                    if b not in self._finished and b not in self._absent and self._progress[b] < need
+                    if b not in self._finished and b not in self._absent and b not in self._gone and self._progress[b] < need
                     and not (late and b not in self._seen)]
 
     def wait(self, completed: int, stop: threading.Event, tick: Callable[[], None] | None = None,

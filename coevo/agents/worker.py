@@ -39,7 +39,12 @@ from typing import Any
 import msgpack
 
 from coevo import __version__, keys
-from coevo.agents.checkpoint import CHECKPOINT, load_checkpoint, save_checkpoint, truncate_log
+from coevo.agents.checkpoint import (
+    CHECKPOINT,
+    load_checkpoint,
+    save_checkpoint,
+    truncate_log,
+)
 from coevo.agents.models import PartnerModels
 from coevo.agents.pacing import DEFAULT_MAX_LEAD, Pacer
 from coevo.behaviours import Behaviour
