@@ -66,8 +66,9 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
         got = [int(r["generation"]) for r in curve]
         if got != list(range(1, gens + 1)):
             check.problems.append(f"{beh}: curve.jsonl has generations {_span(got)}, expected 1..{gens}")
-        done = w / "done.json"
-        if not done.exists() or not json.loads(done.read_text(encoding="utf-8")).get("finished"):
+        done_file = w / "done.json"
+        done = json.loads(done_file.read_text(encoding="utf-8")) if done_file.exists() else {}
+        if not done.get("finished"):
             check.problems.append(f"{beh}: done.json missing or not finished")
         published = _jsonl(w / "published.jsonl", check)
         versions = [int(p["version"]) for p in published]
@@ -84,6 +85,7 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
         if lost:
             check.problems.append(f"{beh}: versions {lost} were published but are not in the store")
         check.facts[beh] = {"generations": len(curve), "published": len(published),
+                            "republished": done.get("republished", 0), "rejected": done.get("rejected", {}),
                             "adoptions": len(_jsonl(w / "adoptions.jsonl", check))}
     for w in wdirs:
         beh = json.loads((w / "worker.json").read_text(encoding="utf-8"))["behaviour"]

@@ -102,6 +102,7 @@ def test_tiny_comparison_writes_a_consistent_report(tiny: Path) -> None:
 def test_resume_reruns_only_what_is_unfinished(tiny: Path) -> None:
     kept = {r: (tiny / "runs" / r / "summary.json").read_bytes() for r in RUNS if r != "mutual-01"}
     (tiny / "runs" / "mutual-01" / "summary.json").unlink()  # as if killed before the end
+    curve = (tiny / "runs" / "mutual-01" / "workers" / "docking" / "curve.jsonl").read_bytes()
 
     again = coevo("compare", "--out", str(tiny), *TINY)
     assert again.returncode == 2 and "add --resume" in again.stderr
@@ -110,7 +111,8 @@ def test_resume_reruns_only_what_is_unfinished(tiny: Path) -> None:
     assert "3 of 4 runs already done, 1 to run" in r.stdout
     for run, body in kept.items():
         assert (tiny / "runs" / run / "summary.json").read_bytes() == body, run
-    assert (tiny / "runs" / "mutual-01" / "summary.json").is_file()
+    assert json.loads((tiny / "runs" / "mutual-01" / "summary.json").read_text())["resumed"] is True
+    assert (tiny / "runs" / "mutual-01" / "workers" / "docking" / "curve.jsonl").read_bytes() == curve  # continued, not redone
     assert json.loads((tiny / "results.json").read_text())["runs_finished"] == 4
 
     other = coevo("compare", "--out", str(tiny), "--resume", *TINY, "--seed", "7")

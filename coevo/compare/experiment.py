@@ -8,8 +8,10 @@ interactions, not in their random initial populations).
 
 Resuming: ``OUT/compare.json`` holds the comparison's settings; a finished run
 has ``summary.json`` with its measures.  ``--resume`` keeps the finished runs,
-deletes the half-done ones (an interrupted asynchronous run cannot be continued
-as if nothing happened) and runs the rest.
+continues the half-done ones from their workers' checkpoints (``coevo run
+--resume``: each worker goes on from its last finished generation, the store
+reloads from disk), starts afresh any that did not get as far as its
+``run.json``, and runs the rest.
 """
 
 from __future__ import annotations
@@ -159,8 +161,8 @@ def prepare(out: Path, spec: CompareSpec, *, resume: bool) -> list[Replicate]:
         if is_finished(out, rep):
             continue
         d = run_dir(out, rep)
-        if d.exists():
-            log.info("removing the unfinished run %s to run it again", d)
+        if d.exists() and not (d / "run.json").exists():
+            log.info("removing the run %s, which stopped before it began, to run it again", d)
             shutil.rmtree(d)
         todo.append(rep)
     return todo
@@ -172,6 +174,9 @@ def default_jobs() -> int:
 
 
 def _run_command(out: Path, spec: CompareSpec, rep: Replicate) -> list[str]:
+    d = run_dir(out, rep)
+    if (d / "run.json").exists():  # interrupted: continue it from the workers' checkpoints
+        return [sys.executable, "-m", "coevo", "run", "--quiet", "--resume", str(d), "--measure-epochs", str(spec.measure_epochs)]
     cmd = [sys.executable, "-m", "coevo", "run", "--quiet", "--regime", rep.regime, "--run", rep.run_id,
            "--root", str(Path(out) / "runs"), "--seed", str(rep.seed), "--model", spec.model,
            "--max-lead", "off" if spec.max_lead is None else str(spec.max_lead),
