@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import os
 import threading
 import time
@@ -86,6 +87,7 @@ class Worker:
         store_timeout: float = 2.0,
         broker_wait: float = 30.0,
         final_sync: float = 30.0,
+        confirm_every: float = 2.0,
         heartbeat_every: float = 1.0,
         max_lead: int | None = DEFAULT_MAX_LEAD,
         resume: bool = False,
@@ -103,6 +105,7 @@ class Worker:
         self.store_timeout = store_timeout
         self.broker_wait = broker_wait
         self.final_sync = final_sync
+        self.confirm_every = confirm_every
         self.heartbeat_every = heartbeat_every
         self.max_lead = max_lead
         self.resume = resume
@@ -116,6 +119,8 @@ class Worker:
         self._fetched: list[tuple[str, bytes]] = []  # partner policies fetched from the store
         self._published: dict[int, bytes] = {}  # version -> encoded PolicyUpdate: the outbox
         self._stored: set[int] = set()  # versions the store confirmed holding
+        self._last_query = -math.inf  # monotonic time the store was last asked what it holds
+        self._accepted: dict[str, bytes] = {}  # key -> last partner payload accepted (repeats skip decoding)
         self._refetch = True  # ask the store for the partners' latest before the next generation
         self._completed = 0
         self._best = 0.0
@@ -211,6 +216,8 @@ class Worker:
             items += got
         newest: dict[Behaviour, tuple[PolicyUpdate, RuleSet]] = {}
         for key, payload in items:
+            if self._accepted.get(key) == payload:
+                continue  # the partner's every-generation repeat of what this worker already checked and holds
             try:
                 msg = decode(payload, key=key)
                 if not isinstance(msg, PolicyUpdate):
@@ -219,6 +226,7 @@ class Worker:
             except MessageError as err:
                 self._reject(err, key)
                 continue
+            self._accepted[key] = payload
             cur = newest.get(msg.behaviour)
             if cur is None or msg.version > cur[0].version:
                 newest[msg.behaviour] = (msg, rules)
@@ -409,20 +417,24 @@ class Worker:
             log.info("%s: store versions query failed: %s", self.worker_id, exc)
         return None
 
-    def _sync(self, session: Any, *, upto: int) -> bool:
+    def _sync(self, session: Any, *, upto: int, now: bool = False) -> bool:
         """Make sure the store holds every version up to ``upto``; republish what it lacks.  True if it does.
 
         Asks the store only when there is something unconfirmed or the broker has
-        just (re)appeared, and never while the broker is down (a query would wait
-        for its timeout).  The newest version is confirmed a generation later, so
-        the check never races the put that carries it.
+        just (re)appeared, at most once per ``confirm_every`` seconds unless ``now``
+        or the broker is back, and never while the broker is down (a query would
+        wait for its timeout).  The newest version is confirmed a generation later,
+        so the check never races the put that carries it.
         """
         if not self._broker_up.is_set():
             return False
         back = self._broker_back.is_set()
         if not back and all(v in self._stored for v in self._published if v <= upto):
             return True
+        if not (back or now) and time.monotonic() - self._last_query < self.confirm_every:
+            return False
         self._broker_back.clear()
+        self._last_query = time.monotonic()
         have = self._store_versions(session)
         if have is None:
             return False
@@ -442,7 +454,7 @@ class Worker:
         end = time.monotonic() + self.final_sync
         top = max(self._published, default=0)
         while time.monotonic() < end and not self._stop.is_set():
-            if self._sync(session, upto=top):
+            if self._sync(session, upto=top, now=True):
                 return
             self._heartbeat(done=False)
             time.sleep(0.2)
