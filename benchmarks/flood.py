@@ -33,7 +33,6 @@ import json
 import os
 import random
 import shutil
-import signal
 import statistics
 import subprocess
 import sys
@@ -49,7 +48,7 @@ from coevo import keys
 from coevo.bus import drain, make_config, open_session, ring_subscriber
 from coevo.errors import MessageError
 from coevo.messages import BrokerStatus, Control, decode, encode
-from coevo.run import free_port
+from coevo.run import end_processes, free_port
 
 RUN = "flood"
 FLOOD_KEYS = [keys.policy(RUN, "tracking"), keys.policy(RUN, "docking"), keys.control(RUN), keys.status(RUN, "tracking", "x")]
@@ -189,14 +188,8 @@ def tail(path: Path, n: int = 15) -> str:
 
 def end(p: subprocess.Popen[bytes] | None) -> None:
     """SIGTERM, then SIGKILL after 10 s."""
-    if p is None or p.poll() is not None:
-        return
-    p.send_signal(signal.SIGTERM)
-    try:
-        p.wait(10)
-    except subprocess.TimeoutExpired:
-        p.kill()
-        p.wait(10)
+    if p is not None:
+        end_processes([p])
 
 
 def pct(a: float, b: float) -> float:

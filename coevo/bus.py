@@ -20,7 +20,7 @@ import json
 import logging
 import os
 import signal
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,10 +28,11 @@ from typing import Any
 
 import zenoh
 
-from coevo.errors import ConfigError
+from coevo.errors import ConfigError, MessageError
+from coevo.messages import Message, decode
 
 __all__ = ["DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
-           "drain", "make_config", "open_session", "ring_subscriber", "sigterm_as_exit"]
+           "drain", "drain_messages", "is_put", "make_config", "open_session", "ring_subscriber", "sigterm_as_exit"]
 
 log = logging.getLogger(__name__)
 
@@ -299,6 +300,24 @@ def drain(subscriber: Any, limit: int) -> list[tuple[str, bytes]]:
             break
         out.append((str(sample.key_expr), bytes(sample.payload.to_bytes())))
     return out
+
+
+def drain_messages(subscriber: Any, limit: int,
+                   reject: Callable[[MessageError, str], None] | None = None) -> list[tuple[str, Message]]:
+    """Like :func:`drain`, decoded and checked against their keys; bad ones go to ``reject`` (or are skipped)."""
+    out: list[tuple[str, Message]] = []
+    for key, payload in drain(subscriber, limit):
+        try:
+            out.append((key, decode(payload, key=key)))
+        except MessageError as err:
+            if reject is not None:
+                reject(err, key)
+    return out
+
+
+def is_put(sample: Any) -> bool:
+    """A liveliness sample that says a token appeared (PUT), rather than went (DELETE)."""
+    return bool(sample.kind == zenoh.SampleKind.PUT)
 
 
 def sigterm_as_exit() -> Any:

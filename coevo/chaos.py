@@ -35,7 +35,7 @@ from coevo.bus import open_session, sigterm_as_exit
 from coevo.check import check_run
 from coevo.config import GAConfig, WorldConfig
 from coevo.errors import ConfigError, RunDirError
-from coevo.run import LocalRun, _wait, fetch_latest, wait_until
+from coevo.run import LocalRun, end_processes, fetch_latest, wait_until
 from coevo.rundir import write_json
 from coevo.status import StatusBoard
 
@@ -80,10 +80,7 @@ def run_chaos(*, regime: str, run: str, root: Path, world: WorldConfig, ga: GACo
               model: str = "best", measure_epochs: int = 20, on_event: Callable[[str], None] | None = None,
               log_level: str = "WARNING") -> dict[str, Any]:
     lr = LocalRun(regime=regime, run=run, root=root, world=world, ga=ga, seed=seed, model=model, log_level=log_level)
-    if lr.dir.exists() and any(lr.dir.iterdir()):
-        raise RunDirError(f"run directory {str(lr.dir)!r} already exists; choose another --run or --root")
-    lr.dir.mkdir(parents=True, exist_ok=True)
-    lr.write_run_json()
+    lr.create()
     rng = np.random.default_rng([seed, 4242])
     chaos = ChaosLog()
     say = on_event or (lambda text: None)
@@ -95,7 +92,7 @@ def run_chaos(*, regime: str, run: str, root: Path, world: WorldConfig, ga: GACo
         with open_session(lr.client_config(), what="chaos status session") as s:
             board = StatusBoard(s, run)
             wait_until(lambda: len([w for w in board.snapshot() if w["generation"] >= 1]) == 3 or not lr.workers_running(),
-                   120, "every worker's first generation")
+                       120, "every worker's first generation")
             next_fault = time.monotonic() + rng.uniform(*plan.gap)
             while lr.workers_running():
                 _revive_crashed(lr, restarts, chaos, say)
@@ -106,8 +103,7 @@ def run_chaos(*, regime: str, run: str, root: Path, world: WorldConfig, ga: GACo
             latest = fetch_latest(s, run)
             board.close()
         if lr.broker is not None:
-            lr.broker.terminate()
-            _wait([lr.broker], 10)
+            end_processes([lr.broker])
     finally:
         signal.signal(signal.SIGTERM, previous)
         lr.end_all()
@@ -181,7 +177,7 @@ def _inject(lr: LocalRun, board: StatusBoard, rng: np.random.Generator, plan: Ch
     time.sleep(down)
     lr.start_worker(b, resume=True)
     wait_until(lambda: any(w["behaviour"] == b.value and w["state"] in ("alive", "done") for w in board.snapshot()), 60,
-           f"the restarted {b.value} worker")
+               f"the restarted {b.value} worker")
     chaos.add(kind, behaviour=b.value, generation=gen, down=round(down, 2),
               dead_seen_ms=None if seen is None else round(seen * 1000, 1))
 

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from coevo.errors import RunDirError
+from coevo.rundir import read_jsonl
 
 __all__ = ["RunCheck", "check_run"]
 
@@ -35,19 +36,6 @@ class RunCheck:
         return not self.problems
 
 
-def _jsonl(path: Path, check: RunCheck) -> list[dict[str, Any]]:
-    if not path.exists():
-        check.problems.append(f"{path} is missing")
-        return []
-    rows = []
-    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
-        try:
-            rows.append(json.loads(line))
-        except json.JSONDecodeError:
-            check.problems.append(f"{path} line {n} is not JSON")
-    return rows
-
-
 def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
     run_dir = Path(run_dir)
     check = RunCheck(run_dir)
@@ -56,13 +44,14 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
         raise RunDirError(f"{str(run_dir)!r} holds no workers/*/worker.json: not a coevo run directory")
     stored: dict[tuple[str, str, int], dict[str, Any]] = {}
     for f in sorted((run_dir / "store").glob("*.jsonl")):
-        for row in _jsonl(f, check):
+        for row in read_jsonl(f, problems=check.problems):
             stored[(row["behaviour"], row["worker"], int(row["version"]))] = row
     published_all: set[tuple[str, int]] = set()
+    adoptions: list[tuple[str, str, list[dict[str, Any]]]] = []  # (behaviour, partner model, adoptions)
     for w in wdirs:
         meta = json.loads((w / "worker.json").read_text(encoding="utf-8"))
         beh, worker, gens = meta["behaviour"], meta["worker"], int(meta["ga"]["generations"])
-        curve = _jsonl(w / "curve.jsonl", check)
+        curve = read_jsonl(w / "curve.jsonl", problems=check.problems)
         got = [int(r["generation"]) for r in curve]
         if got != list(range(1, gens + 1)):
             check.problems.append(f"{beh}: curve.jsonl has generations {_span(got)}, expected 1..{gens}")
@@ -70,7 +59,7 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
         done = json.loads(done_file.read_text(encoding="utf-8")) if done_file.exists() else {}
         if not done.get("finished"):
             check.problems.append(f"{beh}: done.json missing or not finished")
-        published = _jsonl(w / "published.jsonl", check)
+        published = read_jsonl(w / "published.jsonl", problems=check.problems)
         versions = [int(p["version"]) for p in published]
         if versions != list(range(1, len(versions) + 1)):
             check.problems.append(f"{beh}: published.jsonl versions {versions} are not 1..n in order")
@@ -84,13 +73,13 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
             published_all.add((beh, int(p["version"])))
         if lost:
             check.problems.append(f"{beh}: versions {lost} were published but are not in the store")
+        adopted = read_jsonl(w / "adoptions.jsonl", problems=check.problems)
+        adoptions.append((beh, meta["model"], adopted))
         check.facts[beh] = {"generations": len(curve), "published": len(published),
                             "republished": done.get("republished", 0), "rejected": done.get("rejected", {}),
-                            "adoptions": len(_jsonl(w / "adoptions.jsonl", check))}
-    for w in wdirs:
-        beh = json.loads((w / "worker.json").read_text(encoding="utf-8"))["behaviour"]
-        model = json.loads((w / "worker.json").read_text(encoding="utf-8"))["model"]
-        for a in _jsonl(w / "adoptions.jsonl", check):
+                            "adoptions": len(adopted)}
+    for beh, model, adopted in adoptions:
+        for a in adopted:
             if model != "current" and (a["partner"], int(a["version"])) not in published_all:
                 check.problems.append(f"{beh}: adopted {a['partner']} v{a['version']}, which no worker published")
     if replay and not check.problems:

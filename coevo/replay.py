@@ -21,6 +21,7 @@ from coevo.errors import RunDirError
 from coevo.ga import GA
 from coevo.messages import PolicyUpdate
 from coevo.policy.rules import RuleSet
+from coevo.rundir import read_jsonl
 
 __all__ = ["WorkerReplay", "replay"]
 
@@ -36,23 +37,10 @@ class WorkerReplay:
     detail: str
 
 
-def _jsonl(path: Path) -> list[dict]:
-    if not path.exists():
-        raise RunDirError(f"{path} is missing: not a complete run directory")
-    rows = []
-    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
-        if line.strip():
-            try:
-                rows.append(json.loads(line))
-            except json.JSONDecodeError as exc:
-                raise RunDirError(f"{path} line {n} is not JSON: {exc}") from exc
-    return rows
-
-
 def _store(run_dir: Path) -> dict[tuple[str, str, int], RuleSet]:
     out: dict[tuple[str, str, int], RuleSet] = {}
     for f in sorted((run_dir / "store").glob("*.jsonl")):
-        for row in _jsonl(f):
+        for row in read_jsonl(f):
             m = PolicyUpdate.model_validate(row)
             out[(m.behaviour.value, m.worker, m.version)] = m.ruleset()
     return out
@@ -63,8 +51,8 @@ def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, unt
     behaviour = Behaviour(meta["behaviour"])
     world = WorldConfig(**meta["world"])
     ga_cfg = GAConfig(**meta["ga"])
-    curve = _jsonl(wdir / "curve.jsonl")
-    adoptions = _jsonl(wdir / "adoptions.jsonl")
+    curve = read_jsonl(wdir / "curve.jsonl")
+    adoptions = read_jsonl(wdir / "adoptions.jsonl")
     n = len(curve) if until is None else min(until, len(curve))
     models = PartnerModels(behaviour, meta["regime"], meta["seed"], kind=meta["model"], initial_rules=ga_cfg.initial_rules)
     ga = GA(behaviour, world=world, ga=ga_cfg, seed=meta["seed"])

@@ -35,10 +35,10 @@ from coevo.config import GAConfig, WorldConfig
 from coevo.errors import RunDirError
 from coevo.messages import Control, PolicyUpdate, decode, encode
 from coevo.robot import measure_robot
-from coevo.rundir import write_csv, write_json
+from coevo.rundir import read_jsonl, write_csv, write_json
 from coevo.status import StatusBoard
 
-__all__ = ["free_port", "wait_until", "LocalRun", "run_local", "fetch_latest", "read_run_json"]
+__all__ = ["free_port", "wait_until", "end_processes", "LocalRun", "run_local", "fetch_latest", "read_run_json"]
 
 log = logging.getLogger(__name__)
 
@@ -114,7 +114,12 @@ class LocalRun:
         self._all: list[subprocess.Popen[bytes]] = []
         self.starts: dict[str, int] = {}  # process name -> times started
 
-    def write_run_json(self) -> None:
+    def create(self) -> None:
+        """Make the run directory with its ``run.json``; refuses one that is already in use."""
+        if self.dir.exists() and any(self.dir.iterdir()):
+            raise RunDirError(f"run directory {str(self.dir)!r} already exists; choose another --run or --root, "
+                              f"or continue it with coevo run --resume {self.dir}")
+        self.dir.mkdir(parents=True, exist_ok=True)
         write_json(self.dir / "run.json", {
             "run": self.run, "regime": self.regime, "seed": self.seed, "model": self.model, "max_lead": self.max_lead,
             "endpoint": self.endpoint, "world": self.world.model_dump(), "ga": self.ga.model_dump(), "started": time.time()})
@@ -163,14 +168,7 @@ class LocalRun:
 
     def end_all(self) -> None:
         """Terminate whatever still runs (SIGTERM, then SIGKILL after 10 s)."""
-        for p in reversed(self._all):
-            if p.poll() is None:
-                p.terminate()
-        _wait(self._all, 10.0)
-        for p in self._all:
-            if p.poll() is None:
-                p.kill()
-                p.wait()
+        end_processes(self._all)
 
     def client_config(self) -> Any:
         return make_config(mode="client", connect=[self.endpoint], connect_timeout=30)
@@ -187,12 +185,8 @@ class LocalRun:
                               epochs=measure_epochs, seed=self.seed + 99)
             summary["measures"] = m.as_dict()
             write_json(self.dir / "measures.json", m.as_dict())
-        rows = []
-        for b in Behaviour:
-            f = self.worker_dir(b) / "curve.jsonl"
-            if f.exists():
-                for line in f.read_text().splitlines():
-                    rows.append({"behaviour": b.value, **json.loads(line)})
+        rows = [{"behaviour": b.value, **row} for b in Behaviour
+                for row in read_jsonl(self.worker_dir(b) / "curve.jsonl", missing_ok=True)]
         write_csv(self.dir / "curves.csv", rows)
         write_json(self.dir / "summary.json", summary)
         return summary
@@ -220,11 +214,7 @@ def run_local(
             raise RunDirError(f"{str(lr.dir)!r} holds no run.json: nothing to resume")
         (lr.dir / "summary.json").unlink(missing_ok=True)  # written again at the end
     else:
-        if lr.dir.exists() and any(lr.dir.iterdir()):
-            raise RunDirError(f"run directory {str(lr.dir)!r} already exists; choose another --run or --root, "
-                              f"or continue it with --resume {lr.dir}")
-        lr.dir.mkdir(parents=True, exist_ok=True)
-        lr.write_run_json()
+        lr.create()
     t0 = time.time()
     interrupted = False
     previous = sigterm_as_exit()
@@ -257,6 +247,18 @@ def run_local(
         lr.end_all()
     return lr.finish(latest, seconds=time.time() - t0, interrupted=interrupted, measure_epochs=measure_epochs,
                      extra={"resumed": resume})
+
+
+def end_processes(procs: list[subprocess.Popen[bytes]], timeout: float = 10.0) -> None:
+    """SIGTERM every one still running (last started first), then SIGKILL what is left after ``timeout`` s."""
+    for p in reversed(procs):
+        if p.poll() is None:
+            p.terminate()
+    _wait(procs, timeout)
+    for p in procs:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
 
 
 def _wait(procs: list[subprocess.Popen[bytes]], timeout: float) -> None:

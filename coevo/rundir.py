@@ -18,7 +18,7 @@ from typing import Any
 
 from coevo.errors import RunDirError
 
-__all__ = ["staged_dir", "write_bytes", "write_json", "write_text", "write_csv"]
+__all__ = ["staged_dir", "read_jsonl", "write_bytes", "write_json", "write_text", "write_csv"]
 
 
 @contextmanager
@@ -82,3 +82,31 @@ def write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
     w.writeheader()
     w.writerows(rows)
     write_text(path, buf.getvalue())
+
+
+def read_jsonl(path: Path, *, missing_ok: bool = False, problems: list[str] | None = None) -> list[dict[str, Any]]:
+    """The rows of a JSON-lines log (blank lines skipped).
+
+    A missing file is ``[]`` with ``missing_ok``, else a RunDirError; a line that is
+    not JSON is a RunDirError naming the file and line, or, when ``problems`` is
+    given, noted there and skipped (``coevo check`` lists every one).
+    """
+    path = Path(path)
+    if not path.exists():
+        if missing_ok:
+            return []
+        if problems is None:
+            raise RunDirError(f"{path} is missing: not a complete run directory")
+        problems.append(f"{path} is missing")
+        return []
+    rows = []
+    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+        if not line.strip():
+            continue
+        try:
+            rows.append(json.loads(line))
+        except json.JSONDecodeError as exc:
+            if problems is None:
+                raise RunDirError(f"{path} line {n} is not JSON: {exc}") from None
+            problems.append(f"{path} line {n} is not JSON")
+    return rows

@@ -22,9 +22,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from coevo import keys
-from coevo.bus import drain, ring_subscriber
+from coevo.bus import drain_messages, is_put, ring_subscriber
 from coevo.errors import MessageError
-from coevo.messages import BrokerStatus, Status, decode
+from coevo.messages import BrokerStatus, Status
 
 __all__ = ["DEFAULT_STALL", "WorkerView", "StatusBoard"]
 
@@ -100,18 +100,16 @@ class StatusBoard:
     def poll(self) -> None:
         """Take in the heartbeats and broker reports that arrived since the last call."""
         for ring in self._rings:
-            for key, payload in drain(ring, 4096):
-                try:
-                    msg = decode(payload, key=key)
-                except MessageError:
-                    with self._lock:
-                        self.rejected += 1
-                    continue
+            for _, msg in drain_messages(ring, 4096, self._reject):
                 with self._lock:
                     if isinstance(msg, BrokerStatus):
                         self.broker = msg
                     elif isinstance(msg, Status):
                         self._take(msg)
+
+    def _reject(self, err: MessageError, key: str) -> None:
+        with self._lock:
+            self.rejected += 1
 
     def _take(self, msg: Status) -> None:
         v = self._view(msg.behaviour.value, msg.worker)
@@ -130,7 +128,7 @@ class StatusBoard:
         parts = keys.parse(str(sample.key_expr))
         if "worker" not in parts:
             return
-        alive = str(sample.kind).endswith("PUT")
+        alive = is_put(sample)
         with self._lock:
             v = self._view(parts.get("behaviour", "?"), parts["worker"])
             v.token = alive
@@ -139,7 +137,7 @@ class StatusBoard:
 
     def _on_broker(self, sample: Any) -> None:
         with self._lock:
-            self.broker_up = str(sample.kind).endswith("PUT")
+            self.broker_up = is_put(sample)
         self.changed.set()
 
     def snapshot(self) -> list[dict[str, Any]]:

@@ -11,7 +11,7 @@ import pytest
 
 from coevo import keys
 from coevo.bus import make_config, open_session
-from coevo.run import free_port, wait_until
+from coevo.run import end_processes, free_port, wait_until
 
 __all__ = ["SMALL", "poll", "coevo_proc", "stop", "broker"]
 
@@ -27,13 +27,7 @@ def coevo_proc(*args: str, log: Path) -> subprocess.Popen:
 
 
 def stop(p: subprocess.Popen) -> None:
-    if p.poll() is None:
-        p.terminate()
-        try:
-            p.wait(10)
-        except subprocess.TimeoutExpired:
-            p.kill()
-            p.wait()
+    end_processes([p])
 
 
 @pytest.fixture

@@ -55,8 +55,7 @@ def _curve_len(lr: LocalRun, b: Behaviour) -> int:
 
 def _local_run(tmp_path: Path, run: str, ga: GAConfig = MID, seed: int = 3) -> LocalRun:
     lr = LocalRun(regime="mutual", run=run, root=tmp_path, world=WorldConfig(), ga=ga, seed=seed, log_level="INFO")
-    lr.dir.mkdir(parents=True)
-    lr.write_run_json()
+    lr.create()
     return lr
 
 

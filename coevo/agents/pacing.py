@@ -34,9 +34,9 @@ from typing import Any
 
 from coevo import keys
 from coevo.behaviours import Behaviour
-from coevo.bus import drain, ring_subscriber
-from coevo.errors import ConfigError, MessageError
-from coevo.messages import Status, decode
+from coevo.bus import drain_messages, is_put, ring_subscriber
+from coevo.errors import ConfigError
+from coevo.messages import Status
 
 __all__ = ["DEFAULT_MAX_LEAD", "Pacer", "parse_max_lead"]
 
@@ -90,7 +90,7 @@ class Pacer:
         if beh not in self._live:
             return
         with self._lock:
-            if str(sample.kind).endswith("PUT"):
+            if is_put(sample):
                 self._live[beh].add(parts.get("worker", ""))
                 self._gone.discard(beh)
                 self._absent.discard(beh)
@@ -102,11 +102,8 @@ class Pacer:
 
     def _poll(self) -> None:
         for sub in self._subs:
-            for key, payload in drain(sub, 64):
-                try:
-                    msg = decode(payload, key=key)
-                except MessageError:
-                    continue  # bad messages on the status keys are not pacing's business; status counts them
+            # Bad messages on the status keys are not pacing's business (status counts them): skipped.
+            for _, msg in drain_messages(sub, 64):
                 if not isinstance(msg, Status) or msg.behaviour not in self._progress:
                     continue
                 with self._lock:

@@ -49,7 +49,7 @@ from coevo.agents.checkpoint import (
 from coevo.agents.models import PartnerModels
 from coevo.agents.pacing import DEFAULT_MAX_LEAD, Pacer
 from coevo.behaviours import Behaviour
-from coevo.bus import drain, open_session, ring_subscriber
+from coevo.bus import drain, drain_messages, is_put, open_session, ring_subscriber
 from coevo.config import GAConfig, WorldConfig
 from coevo.errors import ConfigError, MessageError, RunDirError
 from coevo.ga import GA, GenerationReport
@@ -57,7 +57,7 @@ from coevo.messages import Control, PolicyUpdate, Status, decode, encode
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
 from coevo.rejections import Rejections
-from coevo.rundir import write_json, write_text
+from coevo.rundir import read_jsonl, write_json, write_text
 
 __all__ = ["Worker", "INBOX", "FAULT_HANG_ENV"]
 
@@ -242,7 +242,7 @@ class Worker:
 
     # ------------------------------------------------------------ liveliness of the broker, control
     def _on_broker(self, sample: Any) -> None:
-        if str(sample.kind).endswith("PUT"):
+        if is_put(sample):
             self._broker_up.set()
             self._broker_back.set()
         else:
@@ -250,12 +250,7 @@ class Worker:
 
     def _stop_requested(self) -> bool:
         sub = self._io.get("control_sub")
-        for key, payload in drain(sub, 64) if sub is not None else ():
-            try:
-                msg = decode(payload, key=key)
-            except MessageError as err:
-                self._reject(err, key)
-                continue
+        for _, msg in drain_messages(sub, 64, self._reject) if sub is not None else ():
             if isinstance(msg, Control) and msg.command == "stop":
                 self._stop.set()
         return self._stop.is_set()
@@ -285,7 +280,7 @@ class Worker:
             ga.evaluator.tick = self._tick
             hang_after = _fault_hang_after()
             try:
-                self._wait_for_broker(s)
+                self._wait_for_broker()
                 self._refetch = True
                 for g in range(ga.generation_no, self.ga_cfg.generations):
                     if self._stop_requested():
@@ -344,7 +339,7 @@ class Worker:
                     sub.undeclare()
                 self._io = {}
                 self.rejected.flush()
-        rows = [json.loads(x) for x in (self.out / "curve.jsonl").read_text(encoding="utf-8").splitlines() if x.strip()]
+        rows = read_jsonl(self.out / "curve.jsonl")
         write_json(self.out / "done.json", {
             "generations": len(rows), "finished": len(rows) >= self.ga_cfg.generations,
             "versions_published": len(self._published), "unconfirmed": sorted(set(self._published) - self._stored),
@@ -382,12 +377,11 @@ class Worker:
         self._heartbeat(done=False)
 
     # ------------------------------------------------------------ the broker's store
-    def _wait_for_broker(self, session: Any) -> None:
+    def _wait_for_broker(self) -> None:
         """Wait (up to ``broker_wait`` s) for a broker whose store is up, so nothing is published into the void."""
         end = time.monotonic() + self.broker_wait
         while time.monotonic() < end and not self._stop.is_set():
-            if self._broker_up.wait(0.2) or any(r.ok is not None for r in session.liveliness().get(keys.BROKER, timeout=1.0)):
-                self._broker_up.set()
+            if self._broker_up.wait(0.2):  # the broker watch (history=True) reports a token already there
                 return
         log.warning("%s: no coevo broker seen after %.0f s; going on without a store (publications are kept "
                     "and delivered when one appears)", self.worker_id, self.broker_wait)

@@ -28,7 +28,7 @@ from coevo.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
 from coevo.errors import RuleSetError, RunDirError
 from coevo.policy.text import parse_ruleset
 from coevo.robot import docking_from_random_starts
-from coevo.rundir import write_csv, write_json, write_text
+from coevo.rundir import read_jsonl, write_csv, write_json, write_text
 
 __all__ = ["collect", "write_report", "MEASURES"]
 
@@ -36,12 +36,6 @@ __all__ = ["collect", "write_report", "MEASURES"]
 MEASURES = ("quality_tracking", "successful_docking", "average_epoch_length", "dock_choice", "executive_payoff")
 CURVE_COLUMNS = ("best_fitness", "best_so_far", "quality_tracking", "successful_docking", "dock_choice")
 DOCKING_PROBE_EPISODES = 300
-
-
-def _curve(path: Path) -> list[dict[str, Any]]:
-    if not path.exists():
-        return []
-    return [json.loads(x) for x in path.read_text().splitlines() if x.strip()]
 
 
 def collect(out: Path, spec: CompareSpec) -> list[dict[str, Any]]:
@@ -71,7 +65,7 @@ def _record(out: Path, spec: CompareSpec, rep: Replicate) -> dict[str, Any]:
     curves: dict[str, dict[str, list[float]]] = {}
     final: dict[str, float] = {}
     for b in Behaviour:
-        rows = _curve(d / "workers" / b.value / "curve.jsonl")
+        rows = read_jsonl(d / "workers" / b.value / "curve.jsonl", missing_ok=True)
         curves[b.value] = {c: [float(r[c]) for r in rows] for c in CURVE_COLUMNS}
         final[b.value] = float(rows[-1]["best_so_far"]) if rows else float("nan")
     return {
