@@ -39,9 +39,22 @@ class WorldConfig(_Settings):
     target_speed: float = Field(2.0, ge=0, le=16, description="(ours) target random-walk speed, ips")
     target_turn_sd: float = Field(20.0, ge=0, description="(ours) s.d. of the target's heading change per step, deg")
     target_avoid: float = Field(30.0, ge=0, description="(ours) distance at which the target turns away from walls/dock, inches")
-    fuel_idle: float = Field(1 / 480, gt=0, description="tank fraction used per step standing still (full tank ~8 episodes)")
-    fuel_per_ips: float = Field(1 / 1920, ge=0, description="extra tank fraction per step per inch/s (4 ips: full tank ~4 episodes)")
-    fuel_per_dps: float = Field(1 / 11520, ge=0, description="(ours) extra tank fraction per step per deg/s of turn")
+    fuel_idle: float = Field(
+        1 / 960, gt=0,
+        description="tank fraction used per step standing still; the report: 'if it were to remain motionless it "
+        "could survive approximately eight episodes', read of the 50 % an epoch starts with (SPEC §1, Fuel): "
+        "0.5 / (1/960) = 480 steps = 8 episodes",
+    )
+    fuel_per_ips: float = Field(
+        1 / 3840, ge=0,
+        description="extra tank fraction per step per inch/s; the report: 'while it is moving slowly it can last up "
+        "to four episodes', read of the starting 50 % at 4 ips: 0.5 / (1/960 + 4/3840) = 240 steps = 4 episodes",
+    )
+    fuel_per_dps: float = Field(
+        1 / 23040, ge=0,
+        description="(ours) extra tank fraction per step per deg/s of turn: the report says consumption grows "
+        "linearly with the turning rate but gives no figure; a full-rate turn (24 deg/s) costs what driving at 4 ips does",
+    )
     dock_width: float = Field(30.0, gt=0, description="(ours) width of the dock's front face, inches")
     dock_depth: float = Field(10.0, gt=0, description="(ours) depth of the dock from the south wall, inches")
     dock_max_speed: float = Field(4.0, ge=0, description="fastest accepted docking speed, ips")

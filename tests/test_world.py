@@ -87,12 +87,29 @@ def test_fuel_use_is_linear_in_speed_and_turn() -> None:
     assert used[2] == pytest.approx(cfg.fuel_idle + 24 * cfg.fuel_per_dps)
 
 
-def test_full_tank_lasts_about_8_episodes_still_and_4_moving_slowly() -> None:
-    cfg = WorldConfig()
-    still = 1.0 / cfg.fuel_idle / cfg.episode_steps
-    slow = 1.0 / (cfg.fuel_idle + 4 * cfg.fuel_per_ips) / cfg.episode_steps
-    assert still == pytest.approx(8, abs=0.5)
-    assert slow == pytest.approx(4, abs=0.5)
+def test_starting_supply_lasts_about_8_episodes_still_and_4_at_4_ips() -> None:
+    """The report: 'if it were to remain motionless it could survive approximately eight episodes ...
+    while it is moving slowly it can last up to four episodes' (SPEC §1, Fuel: the 50 % an epoch starts with)."""
+    cfg = WorldConfig(target_speed=0.0, target_turn_sd=0.0)
+    w = BatchWorld(cfg, 4)
+    stand = parse_ruleset("IF ANY THEN SET turn = 0 AND speed = 0 (strength 0.5)", "tracking")
+    out = run_lanes(w, lane_episodes=10, executive=ALWAYS_TRACK, tracking=Rules.single(CompiledPolicies([stand]), 4),
+                    docking=None, restart_epochs=False, rng=np.random.default_rng(0))
+    assert out.epoch_complete.all() and (out.epoch_penalty == cfg.towing_penalty).all()
+    lasted = out.steps.sum(axis=1) / cfg.episode_steps  # episodes' worth of steps until dry
+    assert lasted == pytest.approx(np.full(4, 8.0), abs=0.05)
+    # At 4 ips, in an arena wide enough never to reach a wall.
+    wide = WorldConfig(arena=2000.0, target_speed=0.0, target_turn_sd=0.0)
+    w = BatchWorld(wide, 1)
+    w.set_state([0], robot=(1000.0, 200.0), heading=90.0, target=(100.0, 100.0), fuel=wide.initial_fuel)
+    steps = 0
+    while True:
+        steps += 1
+        ev = w.step(np.ones(1, bool), np.zeros(1), np.full(1, 4.0), np.zeros(1))
+        assert not ev.collided[0]
+        if ev.dry[0]:
+            break
+    assert steps / wide.episode_steps == pytest.approx(4, abs=0.1)
 
 
 def test_running_dry_ends_the_epoch_with_the_towing_penalty() -> None:
