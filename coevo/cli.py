@@ -68,6 +68,9 @@ def _add_settings(p: argparse.ArgumentParser) -> None:
     p.add_argument("--episodes", type=int, help="evaluation episodes per individual (default 90)")
     p.add_argument("--world", action="append", metavar="NAME=VALUE", help="world setting, e.g. target_speed=3 (repeatable)")
     p.add_argument("--ga", action="append", metavar="NAME=VALUE", help="GA setting, e.g. mutation_rate=0.05 (repeatable)")
+    p.add_argument("--initial", dest="ga", action="append", type=lambda v: f"initial={v}", metavar="default|random",
+                   help="how Tracking and Docking start: their shipped direction-only rule sets (default) or random "
+                        "rule sets; the Executive always starts random (the same as --ga initial=...)")
     p.add_argument("--mutation-model", dest="ga", action="append", type=lambda v: f"mutation_model={v}", metavar="fm|gm|fh|gh",
                    help="mutation model (default fm; the same as --ga mutation_model=...; parameters: see README)")
 
@@ -209,21 +212,32 @@ def _reasons(counts: dict[str, int]) -> str:
     return ", ".join(f"{n} {r}" for r, n in sorted(counts.items())) or "0"
 
 
+_OWN = {"quality_tracking": "QT", "docking_from_random": "docks", "dock_choice": "picks D",
+        "docking_success_rate": "docked"}
+
+
+def _own(measures: dict[str, float]) -> str:
+    """A worker's own measures, short: 'QT 62%', 'docks 71%', 'picks D 23% docked 40%'."""
+    return " ".join(f"{_OWN.get(k, k)} {v:.0f}%" for k, v in measures.items()) or "-"
+
+
 def status_table(board: Any, title: str) -> Any:
     """The live status as a rich table: one row per worker, one for the broker."""
     from rich.table import Table
 
     t = Table(title=title)
-    for col in ("behaviour", "worker", "generation", "best fitness", "partners", "unconfirmed", "rejected", "state"):
-        t.add_column(col)
+    # Short headers: the table has to fit an 80-column terminal.
+    for col in ("agent", "worker", "gen", "best", "measure", "partners", "unconf.", "rejected", "state"):
+        t.add_column(col, overflow="fold")
     styles = {"alive": "green", "done": "blue", "stalled": "yellow", "dead": "bold red"}
     for w in board.snapshot():
         partners = " ".join(f"{k[0].upper()}v{v}" for k, v in sorted(w["partner_versions"].items())) or "-"
         t.add_row(w["behaviour"], w["worker"], f"{w['generation']}/{w['generations']}", f"{w['best_fitness']:.3f}",
-                  partners, str(w["buffered"]), _reasons(w["rejected_by_reason"]), w["state"], style=styles.get(w["state"]))
+                  _own(w.get("measures", {})), partners, str(w["buffered"]), _reasons(w["rejected_by_reason"]), w["state"],
+                  style=styles.get(w["state"]))
     b = board.broker_view()
     stored = " ".join(f"{k[0].upper()}:{v}" for k, v in sorted(b["stored"].items())) or "-"
-    t.add_row("broker", "store", "", "", f"stored {stored}", "", _reasons(b["rejected"]), b["state"],
+    t.add_row("broker", "store", "", "", "", f"stored {stored}", "", _reasons(b["rejected"]), b["state"],
               style="green" if b["state"] == "up" else "bold red")
     return t
 
@@ -261,7 +275,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     if "measures" in summary:
         m = summary["measures"]
         print("combined robot: " + ", ".join(f"{k} {m[k]:.1f}" for k in
-              ("quality_tracking", "successful_docking", "dock_choice", "average_epoch_length", "executive_payoff")))
+              ("quality_tracking", "dock_choice", "docking_success_rate", "successful_docking", "average_epoch_length",
+               "executive_payoff")))
     return 130 if summary["interrupted"] else 0
 
 
@@ -404,7 +419,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="run directory to create (default runs/learn-BEHAVIOUR-seedN-TIME)")
     p.add_argument("--tracking", help="Tracking rule file (for --behaviour executive)")
     p.add_argument("--docking", help="Docking rule file (for --behaviour executive)")
-    p.add_argument("--seed-policy", help="start the population from this rule file instead of random rules")
+    p.add_argument("--seed-policy", help="start the population from this rule file instead of the behaviour's default (or random) rules")
     p.add_argument("--history", metavar="RUN_DIR", help="executive: adopt the Tracking/Docking policies stored in a finished run, in step")
     p.add_argument("--rate", type=float, default=1.0, help="with --history: partner generations per executive generation (default 1)")
     p.add_argument("--measure-epochs", type=int, default=100, help="fresh epochs for the final measures")

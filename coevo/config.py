@@ -105,6 +105,19 @@ class GAConfig(_Settings):
     common_scenarios: bool = Field(
         True, description="(ours) every individual of a generation faces the same starts and Target noise (common random numbers)"
     )
+    initial: Literal["default", "random"] = Field(
+        "default",
+        description="how Tracking and Docking start: 'default' from their shipped direction-only rule sets "
+        "(coevo/policy/defaults/; the report lists 'initial behaviors of the agents' among its settings and SAMUEL "
+        "starts from default rules, Appendix B), 'random' from random rule sets; the Executive always starts random",
+    )
+    docking_fresh_starts: bool = Field(
+        True,
+        description="(ours) with the trivial always-Dock Executive (Independent, coevo learn), every Docking training "
+        "episode starts from a fresh random placement, where an Executive would call Docking, instead of in front "
+        "of the dock where the last docking left the robot (measured: 85 % of a Docking learner's fitness came from "
+        "such re-docking episodes, and docking from random starts stayed at 4-7 %)",
+    )
     conflict: Literal["strongest", "proportional"] = Field(
         "strongest", description="(ours) conflict resolution: highest strength, or strength-proportional draw"
     )

@@ -62,7 +62,7 @@ def learn(
         if behaviour is not Behaviour.EXECUTIVE:
             raise ConfigError("--history feeds recorded Tracking/Docking policies to the executive only")
         feed = HistoryFeed(Path(history), rate)
-        models = PartnerModels(behaviour, "independent", seed, initial_rules=ga.initial_rules)
+        models = PartnerModels(behaviour, "independent", seed, initial_rules=ga.initial_rules, initial=ga.initial)
         partners = models.partners()
     elif behaviour is Behaviour.EXECUTIVE:
         if tracking is None or docking is None:

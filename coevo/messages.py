@@ -105,6 +105,9 @@ class Status(_Msg):
     rejected: dict[str, int] = Field(default_factory=dict)
     buffered: int = Field(default=0, ge=0)  # published versions the broker's store has not confirmed yet
     done: bool = False
+    # The latest generation's best on the behaviour's own measure, in % (coevo.ga.engine.own_measures):
+    # Tracking quality_tracking, Docking docking_from_random, the Executive dock_choice and docking_success_rate.
+    measures: dict[str, Annotated[float, Field(ge=0, le=100)]] = Field(default_factory=dict, max_length=8)
 
 
 class BrokerStatus(_Msg):

@@ -54,7 +54,7 @@ def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, unt
     curve = read_jsonl(wdir / "curve.jsonl")
     adoptions = read_jsonl(wdir / "adoptions.jsonl")
     n = len(curve) if until is None else min(until, len(curve))
-    models = PartnerModels(behaviour, meta["regime"], meta["seed"], kind=meta["model"], initial_rules=ga_cfg.initial_rules)
+    models = PartnerModels(behaviour, meta["regime"], meta["seed"], kind=meta["model"], initial_rules=ga_cfg.initial_rules, initial=ga_cfg.initial)
     ga = GA(behaviour, world=world, ga=ga_cfg, seed=meta["seed"])
     by_gen: dict[int, list[dict]] = {}
     for a in adoptions:

@@ -39,6 +39,7 @@ class WorkerView:
     generation: int = 0
     generations: int = 0
     best_fitness: float = 0.0
+    measures: dict[str, float] = field(default_factory=dict)
     partner_versions: dict[str, int] = field(default_factory=dict)
     rejected: dict[str, int] = field(default_factory=dict)
     buffered: int = 0
@@ -60,7 +61,7 @@ class WorkerView:
         return {
             "behaviour": self.behaviour, "worker": self.worker, "regime": self.regime,
             "generation": self.generation, "generations": self.generations, "best_fitness": self.best_fitness,
-            "partner_versions": self.partner_versions, "rejected": sum(self.rejected.values()),
+            "measures": dict(self.measures), "partner_versions": self.partner_versions, "rejected": sum(self.rejected.values()),
             "rejected_by_reason": dict(self.rejected), "buffered": self.buffered, "state": self.state(now, stall),
             "heartbeat_age": round(now - self.last_heartbeat, 3) if self.last_heartbeat else None,
         }
@@ -116,7 +117,7 @@ class StatusBoard:
         if msg.generation < v.generation and not v.died_at:
             return  # an older heartbeat overtaken by a newer one
         v.regime, v.generation, v.generations = msg.regime, msg.generation, msg.generations
-        v.best_fitness, v.partner_versions = msg.best_fitness, msg.partner_versions
+        v.best_fitness, v.partner_versions, v.measures = msg.best_fitness, msg.partner_versions, dict(msg.measures)
         v.rejected, v.buffered, v.done = dict(msg.rejected), msg.buffered, msg.done
         v.last_heartbeat = time.time()
         if v.died_at is None:

@@ -50,6 +50,8 @@ def test_executive_learns_from_rule_files(tmp_path: Path) -> None:
         (["--world", "tracking_min=70"], "tracking_min"),
         (["--ga", "oops"], "name=value"),
         (["--seed-policy", "/nonexistent/file.rules"], "cannot read"),
+        (["--initial", "sometimes"], "initial='sometimes'"),
+        (["--ga", "docking_fresh_starts=maybe"], "docking_fresh_starts='maybe'"),
     ],
 )
 def test_bad_parameters_fail_clearly_and_write_nothing(tmp_path: Path, args: list[str], needle: str) -> None:

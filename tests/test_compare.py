@@ -151,10 +151,15 @@ def test_an_output_directory_that_is_not_a_comparison_is_refused(tmp_path: Path)
 
 
 @pytest.mark.parametrize(("measures", "expected"), [
-    ({"successful_docking": 20.0, "dock_choice": 5.0, "quality_tracking": 60.1}, "Good Docking / Hi"),
-    ({"successful_docking": 19.9, "dock_choice": 5.0, "quality_tracking": 60.0}, "Poor Docking / Med"),
-    ({"successful_docking": 50.0, "dock_choice": 4.9, "quality_tracking": 30.1}, "No Docking / Med"),
-    ({"successful_docking": 0.0, "dock_choice": 0.0, "quality_tracking": 30.0}, "No Docking / Lo"),
+    # Good/Poor Docking reads the 20 % on the episodes Docking was picked for (SPEC §2), not on all episodes.
+    ({"docking_success_rate": 20.0, "successful_docking": 4.0, "dock_choice": 20.0, "quality_tracking": 60.1},
+     "Good Docking / Hi"),
+    ({"docking_success_rate": 19.9, "successful_docking": 19.9, "dock_choice": 100.0, "quality_tracking": 60.0},
+     "Poor Docking / Med"),
+    ({"docking_success_rate": 100.0, "successful_docking": 4.9, "dock_choice": 4.9, "quality_tracking": 30.1},
+     "No Docking / Med"),
+    ({"docking_success_rate": 0.0, "successful_docking": 0.0, "dock_choice": 0.0, "quality_tracking": 30.0},
+     "No Docking / Lo"),
 ])
 def test_table1_class_boundaries(measures: dict[str, float], expected: str) -> None:
     assert classify(measures) == expected

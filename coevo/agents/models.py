@@ -8,9 +8,11 @@ Regimes (SPEC §2):
 - ``mutual``: every agent learns against the other two's best so far, so
   Tracking and Docking only get the episodes the best-so-far Executive gives them.
 
-Until a partner has published anything, its model is a random rule set drawn from
-the worker's seed *(ours)*: "best so far" of a GA that has not finished a
-generation is one of its random initial policies.  Model kinds: ``best`` (the
+Until a partner has published anything, its model is the partner's initial
+behaviour *(ours)*: "best so far" of a GA that has not finished a generation is
+one of its initial policies, so Tracking's and Docking's shipped default rule sets
+(``GAConfig.initial = "default"``), else a random rule set drawn from the worker's
+seed (the Executive's always).  Model kinds: ``best`` (the
 newest published best so far, the report's choice), ``current`` (the partner's
 current policy: the best individual of its latest generation, published every
 generation on its own key) and ``recent`` (each generation, one of the last
@@ -28,6 +30,7 @@ import numpy as np
 from coevo.behaviours import Behaviour
 from coevo.errors import ConfigError
 from coevo.ga.evaluate import Partners
+from coevo.policy.defaults import default_ruleset
 from coevo.policy.rules import RuleSet, random_ruleset
 
 __all__ = ["REGIMES", "MODELS", "partners_needed", "PartnerModels"]
@@ -56,6 +59,7 @@ class PartnerModels:
     kind: str = "best"
     recent: int = 5
     initial_rules: int = 16
+    initial: str = "default"
     versions: dict[Behaviour, int] = field(default_factory=dict)
     _bests: dict[Behaviour, list[RuleSet]] = field(default_factory=dict)
 
@@ -65,7 +69,8 @@ class PartnerModels:
         self.needed = partners_needed(self.behaviour, self.regime)
         for b in self.needed:
             rng = np.random.default_rng([self.seed, list(Behaviour).index(b), 7])
-            self._bests[b] = [random_ruleset(b, self.initial_rules, rng)]
+            default = default_ruleset(b) if self.initial == "default" else None
+            self._bests[b] = [default if default is not None else random_ruleset(b, self.initial_rules, rng)]
             self.versions[b] = 0
         self._rng = np.random.default_rng([self.seed, 11])
 

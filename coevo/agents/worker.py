@@ -53,6 +53,7 @@ from coevo.bus import drain, drain_messages, is_put, open_session, ring_subscrib
 from coevo.config import GAConfig, WorldConfig
 from coevo.errors import ConfigError, MessageError, RunDirError
 from coevo.ga import GA, GenerationReport
+from coevo.ga.engine import own_measures
 from coevo.messages import Control, PolicyUpdate, Status, decode, encode
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
@@ -101,7 +102,7 @@ class Worker:
         self.ga_cfg = ga
         self.out = Path(out_dir)
         self.conf = conf
-        self.models = PartnerModels(self.behaviour, regime, seed, kind=model, initial_rules=ga.initial_rules)
+        self.models = PartnerModels(self.behaviour, regime, seed, kind=model, initial_rules=ga.initial_rules, initial=ga.initial)
         self.store_timeout = store_timeout
         self.broker_wait = broker_wait
         self.final_sync = final_sync
@@ -124,6 +125,7 @@ class Worker:
         self._refetch = True  # ask the store for the partners' latest before the next generation
         self._completed = 0
         self._best = 0.0
+        self._measures: dict[str, float] = {}  # own_measures of the latest generation, for the heartbeat
         self._last_beat = 0.0
         self._io: dict[str, Any] = {}  # session objects while running
 
@@ -308,6 +310,7 @@ class Worker:
                         self._published[msg.version] = encode(msg)
                         write_text(self.out / "best.rules", format_ruleset(ga.best))
                     self._completed, self._best = rep.generation, rep.best_so_far
+                    self._measures = own_measures(self.behaviour, rep)
                     # Checkpoint before anything leaves: what was published is always in a checkpoint,
                     # so a resumed worker never publishes a different policy under a version number.
                     self._checkpoint(ga, pacer.waited)
@@ -357,7 +360,7 @@ class Worker:
             best_fitness=self._best if self._best > -1e300 else 0.0,
             partner_versions={b.value: v for b, v in self.models.versions.items()},
             rejected=self.rejected.as_dict(), buffered=len(set(self._published) - self._stored), done=done,
-            sent_at=time.time(),
+            measures=self._measures, sent_at=time.time(),
         )
 
     def _heartbeat(self, *, done: bool) -> None:

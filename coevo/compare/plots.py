@@ -20,6 +20,8 @@ PANELS = (
     ("Docking learning curve", "docking", "best_fitness", "best fitness", 1.0),
     ("Tracking learning curve", "tracking", "best_fitness", "best fitness", 1.0),
     ("Quality Tracking (Executive's best)", "executive", "quality_tracking", "% of episodes", 100.0),
+    ("Docking from random starts (Docking's best)", "docking", "docking_from_random", "% of fresh starts", 100.0),
+    ("Docking picked (Executive's best)", "executive", "dock_choice", "% of episodes", 100.0),
 )
 
 Curves = Mapping[str, Mapping[str, Mapping[str, Sequence[float]]]]  # run -> behaviour -> column -> per generation
@@ -47,12 +49,13 @@ def _pyplot():  # type: ignore[no-untyped-def]
 
 
 def figure_for_regime(curves: Curves, regime: str, path: Path) -> None:
-    """One regime's four panels, like the report's Figure 5 (Mutual) or 6 (Independent)."""
+    """One regime's panels: the report's four (its Figure 5 for Mutual, 6 for Independent), then Docking's own
+    measure and how often the Executive picked Docking."""
     plt = _pyplot()
-    fig, axes = plt.subplots(2, 2, figsize=(10, 7), constrained_layout=True)
+    fig, axes = plt.subplots(2, 3, figsize=(14, 7), constrained_layout=True)
     for ax, (title, beh, col, ylabel, top) in zip(axes.flat, PANELS, strict=True):
         m = _matrix(curves, beh, col)
-        if m.size:
+        if m.size and not np.isnan(m).all():
             g = np.arange(1, m.shape[1] + 1)
             for row in m:
                 ax.plot(g, row, color="0.75", linewidth=0.7)
@@ -70,14 +73,14 @@ def figure_for_regime(curves: Curves, regime: str, path: Path) -> None:
 
 
 def figure_regimes(by_regime: Mapping[str, Curves], path: Path) -> None:
-    """The regimes' mean curves side by side on the same four panels."""
+    """The regimes' mean curves side by side on the same panels."""
     plt = _pyplot()
-    fig, axes = plt.subplots(2, 2, figsize=(10, 7), constrained_layout=True)
+    fig, axes = plt.subplots(2, 3, figsize=(14, 7), constrained_layout=True)
     colours = ("tab:red", "tab:green", "tab:blue", "tab:orange")
     for ax, (title, beh, col, ylabel, top) in zip(axes.flat, PANELS, strict=True):
         for colour, (regime, curves) in zip(colours, by_regime.items(), strict=False):
             m = _matrix(curves, beh, col)
-            if not m.size:
+            if not m.size or np.isnan(m).all():
                 continue
             g = np.arange(1, m.shape[1] + 1)
             mean = np.nanmean(m, axis=0)

@@ -3,8 +3,14 @@
 A run is classed by its combined robot's measures (SPEC §2, report Appendix A §7):
 
 - Docking: *No Docking* when the Executive picks Docking in under 5 % of episodes
-  (starvation); otherwise *Good Docking* with at least 20 % of episodes docking
-  successfully, else *Poor Docking*.
+  (starvation); otherwise *Good Docking* when at least 20 % of the episodes in
+  which the Executive picked Docking end docked, else *Poor Docking*.  The report
+  says "≥ 20 % episodes with successful docking"; with the fuel as it states it one
+  docking per epoch keeps the robot going, so an ideal robot docks in only ~10 % of
+  all its episodes, and a threshold on all episodes would class it Poor Docking and
+  contradict the report's 10 of 10 Good Docking Independent runs.  SPEC §2
+  ("Measures") therefore reads the 20 % on the picked episodes; reports show both
+  numbers (``docking_success_rate`` and ``successful_docking``).
 - Tracking: *Hi* over 60 % quality tracking, *Med* over 30 %, else *Lo*.
 
 The report's counts come from its Table 1 and its text: Mutual, 9 of 10 runs
@@ -27,7 +33,7 @@ TRACKING = ("Hi", "Med", "Lo")
 CLASSES = tuple(f"{d} / {t}" for d in DOCKING for t in TRACKING)
 
 NO_DOCKING_CHOICE = 5.0  # % of episodes the Executive picks Docking, below which Docking is starved
-GOOD_DOCKING = 20.0  # % of episodes that dock successfully
+GOOD_DOCKING = 20.0  # % of the episodes Docking was picked for that ended docked
 HI_TRACKING = 60.0  # % quality tracking
 MED_TRACKING = 30.0
 
@@ -37,10 +43,11 @@ REPORT_COUNTS: dict[str, dict[str, int]] = {
 }
 
 
-def docking_class(successful_docking: float, dock_choice: float) -> str:
+def docking_class(docking_success_rate: float, dock_choice: float) -> str:
+    """From the % of picked Docking episodes that docked and the % of episodes Docking was picked."""
     if dock_choice < NO_DOCKING_CHOICE:
         return "No Docking"
-    return "Good Docking" if successful_docking >= GOOD_DOCKING else "Poor Docking"
+    return "Good Docking" if docking_success_rate >= GOOD_DOCKING else "Poor Docking"
 
 
 def tracking_class(quality_tracking: float) -> str:
@@ -51,7 +58,7 @@ def tracking_class(quality_tracking: float) -> str:
 
 def classify(measures: Mapping[str, float]) -> str:
     """The Table 1 class of one run from its combined robot's measures."""
-    d = docking_class(float(measures["successful_docking"]), float(measures["dock_choice"]))
+    d = docking_class(float(measures["docking_success_rate"]), float(measures["dock_choice"]))
     return f"{d} / {tracking_class(float(measures['quality_tracking']))}"
 
 

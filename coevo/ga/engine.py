@@ -29,10 +29,11 @@ from coevo.errors import ConfigError
 from coevo.ga.evaluate import Evaluation, Evaluator, Partners
 from coevo.ga.mutation import CONTROL_LEVELS, MutationModel, model_from_config
 from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise, trim
+from coevo.policy.defaults import default_ruleset
 from coevo.policy.rules import RuleSet, random_ruleset
 from coevo.policy.strength import update_strengths
 
-__all__ = ["GA", "GenerationReport"]
+__all__ = ["GA", "GenerationReport", "own_measures"]
 
 
 @dataclass(frozen=True)
@@ -51,10 +52,27 @@ class GenerationReport:
     dock_choice: float
     docking_success_rate: float
     average_epoch_length: float
+    docking_from_random: float | None  # Docking only (else None): % of fresh random starts the generation's best docks from
     seconds: float
 
-    def as_dict(self) -> dict[str, float | int | bool]:
+    def as_dict(self) -> dict[str, float | int | bool | None]:
         return asdict(self)
+
+
+def own_measures(behaviour: Behaviour | str, report: GenerationReport) -> dict[str, float]:
+    """The measures that say how a behaviour is doing, in %, for status displays.
+
+    Docking's fitness alone misleads (SPEC §1, "Where Docking learns"), so Docking shows
+    the share of fresh random starts it docks from; the Executive how often it picks
+    Docking and how often that docks; Tracking its Quality Tracking.
+    """
+    r = report
+    behaviour = Behaviour(behaviour)
+    if behaviour is Behaviour.TRACKING:
+        return {"quality_tracking": r.quality_tracking}
+    if behaviour is Behaviour.DOCKING:
+        return {} if r.docking_from_random is None else {"docking_from_random": r.docking_from_random}
+    return {"dock_choice": r.dock_choice, "docking_success_rate": r.docking_success_rate}
 
 
 class GA:
@@ -76,6 +94,8 @@ class GA:
         self.rng = np.random.default_rng(seed)
         self.mutation = mutation or model_from_config(ga)
         self.evaluator = Evaluator(self.behaviour, world, ga)
+        if seed_policy is None and ga.initial == "default":
+            seed_policy = default_ruleset(self.behaviour)  # None for the Executive: it starts random
         if seed_policy is not None:
             if seed_policy.behaviour is not self.behaviour:
                 raise ConfigError(f"seed policy is a {seed_policy.behaviour} rule set, not {self.behaviour}")
@@ -152,6 +172,7 @@ class GA:
         if improved:
             self.best, self.best_fitness = learned[top], best_fit
         m = check.measures(self.world_cfg.episode_steps)
+        from_random = self._docking_from_random(learned[top], partners, check)
         self.generation_no += 1
         self.population, self.genes = self._breed(learned, ev.fitness, ev.experience)
         return GenerationReport(
@@ -167,8 +188,23 @@ class GA:
             dock_choice=m.dock_choice,
             docking_success_rate=m.docking_success_rate,
             average_epoch_length=m.average_epoch_length,
+            docking_from_random=from_random,
             seconds=time.perf_counter() - t0,
         )
+
+    def _docking_from_random(self, best: RuleSet, partners: Partners, check: Evaluation) -> float | None:
+        """Docking's own measure (SPEC §1, "Where Docking learns"): % of fresh random starts it docks from.
+
+        Where the re-evaluation already played fresh starts (the trivial Executive) it is
+        that evaluation's docking rate; inside a learning Executive's epochs (Mutual) the
+        best is played once more, alone, on ``best_episodes`` fresh starts.
+        """
+        if self.behaviour is not Behaviour.DOCKING:
+            return None
+        if not self.evaluator.fresh_starts(partners):
+            check = self.evaluator.evaluate([best], Partners(), self._child_rng(), episodes=self.cfg.best_episodes,
+                                            fresh_starts=True)
+        return check.measures(self.world_cfg.episode_steps).docking_success_rate
 
     def _breed(
         self, pop: list[RuleSet], fitness: np.ndarray, exps: list[Experience]

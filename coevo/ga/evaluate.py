@@ -63,22 +63,31 @@ class Evaluator:
             self._worlds[lanes] = BatchWorld(self.world_cfg, lanes)
         return self._worlds[lanes]
 
-    def layout(self, episodes: int) -> tuple[int, int, bool]:
+    def fresh_starts(self, partners: Partners) -> bool:
+        """Does every episode start from a fresh random placement? Docking with the trivial
+        Executive does (``GAConfig.docking_fresh_starts``): that is where an Executive calls it."""
+        return self.behaviour is Behaviour.DOCKING and partners.executive is None and self.ga.docking_fresh_starts
+
+    def layout(self, episodes: int, *, fresh_starts: bool = False) -> tuple[int, int, bool]:
         """(lanes per individual, episodes per lane, restart epochs) for an evaluation of ``episodes``."""
         if self.behaviour is Behaviour.EXECUTIVE:
             k = self.world_cfg.epoch_episodes  # one epoch per lane: the Executive is paid per epoch
             return -(-episodes // k), k, False
-        k = self.ga.lane_episodes
+        k = 1 if fresh_starts else self.ga.lane_episodes
         return -(-episodes // k), k, True
 
     def evaluate(
-        self, policies: list[RuleSet], partners: Partners, rng: np.random.Generator, *, episodes: int | None = None
+        self, policies: list[RuleSet], partners: Partners, rng: np.random.Generator, *, episodes: int | None = None,
+        fresh_starts: bool | None = None,
     ) -> Evaluation:
+        """Play ``policies`` against ``partners``; ``fresh_starts`` forces (or forbids) a fresh random
+        placement for every episode, by default :meth:`fresh_starts` decides."""
         beh = self.behaviour
         for p in policies:
             if p.behaviour is not beh:
                 raise ConfigError(f"cannot evaluate a {p.behaviour} rule set as {beh}")
-        per, k, restart = self.layout(episodes or self.ga.episodes)
+        fresh = self.fresh_starts(partners) if fresh_starts is None else fresh_starts
+        per, k, restart = self.layout(episodes or self.ga.episodes, fresh_starts=fresh)
         P = len(policies)
         L = P * per
         world = self._world(L)
