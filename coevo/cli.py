@@ -285,10 +285,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     from coevo.agents.pacing import parse_max_lead
     from coevo.compare import CompareSpec, prepare, run_all, write_report
-    from coevo.compare.experiment import default_jobs
+    from coevo.compare.experiment import default_jobs, replicates
 
     world, ga = _configs(args)
-    spec = CompareSpec.make(regimes=tuple(args.regimes), runs=args.runs, seed=args.seed, model=args.model,
+    rates = {} if args.rates is None else {"rates": tuple(args.rates)}
+    spec = CompareSpec.make(regimes=tuple(args.regimes), **rates, runs=args.runs, seed=args.seed, model=args.model,
                             max_lead=parse_max_lead(args.max_lead), measure_epochs=args.measure_epochs, world=world, ga=ga)
     jobs = default_jobs() if args.jobs is None else args.jobs
     if jobs < 1:
@@ -302,7 +303,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         print(f"{len(todo)} runs unfinished; reporting on the rest")
     else:
         todo = prepare(out, spec, resume=args.resume)
-        total = len(spec.regimes) * spec.runs
+        total = len(replicates(spec))
         print(f"comparison in {out}: {total - len(todo)} of {total} runs already done, {len(todo)} to run, {jobs} at a time",
               flush=True)
         columns = (TextColumn("[bold]compare[/]"), BarColumn(), TextColumn("{task.fields[info]}"),
@@ -485,7 +486,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("compare", help="many real runs per regime: Table 1, learning curves, rank tests, verdict")
     p.add_argument("--regimes", nargs="+", default=["mutual", "independent"], metavar="REGIME",
-                   help="regimes to compare (default: mutual independent)")
+                   help="regimes to compare (default: mutual independent); independent-offline: the Executive "
+                        "learns on the independent runs' recorded Tracking/Docking histories, at each --rates")
+    p.add_argument("--rates", nargs="+", type=float, metavar="R",
+                   help="independent-offline: rates of asynchrony, partner generations per Executive generation "
+                        "(default 0.25 0.5 1 2 4)")
     p.add_argument("--runs", type=int, default=10, help="runs per regime (default 10, as in the report)")
     p.add_argument("--out", help="comparison directory (default runs/compare-TIME)")
     p.add_argument("--resume", action="store_true", help="continue the comparison in --out, keeping its finished runs")

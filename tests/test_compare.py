@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from coevo.compare.stats import compare_samples, magnitude
+from coevo.compare.stats import compare_groups, compare_samples, magnitude
 from coevo.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
 
 TINY = ["--runs", "2", "--generations", "3", "--population", "6", "--episodes", "10", "--ga", "best_episodes=10",
@@ -128,6 +128,11 @@ def test_resume_reruns_only_what_is_unfinished(tiny: Path) -> None:
     (["--generations", "0"], "generations"),
     (["--measure-epochs", "0"], "measure_epochs"),
     (["--max-lead", "-1"], "-1"),
+    (["--regimes", "mutual", "independent-offline"], "add independent to the regimes"),
+    (["--regimes", "independent", "independent-offline", "--rates", "0", "1"], "must be positive and finite, got 0.0"),
+    (["--regimes", "independent", "independent-offline", "--rates", "-2"], "got -2.0"),
+    (["--regimes", "independent", "independent-offline", "--rates", "1", "1"], "rates repeat"),
+    (["--regimes", "independent", "independent-offline", "--rates", "nan"], "got nan"),
 ])
 def test_bad_settings_fail_before_anything_starts(tmp_path: Path, args: list[str], message: str) -> None:
     out = tmp_path / "never"
@@ -191,3 +196,63 @@ def test_rank_comparison_effect_size_and_p_value() -> None:
         compare_samples("x", "a", [float("nan")], "b", [1.0])
     with pytest.raises(ValueError, match="at least one run"):
         compare_samples("x", "a", [], "b", [1.0])
+
+
+def test_kruskal_wallis_across_groups_and_its_effect_size() -> None:
+    same = compare_groups("x", {"r1": [0.0] * 4, "r2": [0.0] * 4})
+    assert same.h == 0.0 and same.p_value == 1.0 and not same.appreciable
+    apart = compare_groups("x", {"r1": [0.1, 0.2, 0.3], "r2": [0.4, 0.5, 0.6], "r3": [0.7, 0.8, 0.9]})
+    ref = stats.kruskal([0.1, 0.2, 0.3], [0.4, 0.5, 0.6], [0.7, 0.8, 0.9])
+    assert apart.h == pytest.approx(ref.statistic) and apart.p_value == pytest.approx(ref.pvalue)
+    assert apart.epsilon2 == pytest.approx(ref.statistic / 8) and apart.magnitude == "large" and apart.appreciable
+    with pytest.raises(ValueError, match="two groups"):
+        compare_groups("x", {"r1": [1.0]})
+
+
+OFFLINE_TINY = ["--regimes", "independent", "independent-offline", "--rates", "0.5", "2", "--runs", "2",
+                "--generations", "3", "--population", "6", "--episodes", "10", "--ga", "best_episodes=10",
+                "--ga", "initial_rules=8", "--measure-epochs", "5", "--jobs", "2", "--quiet"]
+
+
+@pytest.mark.slow
+def test_independent_offline_learns_the_executive_on_the_live_histories_at_each_rate(tmp_path: Path) -> None:
+    out = tmp_path / "offline"
+    r = coevo("compare", "--out", str(out), *OFFLINE_TINY)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "0 of 6 runs already done, 6 to run" in r.stdout
+    res = json.loads((out / "results.json").read_text())
+    assert res["runs_finished"] == 6
+    assert set(res["table1"]) == {"independent", "independent-offline rate 0.5", "independent-offline rate 2"}
+    assert [t["measure"] for t in res["rate_tests"]] == ["final_executive_fitness", "successful_docking",
+                                                         "docking_success_rate"]
+    assert "independent-offline" in res["verdict"] and "rate of asynchrony" in res["verdict"]
+    assert (out / "figure-independent-offline.png").stat().st_size > 10_000
+    for i in range(2):
+        for rate in ("0.5", "2"):
+            d = out / "runs" / f"offline-rate{rate}-0{i}"
+            cfg = json.loads((d / "config.json").read_text())
+            # Learned on the live independent run of the same replicate, with the live Executive's seed.
+            assert cfg["history"] == str(out / "runs" / f"independent-0{i}") and cfg["rate"] == float(rate)
+            live = json.loads((out / "runs" / f"independent-0{i}" / "run.json").read_text())
+            assert cfg["seed"] == live["seed"] + 2
+    report = (out / "report.md").read_text()
+    assert "## Rates of asynchrony (independent-offline)" in report
+    # Resume: an offline run removed is the only one run again.
+    import shutil
+
+    shutil.rmtree(out / "runs" / "offline-rate2-01")
+    again = coevo("compare", "--out", str(out), "--resume", *OFFLINE_TINY)
+    assert again.returncode == 0, again.stdout + again.stderr
+    assert "5 of 6 runs already done, 1 to run" in again.stdout
+
+
+def test_a_history_that_is_incomplete_is_refused(tmp_path: Path) -> None:
+    run = tmp_path / "half"
+    (run / "workers" / "tracking").mkdir(parents=True)
+    (run / "run.json").write_text("{}")
+    (run / "workers" / "tracking" / "done.json").write_text(json.dumps({"finished": False, "generations": 12}))
+    r = coevo("learn", "--behaviour", "executive", "--history", str(run), "--quiet", "--out", str(tmp_path / "x"),
+              timeout=60)
+    assert r.returncode == 2 and "is incomplete" in r.stderr and "tracking" in r.stderr and "12 generations" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "x").exists()

@@ -11,7 +11,10 @@ generation ``<= g * rate``.  Deterministic, and needs no network.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
+
+from pydantic import ValidationError
 
 from coevo.behaviours import Behaviour
 from coevo.errors import ConfigError, RunDirError
@@ -22,18 +25,30 @@ __all__ = ["HistoryFeed"]
 
 class HistoryFeed:
     def __init__(self, run_dir: Path, rate: float) -> None:
-        if not rate > 0:
-            raise ConfigError(f"rate of asynchrony must be positive, got {rate!r}")
+        if not (rate > 0 and math.isfinite(rate)):
+            raise ConfigError(f"rate of asynchrony must be positive and finite, got {rate!r}")
         self.rate = rate
         self.updates: dict[Behaviour, list[PolicyUpdate]] = {}
+        _check_finished(Path(run_dir))
         for b in (Behaviour.TRACKING, Behaviour.DOCKING):
             f = Path(run_dir) / "store" / f"{b.value}.jsonl"
             if not f.exists():
                 raise RunDirError(f"{f} is missing: --history needs a run directory with stored {b.value} policies")
-            rows = [PolicyUpdate.model_validate(json.loads(x)) for x in f.read_text().splitlines() if x.strip()]
+            try:
+                rows = [PolicyUpdate.model_validate(json.loads(x)) for x in f.read_text().splitlines() if x.strip()]
+            except (ValueError, ValidationError) as exc:  # JSONDecodeError is a ValueError
+                raise RunDirError(f"{f} holds a line that is not a stored {b.value} policy: "
+                                  f"{str(exc).splitlines()[0]}") from exc
+            if any(m.behaviour is not b for m in rows):
+                raise RunDirError(f"{f} holds policies of another behaviour than {b.value}")
             if not rows:
                 raise RunDirError(f"{f} holds no policies")
             self.updates[b] = sorted(rows, key=lambda m: (m.generation, m.version))
+
+    @property
+    def last_generation(self) -> int:
+        """The latest partner generation in the history."""
+        return max(rows[-1].generation for rows in self.updates.values())
 
     def due(self, generation: int) -> list[PolicyUpdate]:
         """The newest update per partner published by partner generation ``generation * rate``."""
@@ -44,3 +59,20 @@ class HistoryFeed:
             if ready:
                 out.append(ready[-1])
         return out
+
+
+def _check_finished(run_dir: Path) -> None:
+    """A history must be a whole run: its run.json, and Tracking and Docking done with every generation."""
+    if not (run_dir / "run.json").is_file():
+        raise RunDirError(f"{str(run_dir)!r} is not a run directory (no run.json): --history needs a finished "
+                          "coevo run directory")
+    for b in (Behaviour.TRACKING, Behaviour.DOCKING):
+        f = run_dir / "workers" / b.value / "done.json"
+        try:
+            done = json.loads(f.read_text())
+        except (OSError, json.JSONDecodeError):
+            done = None
+        if not isinstance(done, dict) or not done.get("finished"):
+            got = f"{done.get('generations')} generations" if isinstance(done, dict) else "no done.json"
+            raise RunDirError(f"{str(run_dir)!r} is incomplete: its {b.value} worker did not finish ({got}); "
+                              f"continue it with coevo run --resume {run_dir}")

@@ -6,6 +6,18 @@ what is compared is exactly what a user gets.  Replicate ``i`` of every regime
 uses the same seed (a paired design: the regimes differ in their agents'
 interactions, not in their random initial populations).
 
+The report's second protocol of Regime Independent is the pseudo-regime
+``independent-offline``: "because the tasks were independent of each other and
+subordinate to the Executive Task, they could be first learned offline which
+would allow us to simulate various rates of asynchrony during the learning of the
+Executive Task".  Tracking and Docking learn exactly as in live Independent (with
+the trivial Executive, the Executive's choices never reach them), so replicate
+``i`` reuses the Tracking and Docking histories stored by the live
+``independent-i`` run and, for each rate in ``rates``, an Executive learns on
+them with ``coevo learn --history RUN --rate R`` (rate = partner generations per
+Executive generation), with the live Executive's seed: the rate is the only
+difference between them.
+
 Resuming: ``OUT/compare.json`` holds the comparison's settings; a finished run
 has ``summary.json`` with its measures.  ``--resume`` keeps the finished runs,
 continues the half-done ones from their workers' checkpoints (``coevo run
@@ -37,11 +49,15 @@ from coevo.config import GAConfig, WorldConfig
 from coevo.errors import ConfigError, RunDirError
 from coevo.rundir import write_json
 
-__all__ = ["CompareSpec", "Replicate", "prepare", "replicates", "run_all", "default_jobs"]
+__all__ = ["CompareSpec", "Replicate", "prepare", "replicates", "groups", "run_all", "default_jobs", "OFFLINE",
+           "DEFAULT_RATES"]
 
 log = logging.getLogger(__name__)
 
 SEED_STRIDE = 1000  # replicate i runs with seed + i * SEED_STRIDE (workers take seed, seed+1, seed+2)
+OFFLINE = "independent-offline"  # the Executive learning on recorded Tracking/Docking histories, per rate
+DEFAULT_RATES = (0.25, 0.5, 1.0, 2.0, 4.0)  # (ours) partner generations per Executive generation: 16x apart
+EXECUTIVE_SEED = list(Behaviour).index(Behaviour.EXECUTIVE)  # the live Executive worker's seed offset
 
 
 class CompareSpec(BaseModel):
@@ -50,6 +66,7 @@ class CompareSpec(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     regimes: tuple[str, ...] = REGIMES
+    rates: tuple[float, ...] = Field(DEFAULT_RATES, description="rates of asynchrony for independent-offline")
     runs: int = Field(10, ge=1, le=1000, description="replicates per regime")
     seed: int = 0
     model: str = "best"
@@ -64,11 +81,26 @@ class CompareSpec(BaseModel):
         if not v:
             raise ValueError("name at least one regime")
         for r in v:
-            if r not in REGIMES:
-                raise ValueError(f"unknown regime {r!r} (use {' or '.join(REGIMES)})")
+            if r not in (*REGIMES, OFFLINE):
+                raise ValueError(f"unknown regime {r!r} (use {', '.join((*REGIMES, OFFLINE))})")
         if len(set(v)) != len(v):
             raise ValueError(f"regimes repeat: {list(v)}")
+        if OFFLINE in v and "independent" not in v:
+            raise ValueError(f"{OFFLINE} learns on the Tracking and Docking histories of the independent runs: "
+                             "add independent to the regimes")
         return v
+
+    @field_validator("rates")
+    @classmethod
+    def _rates(cls, v: tuple[float, ...]) -> tuple[float, ...]:
+        if not v:
+            raise ValueError("name at least one rate of asynchrony")
+        for r in v:
+            if not (r > 0 and r < 1e6):  # also refuses NaN
+                raise ValueError(f"a rate of asynchrony must be positive and finite, got {r}")
+        if len(set(v)) != len(v):
+            raise ValueError(f"rates repeat: {list(v)}")
+        return tuple(sorted(v))
 
     @field_validator("model")
     @classmethod
@@ -98,15 +130,47 @@ class Replicate:
     regime: str
     index: int
     seed: int
+    rate: float | None = None  # independent-offline only
+
+    @property
+    def offline(self) -> bool:
+        return self.regime == OFFLINE
+
+    @property
+    def group(self) -> str:
+        """What the report compares: the regime, or for independent-offline the regime at its rate."""
+        return f"{OFFLINE} rate {self.rate:g}" if self.offline else self.regime
 
     @property
     def run_id(self) -> str:
+        if self.offline:
+            return f"offline-rate{self.rate:g}-{self.index:02d}"
         return f"{self.regime}-{self.index:02d}"
+
+    @property
+    def depends_on(self) -> Replicate | None:
+        """The live run whose stored Tracking/Docking histories this one learns on."""
+        return Replicate("independent", self.index, self.seed) if self.offline else None
 
 
 def replicates(spec: CompareSpec) -> list[Replicate]:
-    """Interleaved (mutual-00, independent-00, mutual-01, ...) so a partial comparison is balanced."""
-    return [Replicate(r, i, spec.seed + i * SEED_STRIDE) for i in range(spec.runs) for r in spec.regimes]
+    """Interleaved (mutual-00, independent-00, mutual-01, ...) so a partial comparison is balanced;
+    each independent-offline replicate comes after the live run it learns on."""
+    out = []
+    for i in range(spec.runs):
+        seed = spec.seed + i * SEED_STRIDE
+        out += [Replicate(r, i, seed) for r in spec.regimes if r != OFFLINE]
+        if OFFLINE in spec.regimes:
+            out += [Replicate(OFFLINE, i, seed, rate) for rate in spec.rates]
+    return out
+
+
+def groups(spec: CompareSpec) -> list[str]:
+    """The report's rows, in order: the live regimes, then independent-offline at each rate."""
+    out = [r for r in spec.regimes if r != OFFLINE]
+    if OFFLINE in spec.regimes:
+        out += [Replicate(OFFLINE, 0, 0, rate).group for rate in spec.rates]
+    return out
 
 
 def run_dir(out: Path, rep: Replicate) -> Path:
@@ -114,6 +178,8 @@ def run_dir(out: Path, rep: Replicate) -> Path:
 
 
 def is_finished(out: Path, rep: Replicate) -> bool:
+    if rep.offline:  # coevo learn writes its directory under a temporary name and renames it when complete
+        return (run_dir(out, rep) / "measures.json").exists()
     f = run_dir(out, rep) / "summary.json"
     if not f.exists():
         return False
@@ -161,7 +227,7 @@ def prepare(out: Path, spec: CompareSpec, *, resume: bool) -> list[Replicate]:
         if is_finished(out, rep):
             continue
         d = run_dir(out, rep)
-        if d.exists() and not (d / "run.json").exists():
+        if not rep.offline and d.exists() and not (d / "run.json").exists():
             log.info("removing the run %s, which stopped before it began, to run it again", d)
             shutil.rmtree(d)
         todo.append(rep)
@@ -173,23 +239,42 @@ def default_jobs() -> int:
     return max(1, (os.cpu_count() or 1) // 2)
 
 
+def _settings_args(spec: CompareSpec) -> list[str]:
+    args = []
+    for k, v in spec.world.model_dump(exclude_defaults=True).items():
+        args += ["--world", f"{k}={json.dumps(v)}"]
+    for k, v in spec.ga.model_dump(exclude_defaults=True).items():
+        args += ["--ga", f"{k}={json.dumps(v)}"]
+    return args
+
+
 def _run_command(out: Path, spec: CompareSpec, rep: Replicate) -> list[str]:
     d = run_dir(out, rep)
+    if rep.offline:
+        live = Replicate("independent", rep.index, rep.seed)
+        return [sys.executable, "-m", "coevo", "learn", "--quiet", "--behaviour", "executive",
+                "--history", str(run_dir(out, live)), "--rate", repr(rep.rate),
+                "--seed", str(rep.seed + EXECUTIVE_SEED), "--out", str(d), "--measure-epochs", str(spec.measure_epochs),
+                *_settings_args(spec)]
     if (d / "run.json").exists():  # interrupted: continue it from the workers' checkpoints
         return [sys.executable, "-m", "coevo", "run", "--quiet", "--resume", str(d), "--measure-epochs", str(spec.measure_epochs)]
     cmd = [sys.executable, "-m", "coevo", "run", "--quiet", "--regime", rep.regime, "--run", rep.run_id,
            "--root", str(Path(out) / "runs"), "--seed", str(rep.seed), "--model", spec.model,
            "--max-lead", "off" if spec.max_lead is None else str(spec.max_lead),
-           "--measure-epochs", str(spec.measure_epochs)]
-    for k, v in spec.world.model_dump(exclude_defaults=True).items():
-        cmd += ["--world", f"{k}={json.dumps(v)}"]
-    for k, v in spec.ga.model_dump(exclude_defaults=True).items():
-        cmd += ["--ga", f"{k}={json.dumps(v)}"]
+           "--measure-epochs", str(spec.measure_epochs), *_settings_args(spec)]
     return cmd
 
 
+def generations_of(spec: CompareSpec, rep: Replicate) -> int:
+    """Worker generations a replicate runs: three workers, or one Executive learning offline."""
+    return spec.ga.generations * (1 if rep.offline else len(Behaviour))
+
+
 def generations_done(out: Path, rep: Replicate) -> int:
-    """Worker generations finished so far in a replicate (for progress), read from the curve logs."""
+    """Worker generations finished so far in a replicate (for progress), read from the curve logs
+    (an offline Executive shows its generations only when it is done)."""
+    if rep.offline:
+        return 0
     n = 0
     for b in Behaviour:
         f = run_dir(out, rep) / "workers" / b.value / "curve.jsonl"
@@ -225,23 +310,38 @@ def run_all(
     if jobs < 1:
         raise ConfigError(f"--jobs must be at least 1, got {jobs}")
     out = Path(out)
-    per_run = len(Behaviour) * spec.ga.generations
     all_reps = replicates(spec)
     finished_before = [r for r in all_reps if r not in todo]
-    prog = Progress(total_generations=per_run * len(all_reps), runs_total=len(all_reps),
+    prog = Progress(total_generations=sum(generations_of(spec, r) for r in all_reps), runs_total=len(all_reps),
                     runs_done=len(finished_before))
-    base = per_run * len(finished_before)
+    base = sum(generations_of(spec, r) for r in finished_before)
     pending = list(todo)
     active: dict[Replicate, tuple[subprocess.Popen[bytes], Any]] = {}
     logs = out / "logs"
     logs.mkdir(exist_ok=True)
+
+    def ready(rep: Replicate) -> bool | None:
+        """True to start now, False to wait for the live run it needs, None if that run failed."""
+        dep = rep.depends_on
+        if dep is None or is_finished(out, dep):
+            return True
+        return None if dep.run_id in prog.failed else False
+
     try:
         while pending or active:
-            while pending and len(active) < jobs:
-                rep = pending.pop(0)
-                fh = open(logs / f"{rep.run_id}.log", "wb")
-                active[rep] = (subprocess.Popen(_run_command(out, spec, rep), stdout=fh, stderr=subprocess.STDOUT,
-                                                stdin=subprocess.DEVNULL), fh)
+            for rep in list(pending):
+                if len(active) >= jobs:
+                    break
+                go = ready(rep)
+                if go is None:
+                    pending.remove(rep)
+                    prog.failed.append(rep.run_id)
+                    log.error("run %s skipped: the run it learns on, %s, failed", rep.run_id, rep.depends_on.run_id)
+                elif go:
+                    pending.remove(rep)
+                    fh = open(logs / f"{rep.run_id}.log", "wb")
+                    active[rep] = (subprocess.Popen(_run_command(out, spec, rep), stdout=fh, stderr=subprocess.STDOUT,
+                                                    stdin=subprocess.DEVNULL), fh)
             time.sleep(poll)
             for rep, (p, fh) in list(active.items()):
                 if p.poll() is None:
@@ -250,11 +350,11 @@ def run_all(
                 del active[rep]
                 if p.returncode == 0 and is_finished(out, rep):
                     prog.runs_done += 1
-                    base += per_run
+                    base += generations_of(spec, rep)
                 else:
                     prog.failed.append(rep.run_id)
                     log.error("run %s failed with status %s; see %s", rep.run_id, p.returncode, logs / f"{rep.run_id}.log")
-            prog.done_generations = base + sum(min(per_run, generations_done(out, r)) for r in active)
+            prog.done_generations = base + sum(min(generations_of(spec, r), generations_done(out, r)) for r in active)
             if on_progress:
                 on_progress(prog)
     finally:

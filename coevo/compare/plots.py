@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["PANELS", "figure_for_regime", "figure_regimes"]
+__all__ = ["PANELS", "figure_for_regime", "figure_regimes", "figure_rates"]
 
 # (title, behaviour, curve column, y label, y scale)
 PANELS = (
@@ -94,5 +94,34 @@ def figure_regimes(by_regime: Mapping[str, Curves], path: Path) -> None:
         ax.grid(alpha=0.3)
         ax.legend(loc="upper left", fontsize=8)
     fig.suptitle("Regimes compared")
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def figure_rates(by_group: Mapping[str, Curves], path: Path) -> None:
+    """The Executive's mean learning curve per group: live regimes and every rate of asynchrony, overlaid."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), constrained_layout=True)
+    cmap = plt.get_cmap("viridis")
+    offline = [g for g in by_group if g not in ("mutual", "independent")]
+    styles = {"mutual": ("tab:red", "--"), "independent": ("black", "--")}
+    styles |= {g: (cmap(i / max(1, len(offline) - 1)), "-") for i, g in enumerate(offline)}
+    panels = (("Executive learning curve", "best_fitness", "best fitness", 1.0),
+              ("Docking picked (Executive's best)", "dock_choice", "% of episodes", 100.0))
+    for ax, (title, col, ylabel, top) in zip(axes, panels, strict=True):
+        for g, curves in by_group.items():
+            m = _matrix(curves, "executive", col)
+            if not m.size or np.isnan(m).all():
+                continue
+            colour, line = styles[g]
+            ax.plot(np.arange(1, m.shape[1] + 1), np.nanmean(m, axis=0), color=colour, linestyle=line, linewidth=2,
+                    label=f"{g} ({m.shape[0]} runs)")
+        ax.set_title(title)
+        ax.set_xlabel("Executive generation")
+        ax.set_ylabel(ylabel)
+        ax.set_ylim(0, top)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="lower right", fontsize=7)
+    fig.suptitle("The Executive learning on recorded Tracking/Docking histories, by rate of asynchrony (means)")
     fig.savefig(path, dpi=90)
     plt.close(fig)

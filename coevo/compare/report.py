@@ -22,8 +22,8 @@ from typing import Any
 
 from coevo.behaviours import Behaviour
 from coevo.compare import plots
-from coevo.compare.experiment import CompareSpec, Replicate, is_finished, replicates, run_dir
-from coevo.compare.stats import RankComparison, compare_samples
+from coevo.compare.experiment import OFFLINE, CompareSpec, Replicate, groups, is_finished, replicates, run_dir
+from coevo.compare.stats import GroupComparison, RankComparison, compare_groups, compare_samples
 from coevo.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
 from coevo.errors import RuleSetError, RunDirError
 from coevo.policy.text import parse_ruleset
@@ -60,7 +60,29 @@ def _docking_alone(d: Path, spec: CompareSpec, rep: Replicate) -> float:
     return docking_from_random_starts(spec.world, rules, episodes=DOCKING_PROBE_EPISODES, seed=rep.seed + 7)
 
 
+def _offline_record(out: Path, spec: CompareSpec, rep: Replicate) -> dict[str, Any]:
+    """An Executive learned on a live Independent run's recorded Tracking/Docking histories at one rate."""
+    d = run_dir(out, rep)
+    m = json.loads((d / "measures.json").read_text())
+    rows = json.loads((d / "curve.json").read_text())
+    live = _record(out, spec, rep.depends_on) if rep.depends_on and is_finished(out, rep.depends_on) else None
+    curves = {Behaviour.EXECUTIVE.value: {c: [_number(r.get(c)) for r in rows] for c in CURVE_COLUMNS}}
+    final = {Behaviour.EXECUTIVE.value: float(rows[-1]["best_so_far"]) if rows else float("nan")}
+    for b in (Behaviour.TRACKING, Behaviour.DOCKING):
+        final[b.value] = live["final_best_so_far"][b.value] if live else float("nan")
+    timing = json.loads((d / "timing.json").read_text())
+    return {
+        "run": rep.run_id, "regime": rep.regime, "group": rep.group, "rate": rep.rate, "index": rep.index,
+        "seed": rep.seed, "docking_from_random_starts": live["docking_from_random_starts"] if live else float("nan"),
+        "seconds": float(timing.get("seconds", float("nan"))),
+        "measures": {k: float(v) for k, v in m.items() if k != "best_fitness"},
+        "class": classify(m), "final_best_so_far": final, "versions": {}, "curves": curves,
+    }
+
+
 def _record(out: Path, spec: CompareSpec, rep: Replicate) -> dict[str, Any]:
+    if rep.offline:
+        return _offline_record(out, spec, rep)
     d = run_dir(out, rep)
     summary = json.loads((d / "summary.json").read_text())
     m = summary["measures"]
@@ -71,8 +93,8 @@ def _record(out: Path, spec: CompareSpec, rep: Replicate) -> dict[str, Any]:
         curves[b.value] = {c: [_number(r.get(c)) for r in rows] for c in CURVE_COLUMNS}
         final[b.value] = float(rows[-1]["best_so_far"]) if rows else float("nan")
     return {
-        "run": rep.run_id, "regime": rep.regime, "index": rep.index, "seed": rep.seed,
-        "docking_from_random_starts": _docking_alone(d, spec, rep),
+        "run": rep.run_id, "regime": rep.regime, "group": rep.group, "rate": None, "index": rep.index,
+        "seed": rep.seed, "docking_from_random_starts": _docking_alone(d, spec, rep),
         "seconds": float(summary.get("seconds", float("nan"))),
         "measures": {k: float(v) for k, v in m.items()},
         "class": classify(m),
@@ -96,8 +118,29 @@ def _winner(t: RankComparison) -> tuple[str, str]:
     return (t.b, t.a) if t.a12 > 0.5 else (t.a, t.b)
 
 
+def _live(spec: CompareSpec) -> list[str]:
+    return [r for r in spec.regimes if r != OFFLINE]
+
+
+def _rates_verdict(rate_tests: list[GroupComparison]) -> str:
+    """Does the rate of asynchrony matter? (the report: "We found no appreciable differences")."""
+    if not rate_tests:
+        return ""
+    parts = []
+    for t in rate_tests:
+        name = t.measure.replace("_", " ")
+        meds = ", ".join(f"{g.rsplit(' ', 1)[-1]}: {m:.3g}" for g, m in zip(t.groups, t.medians, strict=True))
+        parts.append(f"{name} {'differs appreciably' if t.appreciable else 'does not differ appreciably'} across "
+                     f"rates (medians by rate {meds}; Kruskal–Wallis H = {t.h:.2f}, p = {_fmt_p(t.p_value)}, "
+                     f"ε² = {t.epsilon2:.2f}, {t.magnitude})")
+    held = not any(t.appreciable for t in rate_tests)
+    return (f" {OFFLINE} (the Executive learning on recorded Tracking/Docking histories): " + "; ".join(parts)
+            + (". The report's \"no appreciable differences in the rate of asynchrony\" holds here." if held else
+               ". The report's \"no appreciable differences in the rate of asynchrony\" does not hold here."))
+
+
 def _verdict(spec: CompareSpec, records: list[dict[str, Any]], tests: list[RankComparison]) -> str:
-    by = {r: [x for x in records if x["regime"] == r] for r in spec.regimes}
+    by = {r: [x for x in records if x["group"] == r] for r in _live(spec)}
     parts = []
     for t in tests:
         med = {t.a: t.median_a, t.b: t.median_b}
@@ -153,38 +196,50 @@ def write_report(out: Path, spec: CompareSpec, *, elapsed: float | None = None) 
     records = collect(out, spec)
     if not records:
         raise RunDirError(f"{out} holds no finished runs to report on")
-    table = {r: count(x["class"] for x in records if x["regime"] == r) for r in spec.regimes}
+    table = {g: count(x["class"] for x in records if x["group"] == g) for g in groups(spec)}
     tests: list[RankComparison] = []
-    if len(spec.regimes) == 2:
-        a, b = spec.regimes
-        ra = [x for x in records if x["regime"] == a]
-        rb = [x for x in records if x["regime"] == b]
+    live = _live(spec)
+    if len(live) == 2:
+        a, b = live
+        ra = [x for x in records if x["group"] == a]
+        rb = [x for x in records if x["group"] == b]
         if ra and rb:
             tests.append(compare_samples("final_executive_fitness", a, [x["final_best_so_far"]["executive"] for x in ra],
                                          b, [x["final_best_so_far"]["executive"] for x in rb]))
             tests.append(compare_samples("successful_docking", a, [x["measures"]["successful_docking"] for x in ra],
                                          b, [x["measures"]["successful_docking"] for x in rb]))
-    verdict = _verdict(spec, records, tests)
+    rate_tests: list[GroupComparison] = []
+    offline = {g: [x for x in records if x["group"] == g] for g in groups(spec) if g not in live}
+    if len(offline) >= 2 and all(offline.values()):
+        for measure in ("final_executive_fitness", "successful_docking", "docking_success_rate"):
+            rate_tests.append(compare_groups(measure, {g: [_measure_of(x, measure) for x in xs]
+                                                       for g, xs in offline.items()}))
+    verdict = _verdict(spec, records, tests) + _rates_verdict(rate_tests)
     expected = len(replicates(spec))
 
-    curves_by_regime = {r: {x["run"]: x["curves"] for x in records if x["regime"] == r} for r in spec.regimes}
+    curves_by_group = {g: {x["run"]: x["curves"] for x in records if x["group"] == g} for g in groups(spec)}
     figures = []
-    for r, curves in curves_by_regime.items():
-        if curves:
-            plots.figure_for_regime(curves, r, out / f"figure-{r}.png")
+    for r in live:
+        if curves_by_group[r]:
+            plots.figure_for_regime(curves_by_group[r], r, out / f"figure-{r}.png")
             figures.append(f"figure-{r}.png")
-    plots.figure_regimes(curves_by_regime, out / "regimes.png")
+    plots.figure_regimes({r: curves_by_group[r] for r in live}, out / "regimes.png")
     figures.append("regimes.png")
+    if offline:
+        plots.figure_rates(curves_by_group, out / f"figure-{OFFLINE}.png")
+        figures.append(f"figure-{OFFLINE}.png")
 
     results = {
         "spec": json.loads(spec.model_dump_json()), "runs_expected": expected, "runs_finished": len(records),
         "elapsed_seconds": elapsed, "table1": table, "table1_report": REPORT_COUNTS,
-        "tests": [t.as_dict() for t in tests], "verdict": verdict, "figures": figures,
+        "tests": [t.as_dict() for t in tests], "rate_tests": [t.as_dict() for t in rate_tests],
+        "verdict": verdict, "figures": figures,
         "runs": [{k: v for k, v in x.items() if k != "curves"} for x in records],
     }
     write_json(out / "results.json", results)
     write_csv(out / "runs.csv", [
-        {"run": x["run"], "regime": x["regime"], "seed": x["seed"], "class": x["class"], "seconds": round(x["seconds"], 1),
+        {"run": x["run"], "regime": x["regime"], "rate": x["rate"], "seed": x["seed"], "class": x["class"],
+         "seconds": round(x["seconds"], 1),
          **{k: x["measures"][k] for k in MEASURES}, "docking_from_random_starts": x["docking_from_random_starts"],
          **{f"final_{b}_fitness": x["final_best_so_far"][b] for b in (bb.value for bb in Behaviour)}}
         for x in records
@@ -193,15 +248,23 @@ def write_report(out: Path, spec: CompareSpec, *, elapsed: float | None = None) 
     for x in records:
         for beh, cols in x["curves"].items():
             for i in range(len(cols["best_fitness"])):
-                curve_rows.append({"run": x["run"], "regime": x["regime"], "behaviour": beh, "generation": i + 1,
+                curve_rows.append({"run": x["run"], "regime": x["regime"], "rate": x["rate"], "behaviour": beh,
+                                   "generation": i + 1,
                                    **{c: cols[c][i] for c in CURVE_COLUMNS}})
     write_csv(out / "curves.csv", curve_rows)
-    write_text(out / "report.md", _markdown(spec, records, table, tests, verdict, figures, expected, elapsed))
+    write_text(out / "report.md", _markdown(spec, records, table, tests, rate_tests, verdict, figures, expected, elapsed))
     return results
 
 
+def _measure_of(x: dict[str, Any], measure: str) -> float:
+    if measure == "final_executive_fitness":
+        return float(x["final_best_so_far"]["executive"])
+    return float(x["measures"][measure])
+
+
 def _markdown(spec: CompareSpec, records: list[dict[str, Any]], table: dict[str, dict[str, int]],
-              tests: list[RankComparison], verdict: str, figures: list[str], expected: int, elapsed: float | None) -> str:
+              tests: list[RankComparison], rate_tests: list[GroupComparison], verdict: str, figures: list[str],
+              expected: int, elapsed: float | None) -> str:
     ga = spec.ga
     lines = [
         "# Regime comparison", "",
@@ -216,7 +279,7 @@ def _markdown(spec: CompareSpec, records: list[dict[str, Any]], table: dict[str,
         "| regime | " + " | ".join(CLASSES) + " |",
         "|---|" + "---|" * len(CLASSES),
     ]
-    for r in spec.regimes:
+    for r in groups(spec):
         lines.append(f"| {r} (ours) | " + " | ".join(str(table[r][c] or "") for c in CLASSES) + " |")
         if r in REPORT_COUNTS:
             lines.append(f"| {r} (report) | " + " | ".join(str(REPORT_COUNTS[r].get(c, "")) for c in CLASSES) + " |")
@@ -234,6 +297,18 @@ def _markdown(spec: CompareSpec, records: list[dict[str, Any]], table: dict[str,
         for t in tests:
             lines.append(f"| {t.measure.replace('_', ' ')} | {t.median_a:.3g} | {t.median_b:.3g} | {t.u:.1f} | "
                          f"{_fmt_p(t.p_value)} | {t.a12:.2f} | {t.magnitude} |")
+        lines.append("")
+    if rate_tests:
+        lines += [f"## Rates of asynchrony ({OFFLINE})", "",
+                  "Per replicate, the Executive learns on the Tracking and Docking best-so-far histories recorded by "
+                  "the live independent run of the same seed, once per rate (partner generations per Executive "
+                  "generation), with the live Executive's seed: the rate is the only difference.", "",
+                  "| measure | " + " | ".join(f"median at rate {g.rsplit(' ', 1)[-1]}" for g in rate_tests[0].groups)
+                  + " | Kruskal–Wallis H | p | ε² | effect |",
+                  "|---|" + "---|" * (len(rate_tests[0].groups) + 4)]
+        for g in rate_tests:
+            lines.append(f"| {g.measure.replace('_', ' ')} | " + " | ".join(f"{m:.3g}" for m in g.medians)
+                         + f" | {g.h:.2f} | {_fmt_p(g.p_value)} | {g.epsilon2:.2f} | {g.magnitude} |")
         lines.append("")
     lines += ["## Runs", "",
               "| run | class | quality tracking % | Docking picked % | docked % of picked | docked % of all episodes "
