@@ -108,6 +108,22 @@ class GAConfig(_Settings):
     conflict: Literal["strongest", "proportional"] = Field(
         "strongest", description="(ours) conflict resolution: highest strength, or strength-proportional draw"
     )
+    specialise_fraction: float = Field(
+        1.0, gt=0, le=1, description="(ours) chance per condition that a specialisation narrows it (at least one is)"
+    )
+    specialise_recency: float = Field(
+        0.0, ge=0, lt=1, description="(ours) 0: a specialisation centres on any decision of the rule in a high-payoff "
+        "episode; > 0: on a late one, weight recency ** (decisions to the episode's end)"
+    )
+    cover_partial: bool = Field(
+        False, description="(ours) covering widens the best partial match to the unmatched state instead of building a narrow rule"
+    )
+    seed_random_rules: int = Field(
+        0, ge=0, le=63, description="(ours) random rules added in front of each mutated copy of a seed policy"
+    )
+    seed_random_share: float = Field(
+        0.0, ge=0, le=1, description="(ours) share of the initial population that is random rule sets even with a seed policy"
+    )
 
     @model_validator(mode="after")
     def _check(self) -> GAConfig:
