@@ -61,6 +61,38 @@ def test_specialise_narrows_a_weak_general_rule_around_what_it_saw(rng) -> None:
     assert (interval_width(new) <= interval_width(rs)).all()
 
 
+def test_specialise_with_a_fraction_keeps_the_other_conditions(rng) -> None:
+    rs = parse_ruleset("IF range = [25, 55] AND bearing = [0, 180] THEN SET turn = 24 AND speed = 4 (strength 0.1)", "tracking")
+    exp = _exp([1], [0.8], [([8, 20, 0, 10, 0], 0, True, 0)], 5)
+    for _ in range(20):
+        new = specialise(rs, exp, rng, low_strength=0.3, fraction=0.01)
+        assert new is not None
+        changed = (new.lo[0] != rs.lo[0]) | (new.hi[0] != rs.hi[0])
+        assert changed.sum() <= 1 and new.matches(np.array([[8, 20, 0, 10, 0]]))[0, 0]
+
+
+def test_specialise_with_recency_centres_on_late_decisions(rng) -> None:
+    rs = parse_ruleset("IF range = [0, 150] THEN SET turn = 0 AND speed = 4 (strength 0.1)", "tracking")
+    states = [([r, 0, 0, 0, 0], 0, True, 0) for r in range(30, 0, -1)]  # one episode closing in: range bin 30 .. 1
+    exp = _exp([1], [0.9], states, 5)
+    centres = []
+    for _ in range(50):
+        new = specialise(rs, exp, rng, low_strength=0.3, recency=0.5)
+        assert new is not None
+        centres.append((int(new.lo[0, 0]) + int(new.hi[0, 0])) / 2)
+    assert np.mean(centres) < 8  # the last decisions (small range bins) dominate
+
+
+def test_partial_cover_widens_the_rule_that_fired(rng) -> None:
+    rs = parse_ruleset("IF range = [0, 10] AND bearing = [350, 10] THEN SET turn = 24 AND speed = 4 (strength 0.5)", "tracking")
+    state = [20, 10, 3, 12, 60]  # range 100, bearing 50
+    exp = _exp([1], [0.7], [(state, 0, False, 0)], 5)
+    new = cover(rs, exp, rng, partial=True)
+    assert new is not None and new.matches(np.array([state]))[0, 0]
+    assert new.lo[0, 0] == 0 and new.hi[0, 0] == 20 and new.lo[0, 1] == 70 and new.hi[0, 1] == 10
+    assert (new.action == rs.action).all() and new.strength[0] == rs.strength[0]
+
+
 def test_specialise_ignores_strong_rules(rng) -> None:
     rs = parse_ruleset("IF range = [25, 55] THEN SET turn = 24 AND speed = 4 (strength 0.9)", "tracking")
     exp = _exp([1], [0.8], [([8, 20, 0, 10, 0], 0, True, 0)], 5)

@@ -99,10 +99,7 @@ class GA:
         if seed_policy is not None:
             if seed_policy.behaviour is not self.behaviour:
                 raise ConfigError(f"seed policy is a {seed_policy.behaviour} rule set, not {self.behaviour}")
-            seed_policy = trim(seed_policy, ga.max_rules)
-            self.population = [seed_policy] + [
-                self.mutation.mutate(seed_policy, self.rng, generation=0) for _ in range(ga.population - 1)
-            ]
+            self.population = self._seeded(trim(seed_policy, ga.max_rules))
         else:
             self.population = [random_ruleset(self.behaviour, ga.initial_rules, self.rng) for _ in range(ga.population)]
         self.genes = self._random_genes(ga.population)  # control gene of population[i]; zeros if the model has none
@@ -146,6 +143,21 @@ class GA:
         self.best_fitness = float(state["best_fitness"])
         self.current = None if state["current"] is None else RuleSet.from_dict(state["current"])
         self.current_fitness = float(state["current_fitness"])
+
+    def _seeded(self, seed_policy: RuleSet) -> list[RuleSet]:
+        """The initial population from a seed policy: the policy itself, then mutated copies (each with
+        ``seed_random_rules`` random rules in front) and a ``seed_random_share`` of random rule sets."""
+        cfg, rng = self.cfg, self.rng
+        n_random = int(round(cfg.seed_random_share * (cfg.population - 1)))
+        out = [seed_policy]
+        for _ in range(cfg.population - 1 - n_random):
+            child = self.mutation.mutate(seed_policy, rng, generation=0)
+            if cfg.seed_random_rules:
+                extra = random_ruleset(self.behaviour, cfg.seed_random_rules, rng)
+                child = trim(RuleSet.concat(self.behaviour, [extra, child]), cfg.max_rules)
+            out.append(child)
+        out += [random_ruleset(self.behaviour, cfg.initial_rules, rng) for _ in range(n_random)]
+        return out
 
     def _random_genes(self, n: int) -> np.ndarray:
         if not self.mutation.controlled:
@@ -245,13 +257,14 @@ class GA:
         if rng.random() < cfg.delete_rate:
             child, idle = delete(child, idle)
         if rng.random() < cfg.specialise_rate:
-            r = specialise(parent, exp, rng, low_strength=cfg.low_strength)
+            r = specialise(parent, exp, rng, low_strength=cfg.low_strength, fraction=cfg.specialise_fraction,
+                           recency=cfg.specialise_recency)
             if r is not None:
                 extra.append(r)
         if rng.random() < cfg.generalise_rate:
             extra.append(generalise(parent, exp, rng))
         if rng.random() < cfg.cover_rate:
-            r = cover(parent, exp, rng)
+            r = cover(parent, exp, rng, partial=cfg.cover_partial)
             if r is not None:
                 extra.append(r)
         if extra:

@@ -129,8 +129,25 @@ def _states_of(exp: Experience, rule: int, episodes: np.ndarray) -> np.ndarray:
     return exp.bins[sel]
 
 
-def specialise(rs: RuleSet, exp: Experience, rng: np.random.Generator, *, low_strength: float) -> RuleSet | None:
-    """A narrowed copy of a weak general rule of ``rs`` that fired in a high-payoff episode, or None."""
+def specialise(
+    rs: RuleSet,
+    exp: Experience,
+    rng: np.random.Generator,
+    *,
+    low_strength: float,
+    fraction: float = 1.0,
+    recency: float = 0.0,
+) -> RuleSet | None:
+    """A narrowed copy of a weak general rule of ``rs`` that fired in a high-payoff episode, or None.
+
+    Each condition is narrowed with probability ``fraction`` (at least one is); the
+    others keep the parent's interval *(ours)*: narrowing every condition also pins
+    the sensors the decision does not depend on, and the copy then rarely fires.
+    With ``recency`` > 0 *(ours)* the episode is drawn first and the decision to
+    specialise is drawn from it with weight ``recency ** (decisions until the
+    episode's end)``: the payoff comes at the end, so the last decisions earn it most
+    (a discounted credit, as in profit sharing).
+    """
     high = np.flatnonzero(exp.high)
     if high.size == 0:
         return None
@@ -141,14 +158,52 @@ def specialise(rs: RuleSet, exp: Experience, rng: np.random.Generator, *, low_st
     cand = np.flatnonzero((rs.strength < low_strength) & general & fired_high.any(axis=0))
     if cand.size == 0:
         return None
-    r = int(rng.choice(cand))
-    e = int(rng.choice(high[fired_high[:, r]]))
-    states = exp.bins[(exp.rule == r) & (exp.episode == e)]
-    if states.shape[0] == 0:
-        return None
-    v = states[int(rng.integers(states.shape[0]))].astype(np.int64)
+    if recency > 0:
+        picked = _recent_decision(exp, high[fired_high[:, cand].any(axis=1)], cand, recency, rng)
+        if picked is None:
+            return None
+        r, e, v = picked
+    else:
+        r = int(rng.choice(cand))
+        e = int(rng.choice(high[fired_high[:, r]]))
+        states = exp.bins[(exp.rule == r) & (exp.episode == e)]
+        if states.shape[0] == 0:
+            return None
+        v = states[int(rng.integers(states.shape[0]))].astype(np.int64)
     lo, hi = _interval_around(rs, v, width[r] // 4)  # about half as wide, centred on what was seen
+    if fraction < 1.0:
+        keep = _kept_conditions(rs.schema.n_sensors, fraction, rng)
+        lo = np.where(keep, rs.lo[r], lo)
+        hi = np.where(keep, rs.hi[r], hi)
     return RuleSet(rs.behaviour, lo[None], hi[None], rs.action[r][None], np.array([exp.payoff[e]]).clip(0, 1))
+
+
+def _recent_decision(
+    exp: Experience, episodes: np.ndarray, cand: np.ndarray, recency: float, rng: np.random.Generator
+) -> tuple[int, int, np.ndarray] | None:
+    """(rule, episode, sensor bins) of a decision by a ``cand`` rule in one of ``episodes``, late ones likelier."""
+    if episodes.size == 0:
+        return None
+    e = int(rng.choice(episodes))
+    idx = np.flatnonzero(exp.episode == e)  # this episode's decisions, in time order
+    age = idx.size - 1 - np.arange(idx.size)
+    ok = np.isin(exp.rule[idx], cand)
+    if not ok.any():
+        return None
+    w = np.where(ok, recency ** age.astype(np.float64), 0.0)
+    if w.sum() <= 0:  # underflow far from the end: take the latest candidate decision
+        i = int(idx[np.flatnonzero(ok)[-1]])
+    else:
+        i = int(idx[rng.choice(idx.size, p=w / w.sum())])
+    return int(exp.rule[i]), e, exp.bins[i].astype(np.int64)
+
+
+def _kept_conditions(n: int, fraction: float, rng: np.random.Generator) -> np.ndarray:
+    """(n,) bool: conditions left as they were; each is changed with probability ``fraction``, at least one."""
+    change = rng.random(n) < fraction
+    if not change.any():
+        change[int(rng.integers(n))] = True
+    return ~change
 
 
 def generalise(rs: RuleSet, exp: Experience, rng: np.random.Generator) -> RuleSet:
@@ -170,11 +225,14 @@ def generalise(rs: RuleSet, exp: Experience, rng: np.random.Generator) -> RuleSe
     return RuleSet(rs.behaviour, lo[None], hi[None], rs.action[r][None], rs.strength[r][None])
 
 
-def cover(rs: RuleSet, exp: Experience, rng: np.random.Generator) -> RuleSet | None:
+def cover(rs: RuleSet, exp: Experience, rng: np.random.Generator, *, partial: bool = False) -> RuleSet | None:
     """A rule for a state of ``rs``'s evaluation that no rule matched, or None if there was none.
 
     It prefers states from high-payoff episodes and then keeps the action taken
     there; otherwise the action is random.  Its strength is the episode's payoff.
+    With ``partial`` *(ours, after SAMUEL's covering)* the new rule is instead the
+    best partial match that fired there, its unmet conditions widened just enough to
+    hold the state, with that rule's action and strength.
     """
     unmatched = np.flatnonzero(~exp.full)
     if unmatched.size == 0:
@@ -182,6 +240,8 @@ def cover(rs: RuleSet, exp: Experience, rng: np.random.Generator) -> RuleSet | N
     good = unmatched[exp.high[exp.episode[unmatched]]]
     pick = int(rng.choice(good if good.size else unmatched))
     v = exp.bins[pick].astype(np.int64)
+    if partial:
+        return _widened_to(rs, int(exp.rule[pick]), v)
     bins = np.array([s.bins for s in rs.schema.sensors])
     lo, hi = _interval_around(rs, v, np.maximum(bins // 8, 1))
     if good.size:
@@ -190,6 +250,24 @@ def cover(rs: RuleSet, exp: Experience, rng: np.random.Generator) -> RuleSet | N
         action = np.array([rng.integers(len(a.values)) for a in rs.schema.actions])
     strength = np.array([exp.payoff[exp.episode[pick]]]).clip(0, 1)
     return RuleSet(rs.behaviour, lo[None], hi[None], np.asarray(action)[None], strength)
+
+
+def _widened_to(rs: RuleSet, r: int, v: np.ndarray) -> RuleSet:
+    """Rule ``r`` of ``rs`` with each condition that ``v`` misses stretched, at its nearer end, to reach ``v``."""
+    lo = rs.lo[r].astype(np.int64)
+    hi = rs.hi[r].astype(np.int64)
+    for j, s in enumerate(rs.schema.sensors):
+        a, b, x = lo[j], hi[j], v[j]
+        if s.circular:
+            if (a <= b and a <= x <= b) or (a > b and (x >= a or x <= b)):
+                continue
+            if (a - x) % s.bins <= (x - b) % s.bins:
+                lo[j] = x
+            else:
+                hi[j] = x
+        else:
+            lo[j], hi[j] = min(a, x), max(b, x)
+    return RuleSet(rs.behaviour, lo[None], hi[None], rs.action[r][None], rs.strength[r][None])
 
 
 def delete(rs: RuleSet, idle: np.ndarray) -> tuple[RuleSet, np.ndarray]:
