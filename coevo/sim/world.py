@@ -304,7 +304,8 @@ class BatchWorld:
         return {k: out[k] for k in names}
 
     def min_dock_steps(self, lanes: np.ndarray) -> np.ndarray:
-        """Estimated fewest steps to dock from now: turn to face the dock, drive there, creep in."""
+        """Estimated fewest steps to dock from now (the report's m): turn to face the dock at full rate, drive
+        there at full speed, one step to touch.  A lower bound: it ignores the slow, head-on final approach."""
         c = self.cfg
         ddx = self.dock_point[0] - self.rx[lanes]
         ddy = self.dock_point[1] - self.ry[lanes]
