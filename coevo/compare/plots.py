@@ -48,6 +48,14 @@ def _pyplot():  # type: ignore[no-untyped-def]
     return plt
 
 
+def _axis(ax, title: str, ylabel: str, top: float, *, xlabel: str = "generation") -> None:  # type: ignore[no-untyped-def]
+    ax.set_title(title)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_ylim(0, top)
+    ax.grid(alpha=0.3)
+
+
 def figure_for_regime(curves: Curves, regime: str, path: Path) -> None:
     """One regime's panels: the report's four (its Figure 5 for Mutual, 6 for Independent), then Docking's own
     measure and how often the Executive picked Docking."""
@@ -62,11 +70,7 @@ def figure_for_regime(curves: Curves, regime: str, path: Path) -> None:
             ax.fill_between(g, np.nanmin(m, axis=0), np.nanmax(m, axis=0), color="tab:blue", alpha=0.12)
             ax.plot(g, np.nanmean(m, axis=0), color="tab:blue", linewidth=2, label=f"mean of {m.shape[0]} runs")
             ax.legend(loc="upper left", fontsize=8)
-        ax.set_title(title)
-        ax.set_xlabel("generation")
-        ax.set_ylabel(ylabel)
-        ax.set_ylim(0, top)
-        ax.grid(alpha=0.3)
+        _axis(ax, title, ylabel, top)
     fig.suptitle(f"{regime.capitalize()} regime: learning and performance")
     fig.savefig(path, dpi=90)
     plt.close(fig)
@@ -87,11 +91,7 @@ def figure_regimes(by_regime: Mapping[str, Curves], path: Path) -> None:
             sd = np.nanstd(m, axis=0)
             ax.fill_between(g, mean - sd, mean + sd, color=colour, alpha=0.15)
             ax.plot(g, mean, color=colour, linewidth=2, label=f"{regime} (mean ± s.d., {m.shape[0]} runs)")
-        ax.set_title(title)
-        ax.set_xlabel("generation")
-        ax.set_ylabel(ylabel)
-        ax.set_ylim(0, top)
-        ax.grid(alpha=0.3)
+        _axis(ax, title, ylabel, top)
         ax.legend(loc="upper left", fontsize=8)
     fig.suptitle("Regimes compared")
     fig.savefig(path, dpi=90)
@@ -116,11 +116,7 @@ def figure_rates(by_group: Mapping[str, Curves], path: Path) -> None:
             colour, line = styles[g]
             ax.plot(np.arange(1, m.shape[1] + 1), np.nanmean(m, axis=0), color=colour, linestyle=line, linewidth=2,
                     label=f"{g} ({m.shape[0]} runs)")
-        ax.set_title(title)
-        ax.set_xlabel("Executive generation")
-        ax.set_ylabel(ylabel)
-        ax.set_ylim(0, top)
-        ax.grid(alpha=0.3)
+        _axis(ax, title, ylabel, top, xlabel="Executive generation")
         ax.legend(loc="lower right", fontsize=7)
     fig.suptitle("The Executive learning on recorded Tracking/Docking histories, by rate of asynchrony (means)")
     fig.savefig(path, dpi=90)
