@@ -495,7 +495,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="comparison directory (default runs/compare-TIME)")
     p.add_argument("--resume", action="store_true", help="continue the comparison in --out, keeping its finished runs")
     p.add_argument("--report-only", action="store_true", help="only (re)write the report from the finished runs in --out")
-    p.add_argument("--jobs", type=int, help="runs at once (default: one per two cores)")
+    p.add_argument("--jobs", type=int, help="runs at once (default: one per two cores; an offline Executive counts half)")
     p.add_argument("--seed", type=int, default=0, help="base seed; run i of every regime uses seed + 1000 i")
     p.add_argument("--model", default="best", choices=["best", "current", "recent"])
     p.add_argument("--measure-epochs", type=int, default=100, help="fresh epochs measuring each final robot")

@@ -239,6 +239,12 @@ def default_jobs() -> int:
     return max(1, (os.cpu_count() or 1) // 2)
 
 
+def weight(rep: Replicate) -> int:
+    """Half-jobs a replicate takes: a live run keeps about two cores busy, an offline Executive one, so one
+    ``--jobs`` slot holds one live run or two offline Executives."""
+    return 1 if rep.offline else 2
+
+
 def _settings_args(spec: CompareSpec) -> list[str]:
     args = []
     for k, v in spec.world.model_dump(exclude_defaults=True).items():
@@ -330,8 +336,8 @@ def run_all(
     try:
         while pending or active:
             for rep in list(pending):
-                if len(active) >= jobs:
-                    break
+                if sum(weight(r) for r in active) + weight(rep) > 2 * jobs:
+                    continue
                 go = ready(rep)
                 if go is None:
                     pending.remove(rep)
