@@ -39,6 +39,17 @@ def _read_rules(path: str | None, behaviour: Behaviour) -> Any:
         raise RuleSetError(f"{path}: {exc}") from exc
 
 
+def seed_arg(text: str) -> int:
+    """A seed: a whole number from 0 to 2**63 - 1 (numpy's generators refuse negative seeds)."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid seed {text!r}: give a whole number >= 0") from None
+    if not 0 <= v < 2**63:
+        raise argparse.ArgumentTypeError(f"invalid seed {v}: give a whole number from 0 to 2**63 - 1")
+    return v
+
+
 def _settings(values: list[str] | None, model: type) -> dict[str, Any]:
     """``--set name=value`` pairs for a settings model (values parsed as JSON when they can be)."""
     out: dict[str, Any] = {}
@@ -416,7 +427,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("learn", help="one behaviour learns offline (no network)")
     p.add_argument("--behaviour", required=True, choices=[b.value for b in Behaviour])
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=seed_arg, default=0)
     p.add_argument("--out", help="run directory to create (default runs/learn-BEHAVIOUR-seedN-TIME)")
     p.add_argument("--tracking", help="Tracking rule file (for --behaviour executive)")
     p.add_argument("--docking", help="Docking rule file (for --behaviour executive)")
@@ -435,7 +446,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--policy", help="a rule file to drive every lane instead of random rule sets")
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--baseline-seconds", type=float, default=3.0)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=seed_arg, default=0)
     p.add_argument("--world", action="append", metavar="NAME=VALUE")
     p.add_argument("--json", action="store_true", help="print both figures and their ratio as JSON")
     p.set_defaults(func=cmd_bench)
@@ -458,7 +469,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--regime", required=True, choices=["mutual", "independent"])
     p.add_argument("--run", required=True, help="run id (letters, digits, _ - .)")
     p.add_argument("--worker-id", help="default BEHAVIOUR-SEED")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=seed_arg, default=0)
     p.add_argument("--model", default="best", choices=["best", "current", "recent"], help="how partners are modelled (default best so far)")
     p.add_argument("--out", help="worker directory (default runs/RUN/workers/BEHAVIOUR)")
     p.add_argument("--resume", action="store_true",
@@ -475,7 +486,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--run", help="run id (default REGIME-TIME)")
     p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
     p.add_argument("--resume", metavar="RUN_DIR", help="continue this run from its workers' checkpoints, with its settings")
-    p.add_argument("--seed", type=int, help="default 0")
+    p.add_argument("--seed", type=seed_arg, help="default 0")
     p.add_argument("--model", choices=["best", "current", "recent"], help="default best")
     p.add_argument("--measure-epochs", type=int, default=100)
     p.add_argument("--quiet", action="store_true")
@@ -496,7 +507,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true", help="continue the comparison in --out, keeping its finished runs")
     p.add_argument("--report-only", action="store_true", help="only (re)write the report from the finished runs in --out")
     p.add_argument("--jobs", type=int, help="runs at once (default: one per two cores; an offline Executive counts half)")
-    p.add_argument("--seed", type=int, default=0, help="base seed; run i of every regime uses seed + 1000 i")
+    p.add_argument("--seed", type=seed_arg, default=0, help="base seed; run i of every regime uses seed + 1000 i")
     p.add_argument("--model", default="best", choices=["best", "current", "recent"])
     p.add_argument("--measure-epochs", type=int, default=100, help="fresh epochs measuring each final robot")
     p.add_argument("--quiet", action="store_true", help="no progress display")
@@ -516,7 +527,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--regime", default="mutual", choices=["mutual", "independent"])
     p.add_argument("--run", help="run id (default chaos-REGIME-TIME)")
     p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
-    p.add_argument("--seed", type=int, default=0, help="seeds the workers and the choice of faults")
+    p.add_argument("--seed", type=seed_arg, default=0, help="seeds the workers and the choice of faults")
     p.add_argument("--model", default="best", choices=["best", "current", "recent"])
     p.add_argument("--faults", type=int, default=8, help="faults to inject (default 8)")
     p.add_argument("--kinds", nargs="+", default=["kill-worker", "kill-broker", "pause-worker"], metavar="KIND",

@@ -25,10 +25,15 @@ __all__ = ["staged_dir", "read_jsonl", "write_bytes", "write_json", "write_text"
 def staged_dir(final: Path) -> Iterator[Path]:
     """Yield a temporary directory that becomes ``final`` only if the block succeeds."""
     final = Path(final)
+    if final.exists() and not final.is_dir():
+        raise RunDirError(f"output directory {str(final)!r} is a file; choose another --out")
     if final.exists() and any(final.iterdir()):
         raise RunDirError(f"output directory {str(final)!r} already exists and is not empty; choose another --out")
-    final.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".partial", dir=final.parent))
+    try:
+        final.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".partial", dir=final.parent))
+    except OSError as exc:
+        raise RunDirError(f"cannot create output directory {str(final)!r}: {exc.strerror or exc}") from exc
     try:
         yield tmp
     except BaseException:

@@ -51,7 +51,9 @@ def test_executive_learns_from_rule_files(tmp_path: Path) -> None:
         (["--ga", "oops"], "name=value"),
         (["--seed-policy", "/nonexistent/file.rules"], "cannot read"),
         (["--initial", "sometimes"], "initial='sometimes'"),
+        (["--seed", "-1"], "invalid seed -1"),
         (["--ga", "docking_fresh_starts=maybe"], "docking_fresh_starts='maybe'"),
+        (["--out", "/etc/passwd/run"], "cannot create output directory"),
     ],
 )
 def test_bad_parameters_fail_clearly_and_write_nothing(tmp_path: Path, args: list[str], needle: str) -> None:

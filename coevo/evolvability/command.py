@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from coevo.cli import seed_arg
 from coevo.errors import ConfigError
 
 __all__ = ["add_parser", "cmd_evolvability"]
@@ -70,7 +71,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--runs", type=int, help="runs per landscape and condition (default 10)")
     p.add_argument("--generations", type=int, help="generations per run (default 200)")
     p.add_argument("--population", type=int, help="population size (default 100)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=seed_arg, default=0)
     p.add_argument("--report-only", action="store_true", help="only rewrite the report from the grid finished in --out")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     p.set_defaults(func=cmd_evolvability)
