@@ -508,6 +508,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_evolvability(sub)
 
+    from coevo.show.command import add_parser as add_show
+
+    add_show(sub)
+
     p = sub.add_parser("replay", help="re-run a finished run in one process from its adoption log")
     p.add_argument("run_dir")
     p.set_defaults(func=cmd_replay)
