@@ -21,7 +21,8 @@ def test_learn_writes_a_complete_run_directory(tmp_path: Path) -> None:
     r = coevo("learn", "--behaviour", "docking", "--generations", "2", "--population", "4", "--episodes", "10",
               "--ga", "best_episodes=10", "--measure-epochs", "3", "--out", str(out), "--quiet")
     assert r.returncode == 0, r.stderr
-    assert sorted(p.name for p in out.iterdir()) == ["best.rules", "config.json", "curve.csv", "curve.json", "measures.json", "timing.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["best.png", "best.rules", "config.json", "curve.csv", "curve.json", "measures.json",
+                                                  "timing.json"]
     curve = json.loads((out / "curve.json").read_text())
     assert [c["generation"] for c in curve] == [1, 2]
     assert len((out / "curve.csv").read_text().strip().splitlines()) == 3
@@ -38,6 +39,10 @@ def test_executive_learns_from_rule_files(tmp_path: Path) -> None:
               "--generations", "1", "--population", "4", "--episodes", "10", "--ga", "best_episodes=10",
               "--measure-epochs", "2", "--out", str(tmp_path / "ex"), "--quiet")
     assert r.returncode == 0, r.stderr
+    assert (tmp_path / "ex" / "best.png").exists()
+    r = coevo("show", str(tmp_path / "ex"), "--rules")  # the combined robot, from the partners kept beside best.rules
+    assert r.returncode == 0, r.stderr
+    assert "executive:" in r.stdout and "tracking:" in r.stdout and "docking:" in r.stdout
 
 
 @pytest.mark.parametrize(
