@@ -110,11 +110,13 @@ def add_parser(sub: Any) -> None:
     """Add the ``show`` sub-command to ``coevo``'s sub-parsers."""
     p = sub.add_parser(
         "show", help="draw a robot's episodes (PNG, GIF) and print its rules with how often they fired",
-        description="Play a robot from a seed and draw its episodes: the arena, walls and dock, the robot's path "
-                    "coloured by the Executive's choice (Track/Dock), the Target's path, the tracking range around "
-                    "the Target, where each episode began and how it ended (tracking, docked, collided, ran dry, "
-                    "time up). A Tracking or Docking rule set alone is driven by the trivial Executive that always "
-                    "picks it.",
+        description=("Play a robot from a seed and draw its episodes: the arena, walls and dock, the robot's\n"
+                     "path coloured by the Executive's choice (Track/Dock), the Target's path, the tracking\n"
+                     'range around the Target, where each episode began and how it ended (tracking, docked,\n'
+                     'collided, ran dry, time up). A Tracking or Docking rule set alone is driven by the\n'
+                     'trivial Executive that always picks it. Bad input (a missing or unreadable file, a run\n'
+                     "directory without policies, a bad option) prints one line 'ErrorType: message' and exits\n"
+                     'with status 2, writing nothing.'),
         epilog="examples:\n"
                "  coevo show --default tracking                 # default-tracking-episodes3-seed0.png\n"
                "  coevo show runs/ID                            # a coevo run's combined robot, one epoch\n"
@@ -134,7 +136,7 @@ def add_parser(sub: Any) -> None:
                         "for a Tracking or Docking rule set)")
     p.add_argument("--epoch", action="store_true", help="play one epoch (default for a combined robot)")
     p.add_argument("--seed", type=int, default=0, help="where the robot and Target start, the Target's walk (default 0)")
-    p.add_argument("--task", default="tracking-fuel", help="the task to draw (only tracking-fuel exists)")
+    p.add_argument("--task", default="tracking-fuel", help="the task to draw (default tracking-fuel, the only one so far)")
     p.add_argument("--out", metavar="FILE",
                    help="picture to write: .png, or .gif/.mp4 for an animation (MP4 needs ffmpeg); default: next to "
                         "the rule file, inside the run directory, or here, named after the robot, episodes and seed")
