@@ -149,7 +149,8 @@ def test_show_default_and_animation(tmp_path: Path) -> None:
     r = coevo("show", "--default", "tracking", "--episodes", "1", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "default-tracking-episodes1-seed0.png").read_bytes().startswith(PNG)
-    assert main(["show", "--default", "docking", "--episodes", "1", "--animate", "--out", str(tmp_path / "d.gif")]) == 0
+    assert main(["show", "--default", "docking", "--episodes", "2", "--world", "episode_steps=8", "--animate",
+                 "--out", str(tmp_path / "d.gif")]) == 0  # short episodes: a GIF costs ~50 ms a frame
     assert (tmp_path / "d.gif").read_bytes()[:6] == b"GIF89a"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d.gif", "default-tracking-episodes1-seed0.png"]
 
@@ -193,6 +194,8 @@ def _bad_cases(tmp: Path) -> list[tuple[list[str], str]]:
         ([*good, "--world", "arena=-1"], "arena=-1"),
         (["--default", "executive"], "'executive'"),
         ([], "nothing to show"),
+        (["--default", "tracking", "--out", ""], "--out ''"),
+        (["/bin/sh"], "not UTF-8 text"),
     ]
 
 

@@ -28,9 +28,9 @@ MAX_EPISODES = 1000  # one lane records (episodes x steps) states; beyond this a
 def _robot(args: argparse.Namespace, world_over: dict[str, Any]) -> Robot:
     partners = {b: read_rule_file(Path(f), b) for b, f in ((Behaviour.TRACKING, args.tracking),
                                                           (Behaviour.DOCKING, args.docking)) if f}
-    if args.source and args.default:
+    if args.source and args.default is not None:
         raise ConfigError(f"give a rule file or run directory ({args.source!r}) or --default, not both")
-    if args.default:
+    if args.default is not None:
         if partners:
             raise ConfigError("--tracking/--docking are partners for an Executive; --default shows one behaviour")
         robot = robot_from_default(args.default, build(WorldConfig, world_over))
@@ -57,7 +57,7 @@ def _episodes(args: argparse.Namespace, robot: Robot) -> int | None:
 def _out_path(args: argparse.Namespace, robot: Robot, episodes: int | None, animated: bool) -> Path:
     what = "epoch" if episodes is None else f"episodes{episodes}"
     suffix = ".gif" if animated else ".png"
-    if args.out:
+    if args.out is not None:
         return Path(args.out)
     name = f"{robot.name}-{what}-seed{args.seed}{suffix}"
     if args.source and Path(args.source).is_dir():
@@ -77,6 +77,8 @@ def cmd_show(args: argparse.Namespace) -> int:
         raise ConfigError(f"--seed must be 0 or more, got {args.seed}")
     if not 1 <= args.fps <= 60:
         raise ConfigError(f"--fps must be between 1 and 60, got {args.fps}")
+    if args.out is not None and not args.out.strip():
+        raise ConfigError(f"--out {args.out!r}: expected a file name (.png, or .gif/.mp4 with --animate)")
     robot = _robot(args, _settings(args.world, WorldConfig))
     episodes = _episodes(args, robot)
     animated = args.animate or (args.out is not None and Path(args.out).suffix.lower() in ANIMATION_FORMATS)

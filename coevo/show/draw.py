@@ -203,7 +203,8 @@ def draw_png(scene: Scene, path: Path, *, trace: bool = False, dpi: int = 80) ->
 
 def _trace_panel(ax: Any, scene: Scene) -> None:
     """Rule fired per frame, coloured by category, with span boundaries."""
-    assert scene.rule is not None
+    if scene.rule is None:
+        return
     frames = np.arange(scene.frames)
     cat = scene.tracks[0].category if scene.tracks[0].category is not None else np.zeros(scene.frames, int)
     fired = scene.rule > 0

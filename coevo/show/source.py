@@ -59,8 +59,10 @@ def read_rule_file(path: Path, behaviour: Behaviour | None = None) -> RuleSet:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise ConfigError(f"no such file: {str(path)!r}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"cannot read rule file {str(path)!r}: {getattr(exc, 'strerror', None) or exc}") from None
+    except UnicodeDecodeError:
+        raise RuleSetError(f"{path}: not a coevo rule file (not UTF-8 text)") from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read rule file {str(path)!r}: {exc.strerror or exc}") from None
     try:
         return parse_ruleset(text, behaviour)
     except RuleSetError as exc:
@@ -89,7 +91,8 @@ def robot_from_default(behaviour: str, world: WorldConfig) -> Robot:
     if b not in HAS_DEFAULT:
         raise ConfigError(f"--default {behaviour!r}: only {' and '.join(x.value for x in HAS_DEFAULT)} have default rules")
     rs = default_ruleset(b)
-    assert rs is not None  # HAS_DEFAULT says so
+    if rs is None:  # HAS_DEFAULT and the shipped files disagree: a packaging bug, said plainly
+        raise ConfigError(f"--default {behaviour!r}: its default rule set is missing from this installation")
     return robot_from_rules(f"default-{b.value}", world, {b: rs})
 
 
