@@ -8,6 +8,7 @@ traceback.  Logging handlers are configured here and nowhere else.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import logging
 import sys
@@ -220,37 +221,102 @@ def cmd_worker(args: argparse.Namespace) -> int:
 
 
 def _reasons(counts: dict[str, int]) -> str:
-    return ", ".join(f"{n} {r}" for r, n in sorted(counts.items())) or "0"
+    """Rejections by reason, 'flood 3, wrong_key 1' (a narrow column wraps it after a count, not inside a pair)."""
+    return ", ".join(f"{r} {n}" for r, n in sorted(counts.items())) or "0"
 
 
-_OWN = {"quality_tracking": "QT", "docking_from_random": "docks", "dock_choice": "picks D",
+_OWN = {"quality_tracking": "QT", "docking_from_random": "docks", "dock_choice": "picks-D",
         "docking_success_rate": "docked"}
+_STATE_STYLE = {"alive": "green", "done": "blue", "stalled": "yellow", "dead": "bold red", "up": "green", "down": "bold red"}
 
 
 def _own(measures: dict[str, float]) -> str:
-    """A worker's own measures, short: 'QT 62%', 'docks 71%', 'picks D 23% docked 40%'."""
-    return " ".join(f"{_OWN.get(k, k)} {v:.0f}%" for k, v in measures.items()) or "-"
+    """A worker's own measures, short, one word each: 'QT=62%', 'docks=71%', 'picks-D=23% docked=40%'."""
+    return " ".join(f"{_OWN.get(k, k)}={v:.0f}%" for k, v in measures.items()) or "-"
+
+
+def _status_rows(board: Any) -> list[tuple[str, ...]]:
+    """(who, gen, best, own, partners, unconfirmed, rejected, state) per worker, then the broker's row."""
+    rows = []
+    for w in board.snapshot():
+        who = w["worker"] if w["worker"].startswith(w["behaviour"]) else f"{w['worker']} ({w['behaviour']})"
+        partners = " ".join(f"{k[0].upper()}v{v}" for k, v in sorted(w["partner_versions"].items())) or "-"
+        rows.append((who, f"{w['generation']}/{w['generations']}", f"{w['best_fitness']:.3f}", _own(w.get("measures", {})),
+                     partners, str(w["buffered"]), _reasons(w["rejected_by_reason"]), w["state"]))
+    b = board.broker_view()
+    stored = " ".join(f"{k[0].upper()}:{v}" for k, v in sorted(b["stored"].items())) or "-"
+    rows.append(("broker", "", "", "", f"stored {stored}", "", _reasons(b["rejected"]), b["state"]))
+    return rows
+
+
+_STATUS_HEADERS = ("worker", "gen", "best", "own", "partner", "unc", "rejected", "state")
+
+
+def _fit(natural: list[int], minimum: list[int], budget: int) -> list[int]:
+    """Column widths within ``budget``: the widest column above its minimum gives way first."""
+    widths = list(natural)
+    while sum(widths) > budget:
+        slack = [w - m for w, m in zip(widths, minimum, strict=True)]
+        if max(slack) <= 0:
+            break  # even every column at its longest word is too wide; rich will have to fold
+        i = max(range(len(widths)), key=lambda j: (widths[j] if slack[j] > 0 else -1, j))
+        widths[i] -= 1
+    return widths
+
+
+class _StatusView:
+    """Renders the status table at the width of the console it is printed on (see :func:`status_table`)."""
+
+    def __init__(self, rows: list[tuple[str, ...]], title: str) -> None:
+        self.rows, self.title = rows, title
+
+    def __rich_console__(self, console: Any, options: Any) -> Any:
+        from rich import box
+        from rich.table import Table
+
+        cols = list(zip(*self.rows, strict=True))
+        natural = [max([len(h)] + [len(c) for c in col]) for h, col in zip(_STATUS_HEADERS, cols, strict=True)]
+        minimum = [max([len(h)] + [len(w) for c in col for w in c.split()]) for h, col in zip(_STATUS_HEADERS, cols, strict=True)]
+        gaps = 2 * (len(_STATUS_HEADERS) - 1)  # one space of padding either side of every inner column edge
+        widths = _fit(natural, minimum, options.max_width - gaps)
+        t = Table(title=self.title, box=box.SIMPLE_HEAD, show_edge=False, pad_edge=False, padding=(0, 1),
+                  collapse_padding=True, title_justify="left")
+        for h, w in zip(_STATUS_HEADERS, widths, strict=True):
+            t.add_column(h, width=w, overflow="fold", justify="right" if h in ("gen", "best", "unc") else "left")
+        for row in self.rows:
+            t.add_row(*row, style=_STATE_STYLE.get(row[-1]))
+        yield t
 
 
 def status_table(board: Any, title: str) -> Any:
-    """The live status as a rich table: one row per worker, one for the broker."""
-    from rich.table import Table
+    """The live status as a rich renderable that fits the console, down to 80 columns: a row per worker and the broker.
 
-    t = Table(title=title)
-    # Short headers: the table has to fit an 80-column terminal.
-    for col in ("agent", "worker", "gen", "best", "measure", "partners", "unconf.", "rejected", "state"):
-        t.add_column(col, overflow="fold")
-    styles = {"alive": "green", "done": "blue", "stalled": "yellow", "dead": "bold red"}
-    for w in board.snapshot():
-        partners = " ".join(f"{k[0].upper()}v{v}" for k, v in sorted(w["partner_versions"].items())) or "-"
-        t.add_row(w["behaviour"], w["worker"], f"{w['generation']}/{w['generations']}", f"{w['best_fitness']:.3f}",
-                  _own(w.get("measures", {})), partners, str(w["buffered"]), _reasons(w["rejected_by_reason"]), w["state"],
-                  style=styles.get(w["state"]))
-    b = board.broker_view()
-    stored = " ".join(f"{k[0].upper()}:{v}" for k, v in sorted(b["stored"].items())) or "-"
-    t.add_row("broker", "store", "", "", "", f"stored {stored}", "", _reasons(b["rejected"]), b["state"],
-              style="green" if b["state"] == "up" else "bold red")
-    return t
+    Short headers, no vertical rules, and cells that wrap only between words: no column
+    is made narrower than its longest word (a worker id, a rejection reason such as
+    ``wrong_behaviour``), the widest ones give way first.
+    """
+    return _StatusView(_status_rows(board), title)
+
+
+class PlainStatus:
+    """The status as plain lines for a log or a pipe: one line per worker (and the broker) when it changed."""
+
+    def __init__(self) -> None:
+        self._last: dict[str, str] = {}
+
+    def lines(self, board: Any) -> list[str]:
+        out = []
+        stamp = time.strftime("%H:%M:%S")
+        for who, gen, best, own, partners, unc, rejected, state in _status_rows(board):
+            if who == "broker":
+                text = f"broker {state} {partners} rejected {rejected}"
+            else:
+                text = (f"{who} gen {gen} best {best} {own} partners {partners} unconfirmed {unc} "
+                        f"rejected {rejected} {state}")
+            if self._last.get(who) != text:
+                self._last[who] = text
+                out.append(f"{stamp} {text}")
+        return out
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -275,10 +341,17 @@ def cmd_run(args: argparse.Namespace) -> int:
         settings = dict(world=world, ga=ga, seed=args.seed or 0, model=args.model or "best",
                         max_lead=parse_max_lead("1" if args.max_lead is None else args.max_lead))
 
-    with Live(auto_refresh=False, transient=False) as live:
+    tty = sys.stdout.isatty()
+    plain = PlainStatus()
+    with Live(auto_refresh=False, transient=False) if tty else contextlib.nullcontext() as live:
         def show(board: Any) -> None:
-            if not args.quiet:
+            if args.quiet:
+                return
+            if tty:
                 live.update(status_table(board, f"run {run_id} ({regime})"), refresh=True)
+            else:  # a log or a pipe: plain lines, no box drawing, no redraws
+                for line in plain.lines(board):
+                    print(line, flush=True)
 
         summary = run_local(regime=regime, run=run_id, root=root, measure_epochs=args.measure_epochs, on_status=show,
                             log_level=args.log_level, resume=bool(args.resume), **settings)
@@ -359,6 +432,13 @@ def cmd_status(args: argparse.Namespace) -> int:
                     board.changed.wait(args.every)
                     board.changed.clear()
                     print(board.json_line(), flush=True)
+            elif not sys.stdout.isatty():  # a log or a pipe: one plain line per worker when it changes
+                plain = PlainStatus()
+                while end is None or time.monotonic() < end:
+                    board.changed.wait(args.every)
+                    board.changed.clear()
+                    for line in plain.lines(board):
+                        print(line, flush=True)
             else:
                 from rich.live import Live
 
@@ -518,6 +598,10 @@ def build_parser() -> argparse.ArgumentParser:
     from coevo.evolvability.command import add_parser as add_evolvability
 
     add_evolvability(sub)
+
+    from coevo.show.command import add_parser as add_show
+
+    add_show(sub)
 
     p = sub.add_parser("replay", help="re-run a finished run in one process from its adoption log")
     p.add_argument("run_dir")

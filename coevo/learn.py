@@ -104,12 +104,34 @@ def learn(
         if feed is not None:
             write_text(tmp / "adoptions.jsonl", "".join(json.dumps(a) + "\n" for a in adoptions))
             tracking, docking = partners.tracking, partners.docking
+        if behaviour is Behaviour.EXECUTIVE and tracking is not None and docking is not None:
+            # The partners it was measured with, so that 'coevo show DIR' can replay the combined robot.
+            write_text(tmp / "tracking.rules", format_ruleset(tracking))
+            write_text(tmp / "docking.rules", format_ruleset(docking))
         measures = measure_behaviour(
             behaviour, engine.best, world=world, tracking=tracking, docking=docking, epochs=measure_epochs, seed=seed + 1_000_003
         )
         measures = {"best_fitness": engine.best_fitness, **measures}
         write_json(tmp / "measures.json", measures)
+        _picture(tmp / "best.png", behaviour, engine.best, world=world, tracking=tracking, docking=docking,
+                 seed=seed + 1_000_003, name=Path(out_dir).name)
         seconds = time.perf_counter() - t0
         write_json(tmp / "timing.json", {"seconds": seconds, "generations": ga.generations})
     log.info("learned %s in %.1f s -> %s", behaviour, seconds, out_dir)
     return LearnResult(Path(out_dir), engine.best, curve, measures, seconds)
+
+
+PICTURE_EPISODES = 3  # Tracking or Docking alone; an Executive's picture is one epoch
+
+
+def _picture(path: Path, behaviour: Behaviour, best: RuleSet, *, world: WorldConfig, tracking: RuleSet | None,
+             docking: RuleSet | None, seed: int, name: str) -> None:
+    """best.png: the best policy playing a few episodes (or, for the Executive, one epoch); ~0.5 s."""
+    from coevo.show import picture, robot_from_rules
+
+    rules = {behaviour: best}
+    if behaviour is Behaviour.EXECUTIVE and tracking is not None and docking is not None:
+        rules |= {Behaviour.TRACKING: tracking, Behaviour.DOCKING: docking}
+    robot = robot_from_rules(name, world, rules)
+    picture(robot, path, seed=seed, episodes=None if robot.combined else PICTURE_EPISODES,
+            title=f"{name}: the best {behaviour.value} policy, seed {seed}")

@@ -21,7 +21,8 @@ def test_learn_writes_a_complete_run_directory(tmp_path: Path) -> None:
     r = coevo("learn", "--behaviour", "docking", "--generations", "2", "--population", "4", "--episodes", "10",
               "--ga", "best_episodes=10", "--measure-epochs", "3", "--out", str(out), "--quiet")
     assert r.returncode == 0, r.stderr
-    assert sorted(p.name for p in out.iterdir()) == ["best.rules", "config.json", "curve.csv", "curve.json", "measures.json", "timing.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["best.png", "best.rules", "config.json", "curve.csv", "curve.json", "measures.json",
+                                                  "timing.json"]
     curve = json.loads((out / "curve.json").read_text())
     assert [c["generation"] for c in curve] == [1, 2]
     assert len((out / "curve.csv").read_text().strip().splitlines()) == 3
@@ -38,6 +39,10 @@ def test_executive_learns_from_rule_files(tmp_path: Path) -> None:
               "--generations", "1", "--population", "4", "--episodes", "10", "--ga", "best_episodes=10",
               "--measure-epochs", "2", "--out", str(tmp_path / "ex"), "--quiet")
     assert r.returncode == 0, r.stderr
+    assert (tmp_path / "ex" / "best.png").exists()
+    r = coevo("show", str(tmp_path / "ex"), "--rules")  # the combined robot, from the partners kept beside best.rules
+    assert r.returncode == 0, r.stderr
+    assert "executive:" in r.stdout and "tracking:" in r.stdout and "docking:" in r.stdout
 
 
 @pytest.mark.parametrize(
@@ -98,3 +103,55 @@ def test_bench_json_reports_both_figures_and_ratio() -> None:
 def test_bench_rejects_bad_sizes() -> None:
     r = coevo("bench", "--lanes", "0")
     assert r.returncode == 2 and "lanes=0" in r.stderr
+
+
+class _Board:
+    """A status board as `coevo status` sees it, filled with wide but plausible values."""
+
+    def __init__(self, generation: int = 420) -> None:
+        self.generation = generation
+
+    def snapshot(self) -> list[dict[str, object]]:
+        rejected = {"flood": 99999, "not_msgpack": 17, "schema_version": 5, "wrong_behaviour": 1234}
+        measures = {"executive": {"dock_choice": 23.4, "docking_success_rate": 40.0, "quality_tracking": 61.0},
+                    "tracking": {"quality_tracking": 62.0}, "docking": {"docking_from_random": 71.0}}
+        return [{"behaviour": b, "worker": f"{b}-7", "generation": self.generation, "generations": 500,
+                 "best_fitness": 0.412345, "measures": measures[b], "buffered": 12, "rejected_by_reason": rejected,
+                 "partner_versions": {p: 123 for p in measures if p != b}, "state": "stalled"}
+                for b in ("executive", "tracking", "docking")]
+
+    def broker_view(self) -> dict[str, object]:
+        return {"state": "up", "stored": {"docking": 120, "executive": 480, "tracking": 333},
+                "rejected": {"oversize": 3, "wrong_key": 12}, "dropped": 0}
+
+
+def test_status_table_fits_80_columns_without_cutting_words() -> None:
+    from rich.console import Console
+
+    from coevo.cli import _status_rows, status_table
+
+    board = _Board()
+    console = Console(width=80, record=True, color_system=None)
+    console.print(status_table(board, "run independent-20261123-140544 (independent)"))
+    text = console.export_text()
+    lines = text.splitlines()
+    assert "…" not in text
+    assert max(len(line) for line in lines) <= 80
+    words = set(text.split())
+    for row in _status_rows(board):
+        for cell in row:
+            for word in cell.split():
+                assert word in words, word  # whole: wrapped between words, never inside one
+    assert "stalled" in words and "wrong_behaviour" in words and "picks-D=23%" in words
+
+
+def test_status_as_plain_lines_one_per_worker_when_it_changes() -> None:
+    from coevo.cli import PlainStatus
+
+    plain = PlainStatus()
+    first = plain.lines(_Board())
+    assert len(first) == 4 and [line.split()[1] for line in first] == ["executive-7", "tracking-7", "docking-7", "broker"]
+    assert not any(ch in "".join(first) for ch in "│┃─━┏┗")
+    assert "gen 420/500 best 0.412 picks-D=23% docked=40% QT=61% partners Dv123 Tv123" in first[0]
+    assert plain.lines(_Board()) == []  # nothing changed, nothing printed
+    assert len(plain.lines(_Board(generation=421))) == 3  # the workers moved on, the broker did not

@@ -98,6 +98,16 @@ def test_tiny_comparison_writes_a_consistent_report(tiny: Path) -> None:
     for run in RUNS:
         assert f"| {run} |" in md
 
+    # Each live regime's best and worst run by executive payoff, drawn playing one epoch.
+    for regime in ("mutual", "independent"):
+        runs = sorted(by[regime], key=lambda x: (x["measures"]["executive_payoff"], x["run"]))
+        shown = {r["which"]: r for r in res["robots"] if r["regime"] == regime}
+        assert shown["best"]["run"] == runs[-1]["run"] and shown["worst"]["run"] == runs[0]["run"]
+        for which in ("best", "worst"):
+            name = f"robot-{regime}-{which}.png"
+            assert (tiny / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+            assert f"![{name}]({name})" in md
+
 
 def test_resume_reruns_only_what_is_unfinished(tiny: Path) -> None:
     kept = {r: (tiny / "runs" / r / "summary.json").read_bytes() for r in RUNS if r != "mutual-01"}

@@ -9,7 +9,8 @@ which tells a starved Executive from a Docking agent that never learned.
 Files written to OUT:
 ``results.json`` (everything), ``runs.csv`` (one row per run), ``curves.csv``
 (one row per run, behaviour and generation), ``figure-REGIME.png``,
-``regimes.png`` and ``report.md``.
+``regimes.png``, ``robot-REGIME-best.png`` and ``robot-REGIME-worst.png`` (the combined robot of
+the regime's best and worst run by executive payoff, playing one epoch) and ``report.md``.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from coevo.compare import plots
 from coevo.compare.experiment import OFFLINE, CompareSpec, Replicate, groups, is_finished, replicates, run_dir
 from coevo.compare.stats import GroupComparison, RankComparison, compare_groups, compare_samples
 from coevo.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
-from coevo.errors import RuleSetError, RunDirError
+from coevo.errors import CoevoError, RuleSetError, RunDirError
 from coevo.policy.text import parse_ruleset
 from coevo.robot import docking_from_random_starts
 from coevo.rundir import read_jsonl, write_csv, write_json, write_text
@@ -228,12 +229,13 @@ def write_report(out: Path, spec: CompareSpec, *, elapsed: float | None = None) 
     if offline:
         plots.figure_rates(curves_by_group, out / f"figure-{OFFLINE}.png")
         figures.append(f"figure-{OFFLINE}.png")
+    robots = _robot_pictures(out, spec, records)
 
     results = {
         "spec": json.loads(spec.model_dump_json()), "runs_expected": expected, "runs_finished": len(records),
         "elapsed_seconds": elapsed, "table1": table, "table1_report": REPORT_COUNTS,
         "tests": [t.as_dict() for t in tests], "rate_tests": [t.as_dict() for t in rate_tests],
-        "verdict": verdict, "figures": figures,
+        "verdict": verdict, "figures": figures, "robots": robots,
         "runs": [{k: v for k, v in x.items() if k != "curves"} for x in records],
     }
     write_json(out / "results.json", results)
@@ -252,8 +254,35 @@ def write_report(out: Path, spec: CompareSpec, *, elapsed: float | None = None) 
                                    "generation": i + 1,
                                    **{c: cols[c][i] for c in CURVE_COLUMNS}})
     write_csv(out / "curves.csv", curve_rows)
-    write_text(out / "report.md", _markdown(spec, records, table, tests, rate_tests, verdict, figures, expected, elapsed))
+    write_text(out / "report.md", _markdown(spec, records, table, tests, rate_tests, verdict, figures, expected, elapsed,
+                                            robots))
     return results
+
+
+def _robot_pictures(out: Path, spec: CompareSpec, records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per live regime, the combined robots of its best and worst run (by executive payoff) playing one epoch."""
+    from coevo.show import picture, robot_from_path
+
+    reps = {r.run_id: r for r in replicates(spec)}
+    shown = []
+    for regime in _live(spec):
+        runs = [x for x in records if x["group"] == regime and not math.isnan(x["measures"]["executive_payoff"])]
+        if not runs:
+            continue
+        ranked = sorted(runs, key=lambda x: (x["measures"]["executive_payoff"], x["run"]))
+        picks = [("best", ranked[-1])] + ([("worst", ranked[0])] if len(ranked) > 1 else [])
+        for which, x in picks:
+            name = f"robot-{regime}-{which}.png"
+            entry = {"regime": regime, "which": which, "run": x["run"], "seed": x["seed"],
+                     "executive_payoff": x["measures"]["executive_payoff"], "file": name, "problem": None}
+            try:
+                robot = robot_from_path(run_dir(out, reps[x["run"]]))
+                picture(robot, out / name, seed=x["seed"], title=f"{regime}, {which} run {x['run']} "
+                        f"(executive payoff {entry['executive_payoff']:.3f}): one epoch, seed {x['seed']}")
+            except CoevoError as exc:
+                entry["file"], entry["problem"] = None, str(exc)
+            shown.append(entry)
+    return shown
 
 
 def _measure_of(x: dict[str, Any], measure: str) -> float:
@@ -264,7 +293,7 @@ def _measure_of(x: dict[str, Any], measure: str) -> float:
 
 def _markdown(spec: CompareSpec, records: list[dict[str, Any]], table: dict[str, dict[str, int]],
               tests: list[RankComparison], rate_tests: list[GroupComparison], verdict: str, figures: list[str],
-              expected: int, elapsed: float | None) -> str:
+              expected: int, elapsed: float | None, robots: list[dict[str, Any]] | None = None) -> str:
     ga = spec.ga
     lines = [
         "# Regime comparison", "",
@@ -323,5 +352,14 @@ def _markdown(spec: CompareSpec, records: list[dict[str, Any]], table: dict[str,
                      f"{x['docking_from_random_starts']:.1f} | {x['seconds'] / 60:.1f} |")
     lines += ["", "## Learning curves", ""]
     lines += [f"![{f}]({f})" for f in figures]
+    if robots:
+        lines += ["", "## The combined robots of the best and worst runs", "",
+                  "Per regime, the final Executive, Tracking and Docking policies of its best and worst run by executive "
+                  "payoff, playing one epoch from the run's seed (`coevo show runs/RUN --seed SEED` draws it again): "
+                  "the path is coloured by the Executive's choice, the green ring is the tracking range around the "
+                  "Target, and markers show where each episode began and how it ended.", ""]
+        for r in robots:
+            head = f"**{r['regime']}, {r['which']}**: {r['run']} (executive payoff {r['executive_payoff']:.3f})"
+            lines += [head, "", f"![{r['file']}]({r['file']})" if r["file"] else f"(no picture: {r['problem']})", ""]
     lines += ["", "Files: `results.json` (everything above), `runs.csv`, `curves.csv`, and each run under `runs/`.", ""]
     return "\n".join(lines)

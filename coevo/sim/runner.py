@@ -30,6 +30,7 @@ import numpy as np
 from coevo.behaviours import TASK_DOCK, TASK_TRACK, Behaviour, schema
 from coevo.errors import ConfigError
 from coevo.policy.matcher import CompiledPolicies
+from coevo.sim.recorder import Recorder
 from coevo.sim.world import BatchWorld
 
 __all__ = ["Trivial", "Rules", "Trace", "Outcome", "run_lanes", "ALWAYS_TRACK", "ALWAYS_DOCK"]
@@ -119,11 +120,15 @@ def run_lanes(
     conflict: str = "strongest",
     scenarios: int | None = None,
     tick: Callable[[], None] | None = None,
+    record: Recorder | None = None,
 ) -> Outcome:
     """Run every lane of ``world`` for ``lane_episodes`` episodes; see the module docstring.
 
     ``tick``, if given, is called before every episode round (a fraction of a second
     apart): a worker's heartbeat, so a long evaluation still shows it progressing.
+    ``record``, if given, receives every lane's state and fired rules at every step
+    (:mod:`coevo.sim.recorder`; for a few lanes).  Without it the loop does no extra
+    work beyond a test per controller and step.
     """
     cfg = world.cfg
     L, K, T = world.n, lane_episodes, cfg.episode_steps
@@ -162,6 +167,8 @@ def run_lanes(
         shape = (K, L) if learner is Behaviour.EXECUTIVE else (K, T, L)
         trace = Trace(np.zeros(shape + (S,), np.uint8), np.full(shape, -1, np.int16), np.zeros(shape, bool))
 
+    if record is not None:
+        record.open(L, K, T)
     alive = np.ones(L, dtype=bool)
     world.reset(np.arange(L), starts=starts[:, 0][slot])
     ep_tracked = np.zeros(L, dtype=np.int64)
@@ -178,12 +185,16 @@ def run_lanes(
         # The Executive picks this episode's task.
         if isinstance(executive, Trivial):
             task[live, k] = executive.task
+            if record is not None:
+                record.decision(k, live, task[live, k], None)
         else:
             sch = executive.compiled.schema
             bins = sch.discretise(world.observe(sch.sensor_names))[live]
             pol = executive.lane_policy[live]
             rank, full = executive.compiled.decide(pol, bins, conflict=conflict, rng=rng)
             task[live, k] = executive.compiled.action_values(pol, rank)[:, 0]
+            if record is not None:
+                record.decision(k, live, task[live, k], executive.compiled.rule_index(pol, rank))
             if learner is Behaviour.EXECUTIVE:
                 rule = executive.compiled.rule_index(pol, rank)
                 trace.bins[k, live], trace.rule[k, live], trace.full[k, live] = bins, rule, full
@@ -207,6 +218,8 @@ def run_lanes(
         names = tuple(dict.fromkeys(n for beh, *_ in groups for n in schema(beh).sensor_names))
 
         active = alive.copy()
+        if record is not None:
+            record.state(world, k, 0, live)
         turn = np.zeros(L)
         speed = np.zeros(L)
         for t in range(T):
@@ -222,6 +235,10 @@ def run_lanes(
                 where = slice(None) if sel is None else sel
                 turn[where] = _TURN[act[:, 0]]
                 speed[where] = _SPEED[act[:, 1]]
+                if record is not None:
+                    lanes = np.arange(L) if sel is None else sel
+                    mine = active[lanes]
+                    record.fired(k, t, lanes[mine], ctrl.compiled.rule_index(pol[mine], rank[mine]))
                 if learner is beh:
                     lanes = np.arange(L) if sel is None else sel
                     mine = active[lanes]
@@ -236,6 +253,8 @@ def run_lanes(
             collided[:, k] |= ev.collided
             docked[:, k] |= ev.docked
             dry[:, k] |= ev.dry
+            if record is not None:
+                record.state(world, k, t + 1, active)
             active &= ~(ev.collided | ev.docked | ev.dry)
 
         # Episode payoffs (report Appendix A §6.1).

@@ -1,0 +1,96 @@
+"""A task-agnostic picture of recorded episodes: static geometry, tracks on one frame axis, events.
+
+A task turns its recording into a :class:`Scene` (see :mod:`coevo.show.tracking_fuel`);
+:mod:`coevo.show.draw` renders any scene as a PNG or an animation without knowing the
+task.  Frames are the scene's clock: every track has one row per frame (NaN where
+its body is absent, e.g. between episodes), and events, rings, spans and the rule
+trace refer to frames.  ``category`` is what a path is coloured by (for the tracking
+task: the Executive's choice, Track or Dock).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Shape", "Track", "Ring", "Event", "Span", "Scene", "EVENT_KINDS"]
+
+# Event kinds the renderer has a marker for; a task may use any subset.
+EVENT_KINDS = ("start", "tracking", "docked", "collided", "ran dry", "time up")
+
+
+@dataclass(frozen=True)
+class Shape:
+    """Static geometry: a closed ``polygon`` or open ``polyline`` of ``points`` (n, 2); ``role`` picks its style."""
+
+    kind: str
+    points: np.ndarray
+    role: str
+    label: str | None = None
+
+
+@dataclass(frozen=True)
+class Track:
+    """A moving body: its position (and heading, radians) per frame, and the category of each frame."""
+
+    name: str
+    xy: np.ndarray  # (F, 2)
+    heading: np.ndarray | None  # (F,) or None
+    category: np.ndarray | None  # (F,) index into Scene.categories, -1 none; None: not coloured by category
+    radius: float
+
+
+@dataclass(frozen=True)
+class Ring:
+    """An annulus around a body at one frame (e.g. the tracking range around the Target).
+
+    ``around`` names the track it belongs to: animations move it with that track.
+    """
+
+    frame: int
+    x: float
+    y: float
+    inner: float
+    outer: float
+    around: str = ""
+
+
+@dataclass(frozen=True)
+class Event:
+    """Something that happened at a frame and place: a start or an ending (kind in EVENT_KINDS)."""
+
+    frame: int
+    x: float
+    y: float
+    kind: str
+    label: str = ""
+
+
+@dataclass(frozen=True)
+class Span:
+    """A stretch of frames (an episode): its category and a one-line summary."""
+
+    first: int
+    last: int
+    category: int
+    summary: str
+
+
+@dataclass(frozen=True)
+class Scene:
+    title: str
+    extent: tuple[float, float, float, float]  # x0, x1, y0, y1
+    statics: tuple[Shape, ...]
+    categories: tuple[str, ...]
+    tracks: tuple[Track, ...]  # the first is the protagonist (the robot)
+    rings: tuple[Ring, ...]
+    events: tuple[Event, ...]
+    spans: tuple[Span, ...]
+    captions: tuple[str, ...]  # one per frame, shown by animations
+    rule: np.ndarray | None = None  # (F,) rule number that fired at each frame (1-based, 0 none), for a trace panel
+    rule_label: str = "rule"
+
+    @property
+    def frames(self) -> int:
+        return len(self.captions)

@@ -1,0 +1,241 @@
+"""``coevo show`` and the runner's recorder: recorded states are the world's, recording changes nothing,
+the command draws what it is given and refuses bad input in one line with status 2, writing nothing."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from coevo.behaviours import Behaviour
+from coevo.cli import main
+from coevo.config import WorldConfig
+from coevo.policy.defaults import default_ruleset
+from coevo.policy.matcher import CompiledPolicies
+from coevo.policy.text import format_ruleset, parse_ruleset
+from coevo.show import play, robot_from_rules, scene_for
+from coevo.show.rules_view import fire_counts, rule_rows, trace_lines
+from coevo.show.tracking_fuel import episode_endings
+from coevo.sim import BatchWorld, Recorder, Rules, run_lanes
+
+EXEC_RULES = "# behaviour: executive\nIF fuel = [0, 20] THEN SET task = dock (strength 0.9)\nIF ANY THEN SET task = track (strength 0.5)\n"
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def coevo(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "coevo", *args], capture_output=True, text=True, timeout=120, cwd=cwd)
+
+
+# ----------------------------------------------------------------- the recorder
+class LoggingWorld(BatchWorld):
+    """A world that keeps its state before and after every step, to check the recorder against."""
+
+    def __init__(self, *a: object, **k: object) -> None:
+        super().__init__(*a, **k)  # type: ignore[arg-type]
+        self.log: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+
+    def _state(self) -> np.ndarray:
+        return np.stack([self.rx, self.ry, self.rh, self.tx, self.ty, self.fuel]).copy()
+
+    def step(self, active, turn, speed, target_noise):  # type: ignore[no-untyped-def]
+        before = self._state()
+        ev = super().step(active, turn, speed, target_noise)
+        self.log.append((active.copy(), before, self._state()))
+        return ev
+
+
+def _combined(lanes: int) -> dict[str, object]:
+    ex = parse_ruleset(EXEC_RULES)
+    rules = {b: Rules.single(CompiledPolicies([rs]), lanes) for b, rs in
+             (("executive", ex), ("tracking", default_ruleset("tracking")), ("docking", default_ruleset("docking")))}
+    return dict(lane_episodes=6, restart_epochs=True, **rules)
+
+
+def test_recorded_states_are_what_the_world_did() -> None:
+    lanes = 5
+    w = LoggingWorld(WorldConfig(), lanes)
+    rec = Recorder()
+    out = run_lanes(w, rng=np.random.default_rng(3), record=rec, **_combined(lanes))  # type: ignore[arg-type]
+    recorded = lambda k, t: np.stack([rec.rx[k, t], rec.ry[k, t], rec.rh[k, t], rec.tx[k, t], rec.ty[k, t], rec.fuel[k, t]])  # noqa: E731
+    i = 0
+    for k in range(6):
+        for t in range(int(out.steps[:, k].max())):
+            active, before, after = w.log[i]
+            i += 1
+            assert np.array_equal(recorded(k, t)[:, active], before[:, active])
+            assert np.array_equal(recorded(k, t + 1)[:, active], after[:, active])
+            assert (rec.rule[k, t, active] >= 0).all() and (rec.rule[k, t, ~active] == -1).all()
+    assert i == len(w.log)
+    # One recorded position per step plus the start; NaN past an episode's end.
+    for k in range(6):
+        for lane in range(lanes):
+            s = int(out.steps[lane, k])
+            assert np.isfinite(rec.rx[k, : s + 1, lane]).all() and np.isnan(rec.rx[k, s + 1:, lane]).all()
+    assert np.array_equal(rec.task, out.task.T)
+    assert (rec.executive_rule[out.played.T] >= 0).all()
+
+
+def test_recording_does_not_change_the_outcome() -> None:
+    lanes = 6
+    kw = _combined(lanes)
+    kw["learner"] = "tracking"
+    plain = run_lanes(BatchWorld(WorldConfig(), lanes), rng=np.random.default_rng(11), scenarios=3, **kw)  # type: ignore[arg-type]
+    recorded = run_lanes(BatchWorld(WorldConfig(), lanes), rng=np.random.default_rng(11), scenarios=3,
+                         record=Recorder(), **kw)  # type: ignore[arg-type]
+    for f in dataclasses.fields(plain):
+        if f.name == "trace":
+            for g in ("bins", "rule", "full"):
+                assert np.array_equal(getattr(plain.trace, g), getattr(recorded.trace, g)), g
+        else:
+            assert np.array_equal(getattr(plain, f.name), getattr(recorded, f.name)), f.name
+
+
+# ----------------------------------------------------------------- scene and rules
+def test_scene_and_rule_counts_agree_with_the_outcome() -> None:
+    robot = robot_from_rules("r", WorldConfig(), {Behaviour.EXECUTIVE: parse_ruleset(EXEC_RULES),
+                                                  Behaviour.TRACKING: default_ruleset("tracking"),
+                                                  Behaviour.DOCKING: default_ruleset("docking")})
+    p = play(robot, seed=3)
+    out = p.outcome
+    scene = scene_for(p)
+    assert scene.frames == int(out.steps[0].sum()) + p.episodes
+    endings = episode_endings(p)
+    assert [e.kind for e in scene.events if e.kind != "start"] == endings
+    assert sum(e == "collided" for e in endings) == int(out.collided[0].sum())
+    steps = {b: int(out.steps[0][out.task[0] == t].sum()) for b, t in ((Behaviour.TRACKING, 0), (Behaviour.DOCKING, 1))}
+    for b, rs in robot.rulesets().items():
+        counts = fire_counts(p, b, len(rs))
+        assert counts.sum() == (p.episodes if b is Behaviour.EXECUTIVE else steps[b])
+        rows = rule_rows(rs, counts)
+        assert [r.strength for r in rows] == sorted((r.strength for r in rows), reverse=True)
+    assert len(trace_lines(p)) == p.episodes
+    # Same seed, same pictures' data.
+    assert np.array_equal(scene_for(play(robot, seed=3)).tracks[0].xy, scene.tracks[0].xy, equal_nan=True)
+
+
+# ----------------------------------------------------------------- the command
+def _run_dir(root: Path, *, complete: bool = True) -> Path:
+    d = root / "run1"
+    d.mkdir()
+    (d / "run.json").write_text(json.dumps({"run": "run1", "world": WorldConfig().model_dump()}))
+    for b, text in (("executive", EXEC_RULES), ("tracking", format_ruleset(default_ruleset("tracking"))),
+                    ("docking", format_ruleset(default_ruleset("docking")))):
+        if b == "docking" and not complete:
+            continue
+        (d / "workers" / b).mkdir(parents=True)
+        (d / "workers" / b / "best.rules").write_text(text)
+    return d
+
+
+def test_show_draws_a_run_directory_and_prints_rules(tmp_path: Path) -> None:
+    d = _run_dir(tmp_path)
+    r = coevo("show", str(d), "--trace", "--rules", "--out", str(tmp_path / "epoch.png"))
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "epoch.png").read_bytes().startswith(PNG)
+    lines = r.stdout.splitlines()
+    assert lines[0].startswith("executive: 2 rules by strength")
+    assert any(line.startswith("episode 1 (") for line in lines)  # --trace with --rules
+    assert "│" not in r.stdout and "┃" not in r.stdout  # plain text when not on a terminal
+
+
+def test_show_default_and_animation(tmp_path: Path) -> None:
+    r = coevo("show", "--default", "tracking", "--episodes", "1", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "default-tracking-episodes1-seed0.png").read_bytes().startswith(PNG)
+    assert main(["show", "--default", "docking", "--episodes", "2", "--world", "episode_steps=8", "--animate",
+                 "--out", str(tmp_path / "d.gif")]) == 0  # short episodes: a GIF costs ~50 ms a frame
+    assert (tmp_path / "d.gif").read_bytes()[:6] == b"GIF89a"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d.gif", "default-tracking-episodes1-seed0.png"]
+
+
+def test_show_learn_directories(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    d = tmp_path / "learn-docking"
+    d.mkdir()
+    (d / "config.json").write_text(json.dumps({"behaviour": "docking", "world": WorldConfig().model_dump()}))
+    (d / "best.rules").write_text(format_ruleset(default_ruleset("docking")))
+    assert main(["show", str(d), "--episodes", "2"]) == 0
+    assert (d / "show-episodes2-seed0.png").exists()
+    e = tmp_path / "learn-executive"
+    e.mkdir()
+    (e / "best.rules").write_text(EXEC_RULES)
+    assert main(["show", str(e)]) == 2
+    err = capsys.readouterr().err
+    assert "RunDirError" in err and "tracking.rules" in err and "--tracking FILE" in err
+    (e / "tracking.rules").write_text(format_ruleset(default_ruleset("tracking")))
+    (e / "docking.rules").write_text(format_ruleset(default_ruleset("docking")))
+    assert main(["show", str(e), "--out", str(tmp_path / "e.png")]) == 0
+
+
+def _bad_cases(tmp: Path) -> list[tuple[list[str], str]]:
+    (tmp / "notes.txt").write_text("hello\n")
+    (tmp / "empty").mkdir()
+    d = _run_dir(tmp, complete=False)
+    t = str(tmp / "notes.txt")
+    good = ["--default", "tracking"]
+    return [
+        ([str(tmp / "missing.rules")], "no such file"),
+        ([t], "not a coevo rule file"),
+        ([str(tmp / "empty")], "holds no policies"),
+        ([str(d)], "docking/best.rules"),
+        ([*good, "--task", "maze"], "'maze'"),
+        ([*good, "--episodes", "0"], "got 0"),
+        ([*good, "--episodes", "-3"], "got -3"),
+        ([*good, "--out", str(tmp / "nowhere" / "x.png")], "does not exist"),
+        ([*good, "--out", str(tmp / "x.txt")], ".png"),
+        ([*good, "--seed", "-1"], "got -1"),
+        ([*good, "--fps", "0", "--animate"], "got 0"),
+        ([*good, "--world", "arena=-1"], "arena=-1"),
+        (["--default", "executive"], "'executive'"),
+        ([], "nothing to show"),
+        (["--default", "tracking", "--out", ""], "--out ''"),
+        (["/bin/sh"], "not UTF-8 text"),
+    ]
+
+
+def test_bad_input_fails_in_one_line_and_writes_nothing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    for args, needle in _bad_cases(tmp_path):
+        before = sorted(p.name for p in tmp_path.rglob("*"))
+        assert main(["show", *args]) == 2, args
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and needle in err and err.split(":")[0].endswith("Error"), (args, err)
+        assert sorted(p.name for p in tmp_path.rglob("*")) == before, args
+
+
+def _writable(d: Path) -> bool:
+    try:
+        with tempfile.TemporaryFile(dir=d):
+            return True
+    except OSError:
+        return False
+
+
+def test_bad_input_as_a_real_process(tmp_path: Path) -> None:
+    r = coevo("show", str(tmp_path / "missing.rules"))
+    assert r.returncode == 2 and r.stderr.strip() == f"ConfigError: no such file or directory: '{tmp_path / 'missing.rules'}'"
+    out = tmp_path / "ro"
+    out.mkdir()
+    out.chmod(0o500)
+    try:
+        if _writable(out):  # root writes anywhere: use a directory the kernel refuses instead
+            out = Path("/sys")
+            if _writable(out):
+                pytest.skip("no read-only directory to try")
+        r = coevo("show", "--default", "tracking", "--out", str(out / "x.png"))
+        assert r.returncode == 2 and "not writable" in r.stderr and "Traceback" not in r.stderr
+        assert not (out / "x.png").exists()
+    finally:
+        (tmp_path / "ro").chmod(0o700)
+
+
+@pytest.mark.skipif(shutil.which("ffmpeg") is not None, reason="ffmpeg is installed")
+def test_mp4_without_ffmpeg_is_a_clear_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["show", "--default", "tracking", "--episodes", "1", "--out", str(tmp_path / "a.mp4")]) == 2
+    assert "ffmpeg" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
