@@ -117,7 +117,7 @@ def figure_rates(by_group: Mapping[str, Curves], path: Path) -> None:
             ax.plot(np.arange(1, m.shape[1] + 1), np.nanmean(m, axis=0), color=colour, linestyle=line, linewidth=2,
                     label=f"{g} ({m.shape[0]} runs)")
         _axis(ax, title, ylabel, top, xlabel="Executive generation")
-        ax.legend(loc="lower right", fontsize=7)
+        ax.legend(loc="upper right", fontsize=7)
     fig.suptitle("The Executive learning on recorded Tracking/Docking histories, by rate of asynchrony (means)")
     fig.savefig(path, dpi=90)
     plt.close(fig)
