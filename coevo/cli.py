@@ -18,7 +18,7 @@ from typing import Any
 
 from coevo.behaviours import Behaviour
 from coevo.config import GAConfig, WorldConfig, build
-from coevo.errors import CoevoError, ConfigError, RuleSetError
+from coevo.errors import CoevoError, ConfigError
 
 __all__ = ["main"]
 
@@ -28,16 +28,9 @@ EXIT_ERROR = 2
 def _read_rules(path: str | None, behaviour: Behaviour) -> Any:
     if path is None:
         return None
-    from coevo.policy.text import parse_ruleset
+    from coevo.policy.text import read_rule_file
 
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"cannot read rule file {path!r}: {exc.strerror}") from exc
-    try:
-        return parse_ruleset(text, behaviour)
-    except RuleSetError as exc:
-        raise RuleSetError(f"{path}: {exc}") from exc
+    return read_rule_file(Path(path), behaviour)
 
 
 def seed_arg(text: str) -> int:

@@ -54,7 +54,7 @@ def test_executive_learns_from_rule_files(tmp_path: Path) -> None:
         (["--ga", "no_such=1"], "no_such"),
         (["--world", "tracking_min=70"], "tracking_min"),
         (["--ga", "oops"], "name=value"),
-        (["--seed-policy", "/nonexistent/file.rules"], "cannot read"),
+        (["--seed-policy", "/nonexistent/file.rules"], "no such file"),
         (["--initial", "sometimes"], "initial='sometimes'"),
         (["--seed", "-1"], "invalid seed -1"),
         (["--ga", "docking_fresh_starts=maybe"], "docking_fresh_starts='maybe'"),

@@ -13,14 +13,15 @@ Blank lines and ``#`` comments are ignored, except the ``# behaviour:`` header.
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 
 from coevo.behaviours import Behaviour, Schema, schema
-from coevo.errors import RuleParseError, RuleSetError
+from coevo.errors import ConfigError, RuleParseError, RuleSetError
 from coevo.policy.rules import RuleSet
 
-__all__ = ["format_ruleset", "parse_ruleset", "format_rule"]
+__all__ = ["format_ruleset", "parse_ruleset", "format_rule", "read_rule_file"]
 
 _RULE = re.compile(r"^IF\s+(?P<cond>.+?)\s+THEN\s+SET\s+(?P<act>.+?)\s*\(\s*strength\s+(?P<s>[^)]*)\)\s*$", re.IGNORECASE)
 _COND = re.compile(r"^(?P<name>\w+)\s*=\s*\[\s*(?P<a>[-+0-9.eE]+)\s*,\s*(?P<b>[-+0-9.eE]+)\s*\]$")
@@ -156,3 +157,22 @@ def parse_ruleset(text: str, behaviour: Behaviour | str | None = None) -> RuleSe
         if m:
             raise RuleParseError(m.group(2), line=rules[int(m.group(1))][0]) from exc
         raise RuleParseError(str(exc)) from exc
+
+
+def read_rule_file(path: Path, behaviour: Behaviour | None = None) -> RuleSet:
+    """A rule file parsed, its errors naming the file."""
+    path = Path(path)
+    if path.is_dir():
+        raise ConfigError(f"{str(path)!r} is a directory, expected a rule file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"no such file: {str(path)!r}") from None
+    except UnicodeDecodeError:
+        raise RuleSetError(f"{path}: not a coevo rule file (not UTF-8 text)") from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read rule file {str(path)!r}: {exc.strerror or exc}") from None
+    try:
+        return parse_ruleset(text, behaviour)
+    except RuleSetError as exc:
+        raise RuleSetError(f"{path}: not a coevo rule file: {exc}") from None

@@ -17,7 +17,8 @@ from coevo.behaviours import Behaviour
 from coevo.config import WorldConfig, build
 from coevo.errors import ConfigError
 from coevo.show.draw import ANIMATION_FORMATS, FORMATS, check_out_path
-from coevo.show.source import Robot, read_rule_file, robot_from_default, robot_from_path
+from coevo.policy.text import read_rule_file
+from coevo.show.source import Robot, robot_from_default, robot_from_path
 
 __all__ = ["add_parser", "cmd_show", "DEFAULT_EPISODES", "MAX_EPISODES"]
 

@@ -20,12 +20,12 @@ from pathlib import Path
 
 from coevo.behaviours import Behaviour
 from coevo.config import WorldConfig
-from coevo.errors import ConfigError, RuleSetError, RunDirError
+from coevo.errors import ConfigError, RunDirError
 from coevo.policy.defaults import HAS_DEFAULT, default_ruleset
 from coevo.policy.rules import RuleSet
-from coevo.policy.text import parse_ruleset
+from coevo.policy.text import read_rule_file
 
-__all__ = ["Robot", "read_rule_file", "robot_from_path", "robot_from_default", "robot_from_rules"]
+__all__ = ["Robot", "robot_from_path", "robot_from_default", "robot_from_rules"]
 
 ROLES = (Behaviour.EXECUTIVE, Behaviour.TRACKING, Behaviour.DOCKING)
 
@@ -48,25 +48,6 @@ class Robot:
     def rulesets(self) -> dict[Behaviour, RuleSet]:
         pairs = ((Behaviour.EXECUTIVE, self.executive), (Behaviour.TRACKING, self.tracking), (Behaviour.DOCKING, self.docking))
         return {b: rs for b, rs in pairs if rs is not None}
-
-
-def read_rule_file(path: Path, behaviour: Behaviour | None = None) -> RuleSet:
-    """A rule file parsed, its errors naming the file."""
-    path = Path(path)
-    if path.is_dir():
-        raise ConfigError(f"{str(path)!r} is a directory, expected a rule file")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(f"no such file: {str(path)!r}") from None
-    except UnicodeDecodeError:
-        raise RuleSetError(f"{path}: not a coevo rule file (not UTF-8 text)") from None
-    except OSError as exc:
-        raise ConfigError(f"cannot read rule file {str(path)!r}: {exc.strerror or exc}") from None
-    try:
-        return parse_ruleset(text, behaviour)
-    except RuleSetError as exc:
-        raise RuleSetError(f"{path}: not a coevo rule file: {exc}") from None
 
 
 def robot_from_rules(name: str, world: WorldConfig, rules: dict[Behaviour, RuleSet]) -> Robot:
