@@ -143,8 +143,9 @@ def _inject(lr: LocalRun, board: StatusBoard, rng: np.random.Generator, plan: Ch
     running = _running_workers(lr)
     if kind != "kill-broker" and not running:
         return
+    if kind == "kill-broker" and lr.broker is None:
+        return  # no broker process to kill (it is being restarted)
     if kind == "kill-broker":
-        assert lr.broker is not None
         gens = {w["behaviour"]: w["generation"] for w in board.snapshot()}
         lr.broker.send_signal(signal.SIGKILL)
         lr.broker.wait()

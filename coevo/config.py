@@ -153,11 +153,6 @@ class GAConfig(_Settings):
             raise ValueError(f"parents_fraction ({self.parents_fraction}) leaves no parent in a population of {self.population}")
         return self
 
-    @property
-    def lanes(self) -> int:
-        """Lanes per individual: ``episodes`` split into runs of ``lane_episodes``."""
-        return -(-self.episodes // self.lane_episodes)
-
 
 def build(model: type[_M], values: dict[str, Any] | None = None, **overrides: Any) -> _M:
     """Construct a settings model, turning validation failures into :class:`ConfigError`.

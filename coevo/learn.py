@@ -96,7 +96,8 @@ def learn(
             curve.append(rep)
             if on_generation is not None:
                 on_generation(rep)
-        assert engine.best is not None  # at least one generation ran
+        if engine.best is None:  # GAConfig allows no fewer than one generation, so this is a bug
+            raise RuntimeError("no generation ran: the GA has no best policy")
         rows = [r.as_dict() for r in curve]
         write_csv(tmp / "curve.csv", rows)
         write_json(tmp / "curve.json", rows)

@@ -64,7 +64,3 @@ class Rejections:
         """Continue from earlier counts (a resumed worker)."""
         with self._lock:
             self._counts.update({str(k): int(v) for k, v in counts.items()})
-
-    def total(self) -> int:
-        with self._lock:
-            return sum(self._counts.values())

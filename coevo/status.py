@@ -16,10 +16,13 @@ a flood on the status keys costs nothing until then and never stalls the session
 from __future__ import annotations
 
 import json
+import logging
 import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any
+
+import zenoh
 
 from coevo import keys
 from coevo.bus import drain_messages, is_put, ring_subscriber
@@ -27,6 +30,8 @@ from coevo.errors import MessageError
 from coevo.messages import BrokerStatus, Status
 
 __all__ = ["DEFAULT_STALL", "WorkerView", "StatusBoard"]
+
+log = logging.getLogger(__name__)
 
 DEFAULT_STALL = 3.0  # seconds without a heartbeat; workers send one about every second
 
@@ -89,8 +94,8 @@ class StatusBoard:
         for d in self._decls + self._rings:
             try:
                 d.undeclare()
-            except Exception:
-                pass
+            except zenoh.ZError as exc:  # the session was closed first: its declarations went with it
+                log.debug("undeclare after the session closed: %s", exc)
 
     def _view(self, behaviour: str, worker: str) -> WorkerView:
         v = self.workers.get(worker)

@@ -129,9 +129,6 @@ class Worker:
         self._last_beat = 0.0
         self._io: dict[str, Any] = {}  # session objects while running
 
-    def stop(self) -> None:
-        self._stop.set()
-
     def _reject(self, err: MessageError, key: str) -> None:
         self.rejected.note(err, key)
 

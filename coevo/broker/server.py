@@ -87,9 +87,6 @@ class Broker:
     def serve_forever(self) -> None:
         self._stop.wait()
 
-    def stop(self) -> None:
-        self._stop.set()
-
     # Callbacks: check the size, queue and return.
     def _on_policy(self, sample: Any) -> None:
         key = str(sample.key_expr)
@@ -150,9 +147,3 @@ class Broker:
             for m in msgs:
                 if m is not None:
                     query.reply(key, encode(m))
-
-    def wait_idle(self, timeout: float = 5.0) -> None:
-        """Block until everything received so far is stored (for tests and shutdown)."""
-        end = time.monotonic() + timeout
-        while not self._inbox.empty() and time.monotonic() < end:
-            time.sleep(0.01)

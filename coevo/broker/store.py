@@ -128,10 +128,6 @@ class PolicyStore:
         with self._lock:
             return list(self._history.get((run, behaviour), []))
 
-    def runs(self) -> list[str]:
-        with self._lock:
-            return sorted({r for r, _ in self._history})
-
     def matching(self, run_pattern: str, behaviour_pattern: str) -> list[tuple[str, Behaviour]]:
         """(run, behaviour) pairs a query's chunks select (``*`` or a literal)."""
         with self._lock:
