@@ -14,14 +14,28 @@ from coevo.errors import ConfigError
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.rules import RuleSet
 from coevo.sim.measures import Measures, measure
-from coevo.sim.runner import ALWAYS_DOCK, ALWAYS_TRACK, Rules, run_lanes
+from coevo.sim.runner import ALWAYS_DOCK, ALWAYS_TRACK, Rules, Trivial, run_lanes
 from coevo.sim.world import BatchWorld
 
-__all__ = ["measure_robot", "docking_from_random_starts", "measure_behaviour"]
+__all__ = ["controllers", "measure_robot", "docking_from_random_starts", "measure_behaviour"]
 
 
 def _rules(rs: RuleSet | None, lanes: int) -> Rules | None:
     return None if rs is None else Rules.single(CompiledPolicies([rs]), lanes)
+
+
+def controllers(
+    executive: RuleSet | None, tracking: RuleSet | None, docking: RuleSet | None, lanes: int
+) -> tuple[Trivial | Rules, Rules | None, Rules | None]:
+    """The run_lanes controllers of a robot on ``lanes`` lanes; ``executive=None`` with only one of
+    tracking/docking given means the trivial Executive that always picks it."""
+    if executive is None:
+        if (tracking is None) == (docking is None):
+            raise ConfigError("without an Executive give exactly one of tracking/docking")
+        ex: Trivial | Rules = ALWAYS_TRACK if tracking is not None else ALWAYS_DOCK
+    else:
+        ex = Rules.single(CompiledPolicies([executive]), lanes)
+    return ex, _rules(tracking, lanes), _rules(docking, lanes)
 
 
 def measure_robot(
@@ -37,15 +51,9 @@ def measure_robot(
     tracking/docking given means the trivial Executive that always picks it."""
     if epochs < 1:
         raise ConfigError(f"epochs must be at least 1, got {epochs}")
-    if executive is None:
-        if (tracking is None) == (docking is None):
-            raise ConfigError("without an Executive give exactly one of tracking/docking")
-        ex = ALWAYS_TRACK if tracking is not None else ALWAYS_DOCK
-    else:
-        ex = _rules(executive, epochs)
+    ex, tr, dk = controllers(executive, tracking, docking, epochs)
     out = run_lanes(
-        BatchWorld(world, epochs), lane_episodes=world.epoch_episodes, executive=ex,
-        tracking=_rules(tracking, epochs), docking=_rules(docking, epochs),
+        BatchWorld(world, epochs), lane_episodes=world.epoch_episodes, executive=ex, tracking=tr, docking=dk,
         restart_epochs=False, rng=np.random.default_rng(seed),
     )
     return measure(out, world.episode_steps)

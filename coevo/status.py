@@ -29,7 +29,7 @@ from coevo.bus import drain_messages, is_put, ring_subscriber
 from coevo.errors import MessageError
 from coevo.messages import BrokerStatus, Status
 
-__all__ = ["DEFAULT_STALL", "WorkerView", "StatusBoard"]
+__all__ = ["DEFAULT_STALL", "WorkerView", "StatusBoard", "status_table", "PlainStatus"]
 
 log = logging.getLogger(__name__)
 
@@ -163,3 +163,103 @@ class StatusBoard:
     def json_line(self) -> str:
         workers = self.snapshot()
         return json.dumps({"run": self.run, "time": time.time(), "workers": workers, "broker": self.broker_view()})
+
+
+# ---------------------------------------------------------------- display
+def _reasons(counts: dict[str, int]) -> str:
+    """Rejections by reason, 'flood 3, wrong_key 1' (a narrow column wraps it after a count, not inside a pair)."""
+    return ", ".join(f"{r} {n}" for r, n in sorted(counts.items())) or "0"
+
+
+_OWN = {"quality_tracking": "QT", "docking_from_random": "docks", "dock_choice": "picks-D",
+        "docking_success_rate": "docked"}
+_STATE_STYLE = {"alive": "green", "done": "blue", "stalled": "yellow", "dead": "bold red", "up": "green", "down": "bold red"}
+
+
+def _own(measures: dict[str, float]) -> str:
+    """A worker's own measures, short, one word each: 'QT=62%', 'docks=71%', 'picks-D=23% docked=40%'."""
+    return " ".join(f"{_OWN.get(k, k)}={v:.0f}%" for k, v in measures.items()) or "-"
+
+
+def _status_rows(board: Any) -> list[tuple[str, ...]]:
+    """(who, gen, best, own, partners, unconfirmed, rejected, state) per worker, then the broker's row."""
+    rows = []
+    for w in board.snapshot():
+        who = w["worker"] if w["worker"].startswith(w["behaviour"]) else f"{w['worker']} ({w['behaviour']})"
+        partners = " ".join(f"{k[0].upper()}v{v}" for k, v in sorted(w["partner_versions"].items())) or "-"
+        rows.append((who, f"{w['generation']}/{w['generations']}", f"{w['best_fitness']:.3f}", _own(w.get("measures", {})),
+                     partners, str(w["buffered"]), _reasons(w["rejected_by_reason"]), w["state"]))
+    b = board.broker_view()
+    stored = " ".join(f"{k[0].upper()}:{v}" for k, v in sorted(b["stored"].items())) or "-"
+    rows.append(("broker", "", "", "", f"stored {stored}", "", _reasons(b["rejected"]), b["state"]))
+    return rows
+
+
+_STATUS_HEADERS = ("worker", "gen", "best", "own", "partner", "unc", "rejected", "state")
+
+
+def _fit(natural: list[int], minimum: list[int], budget: int) -> list[int]:
+    """Column widths within ``budget``: the widest column above its minimum gives way first."""
+    widths = list(natural)
+    while sum(widths) > budget:
+        slack = [w - m for w, m in zip(widths, minimum, strict=True)]
+        if max(slack) <= 0:
+            break  # even every column at its longest word is too wide; rich will have to fold
+        i = max(range(len(widths)), key=lambda j: (widths[j] if slack[j] > 0 else -1, j))
+        widths[i] -= 1
+    return widths
+
+
+class _StatusView:
+    """Renders the status table at the width of the console it is printed on (see :func:`status_table`)."""
+
+    def __init__(self, rows: list[tuple[str, ...]], title: str) -> None:
+        self.rows, self.title = rows, title
+
+    def __rich_console__(self, console: Any, options: Any) -> Any:
+        from rich import box
+        from rich.table import Table
+
+        cols = list(zip(*self.rows, strict=True))
+        natural = [max([len(h)] + [len(c) for c in col]) for h, col in zip(_STATUS_HEADERS, cols, strict=True)]
+        minimum = [max([len(h)] + [len(w) for c in col for w in c.split()]) for h, col in zip(_STATUS_HEADERS, cols, strict=True)]
+        gaps = 2 * (len(_STATUS_HEADERS) - 1)  # one space of padding either side of every inner column edge
+        widths = _fit(natural, minimum, options.max_width - gaps)
+        t = Table(title=self.title, box=box.SIMPLE_HEAD, show_edge=False, pad_edge=False, padding=(0, 1),
+                  collapse_padding=True, title_justify="left")
+        for h, w in zip(_STATUS_HEADERS, widths, strict=True):
+            t.add_column(h, width=w, overflow="fold", justify="right" if h in ("gen", "best", "unc") else "left")
+        for row in self.rows:
+            t.add_row(*row, style=_STATE_STYLE.get(row[-1]))
+        yield t
+
+
+def status_table(board: Any, title: str) -> Any:
+    """The live status as a rich renderable that fits the console, down to 80 columns: a row per worker and the broker.
+
+    Short headers, no vertical rules, and cells that wrap only between words: no column
+    is made narrower than its longest word (a worker id, a rejection reason such as
+    ``wrong_behaviour``), the widest ones give way first.
+    """
+    return _StatusView(_status_rows(board), title)
+
+
+class PlainStatus:
+    """The status as plain lines for a log or a pipe: one line per worker (and the broker) when it changed."""
+
+    def __init__(self) -> None:
+        self._last: dict[str, str] = {}
+
+    def lines(self, board: Any) -> list[str]:
+        out = []
+        stamp = time.strftime("%H:%M:%S")
+        for who, gen, best, own, partners, unc, rejected, state in _status_rows(board):
+            if who == "broker":
+                text = f"broker {state} {partners} rejected {rejected}"
+            else:
+                text = (f"{who} gen {gen} best {best} {own} partners {partners} unconfirmed {unc} "
+                        f"rejected {rejected} {state}")
+            if self._last.get(who) != text:
+                self._last[who] = text
+                out.append(f"{stamp} {text}")
+        return out

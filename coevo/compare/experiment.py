@@ -257,9 +257,8 @@ def _settings_args(spec: CompareSpec) -> list[str]:
 def _run_command(out: Path, spec: CompareSpec, rep: Replicate) -> list[str]:
     d = run_dir(out, rep)
     if rep.offline:
-        live = Replicate("independent", rep.index, rep.seed)
         return [sys.executable, "-m", "coevo", "learn", "--quiet", "--behaviour", "executive",
-                "--history", str(run_dir(out, live)), "--rate", repr(rep.rate),
+                "--history", str(run_dir(out, rep.depends_on)), "--rate", repr(rep.rate),
                 "--seed", str(rep.seed + EXECUTIVE_SEED), "--out", str(d), "--measure-epochs", str(spec.measure_epochs),
                 *_settings_args(spec)]
     if (d / "run.json").exists():  # interrupted: continue it from the workers' checkpoints

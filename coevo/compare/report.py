@@ -43,11 +43,17 @@ DOCKING_PROBE_EPISODES = 300
 
 def collect(out: Path, spec: CompareSpec) -> list[dict[str, Any]]:
     """One record per finished run: its measures, Table 1 class, final fitnesses and curves."""
-    records = []
+    records: list[dict[str, Any]] = []
+    by_run: dict[str, dict[str, Any]] = {}  # an offline replicate reads its live run's record, built just before
     for rep in replicates(spec):
         if not is_finished(out, rep):
             continue
-        records.append(_record(out, spec, rep))
+        if rep.offline:
+            live = by_run.get(rep.depends_on.run_id) if rep.depends_on else None
+            records.append(_offline_record(out, rep, live))
+        else:
+            records.append(_record(out, spec, rep))
+            by_run[rep.run_id] = records[-1]
     return records
 
 
@@ -61,12 +67,12 @@ def _docking_alone(d: Path, spec: CompareSpec, rep: Replicate) -> float:
     return docking_from_random_starts(spec.world, rules, episodes=DOCKING_PROBE_EPISODES, seed=rep.seed + 7)
 
 
-def _offline_record(out: Path, spec: CompareSpec, rep: Replicate) -> dict[str, Any]:
-    """An Executive learned on a live Independent run's recorded Tracking/Docking histories at one rate."""
+def _offline_record(out: Path, rep: Replicate, live: dict[str, Any] | None) -> dict[str, Any]:
+    """An Executive learned on a live Independent run's recorded Tracking/Docking histories at one rate
+    (``live``: that run's record, None if it is not finished)."""
     d = run_dir(out, rep)
     m = json.loads((d / "measures.json").read_text())
     rows = json.loads((d / "curve.json").read_text())
-    live = _record(out, spec, rep.depends_on) if rep.depends_on and is_finished(out, rep.depends_on) else None
     curves = {Behaviour.EXECUTIVE.value: {c: [_number(r.get(c)) for r in rows] for c in CURVE_COLUMNS}}
     final = {Behaviour.EXECUTIVE.value: float(rows[-1]["best_so_far"]) if rows else float("nan")}
     for b in (Behaviour.TRACKING, Behaviour.DOCKING):
@@ -82,8 +88,6 @@ def _offline_record(out: Path, spec: CompareSpec, rep: Replicate) -> dict[str, A
 
 
 def _record(out: Path, spec: CompareSpec, rep: Replicate) -> dict[str, Any]:
-    if rep.offline:
-        return _offline_record(out, spec, rep)
     d = run_dir(out, rep)
     summary = json.loads((d / "summary.json").read_text())
     m = summary["measures"]

@@ -12,11 +12,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from coevo.errors import ConfigError
-from coevo.policy.matcher import CompiledPolicies
-from coevo.policy.rules import RuleSet
+from coevo.robot import controllers
 from coevo.show.source import Robot
 from coevo.sim.recorder import Recorder
-from coevo.sim.runner import ALWAYS_DOCK, ALWAYS_TRACK, Outcome, Rules, Trivial, run_lanes
+from coevo.sim.runner import Outcome, run_lanes
 from coevo.sim.world import BatchWorld
 
 __all__ = ["Played", "play"]
@@ -37,21 +36,15 @@ class Played:
         return int(self.outcome.played[0].sum())
 
 
-def _rules(rs: RuleSet | None) -> Rules | None:
-    return None if rs is None else Rules.single(CompiledPolicies([rs]), 1)
-
-
 def play(robot: Robot, *, seed: int, episodes: int | None = None) -> Played:
     """Play ``robot`` from ``seed``: ``episodes`` in a row, or one epoch when None."""
     if episodes is not None and episodes < 1:
         raise ConfigError(f"--episodes must be positive, got {episodes}")
-    executive: Trivial | Rules | None = _rules(robot.executive)
-    if executive is None:
-        executive = ALWAYS_TRACK if robot.tracking is not None else ALWAYS_DOCK
+    executive, tracking, docking = controllers(robot.executive, robot.tracking, robot.docking, 1)
     rec = Recorder()
     out = run_lanes(
         BatchWorld(robot.world, 1), lane_episodes=episodes or robot.world.epoch_episodes, executive=executive,
-        tracking=_rules(robot.tracking), docking=_rules(robot.docking), restart_epochs=episodes is not None,
+        tracking=tracking, docking=docking, restart_epochs=episodes is not None,
         rng=np.random.default_rng(seed), record=rec,
     )
     return Played(robot=robot, seed=seed, epoch=episodes is None, outcome=out, record=rec)

@@ -193,10 +193,11 @@ def run_lanes(
             pol = executive.lane_policy[live]
             rank, full = executive.compiled.decide(pol, bins, conflict=conflict, rng=rng)
             task[live, k] = executive.compiled.action_values(pol, rank)[:, 0]
-            if record is not None:
-                record.decision(k, live, task[live, k], executive.compiled.rule_index(pol, rank))
-            if learner is Behaviour.EXECUTIVE:
+            if record is not None or learner is Behaviour.EXECUTIVE:
                 rule = executive.compiled.rule_index(pol, rank)
+            if record is not None:
+                record.decision(k, live, task[live, k], rule)
+            if learner is Behaviour.EXECUTIVE:
                 trace.bins[k, live], trace.rule[k, live], trace.full[k, live] = bins, rule, full
                 fired[live, k] |= _ONE << rule.astype(np.uint64)
         lane_task = task[:, k].astype(np.int64)
@@ -235,15 +236,15 @@ def run_lanes(
                 where = slice(None) if sel is None else sel
                 turn[where] = _TURN[act[:, 0]]
                 speed[where] = _SPEED[act[:, 1]]
+                if record is None and learner is not beh:
+                    continue
+                lanes = np.arange(L) if sel is None else sel
+                mine = active[lanes]
+                lanes, rule = lanes[mine], ctrl.compiled.rule_index(pol[mine], rank[mine])
                 if record is not None:
-                    lanes = np.arange(L) if sel is None else sel
-                    mine = active[lanes]
-                    record.fired(k, t, lanes[mine], ctrl.compiled.rule_index(pol[mine], rank[mine]))
+                    record.fired(k, t, lanes, rule)
                 if learner is beh:
-                    lanes = np.arange(L) if sel is None else sel
-                    mine = active[lanes]
-                    lanes, bins, rank, full = lanes[mine], bins[mine], rank[mine], full[mine]
-                    rule = ctrl.compiled.rule_index(pol[mine], rank)
+                    bins, full = bins[mine], full[mine]
                     trace.bins[k, t, lanes], trace.rule[k, t, lanes], trace.full[k, t, lanes] = bins, rule, full
                     fired[lanes, k] |= _ONE << rule.astype(np.uint64)
             noise = rng.normal(0.0, cfg.target_turn_sd, g)[slot]
