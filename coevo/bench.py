@@ -16,13 +16,13 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from coevo.behaviours import Behaviour
+from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.config import WorldConfig
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.rules import RuleSet, random_ruleset
-from coevo.sim.runner import ALWAYS_DOCK, ALWAYS_TRACK, Rules, run_lanes
-from coevo.sim.single import run_episode
-from coevo.sim.world import BatchWorld
+from coevo.tasks.fuel.runner import ALWAYS_DOCK, ALWAYS_TRACK, Rules, run_lanes
+from coevo.tasks.fuel.single import run_episode
+from coevo.tasks.fuel.world import BatchWorld
 
 __all__ = ["BenchResult", "bench"]
 
@@ -60,7 +60,7 @@ def bench(
     pols = [policy] * policies if policy is not None else [random_ruleset(behaviour, rules, rng) for _ in range(policies)]
     ctrl = Rules(CompiledPolicies(pols), np.arange(lanes) % policies)
     kw = dict(tracking=ctrl, docking=None, executive=ALWAYS_TRACK)
-    if behaviour is Behaviour.DOCKING:
+    if behaviour == Behaviour.DOCKING:
         kw = dict(tracking=None, docking=ctrl, executive=ALWAYS_DOCK)
     w = BatchWorld(world, lanes)
     best = 0.0

@@ -30,7 +30,6 @@ from typing import Any
 
 import numpy as np
 
-from coevo.behaviours import Behaviour
 from coevo.bus import open_session, sigterm_as_exit
 from coevo.check import check_run
 from coevo.config import GAConfig, WorldConfig
@@ -120,7 +119,7 @@ def run_chaos(*, regime: str, run: str, root: Path, world: WorldConfig, ga: GACo
     return report
 
 
-def _running_workers(lr: LocalRun) -> list[Behaviour]:
+def _running_workers(lr: LocalRun) -> list[str]:
     return [b for b, p in lr.workers.items() if p.poll() is None]
 
 
@@ -128,11 +127,11 @@ def _revive_crashed(lr: LocalRun, restarts: Counter[str], chaos: ChaosLog, say: 
     """A worker that died on its own (not by chaos) is restarted too, at most 3 times, and reported."""
     for b, p in list(lr.workers.items()):
         if p.poll() is not None and p.returncode != 0:
-            if restarts[b.value] >= 3:
-                raise RunDirError(f"chaos: the {b.value} worker keeps failing (exit {p.returncode}); see "
-                                  f"{lr.dir / 'logs' / f'worker-{b.value}.log'}")
-            restarts[b.value] += 1
-            say(f"{b.value} worker exited with {p.returncode} on its own; restarting it")
+            if restarts[b] >= 3:
+                raise RunDirError(f"chaos: the {b} worker keeps failing (exit {p.returncode}); see "
+                                  f"{lr.dir / 'logs' / f'worker-{b}.log'}")
+            restarts[b] += 1
+            say(f"{b} worker exited with {p.returncode} on its own; restarting it")
             lr.start_worker(b, resume=True)
 
 
@@ -157,29 +156,29 @@ def _inject(lr: LocalRun, board: StatusBoard, rng: np.random.Generator, plan: Ch
         return
     b = running[int(rng.integers(len(running)))]
     p = lr.workers[b]
-    gen = next((w["generation"] for w in board.snapshot() if w["behaviour"] == b.value), None)
+    gen = next((w["generation"] for w in board.snapshot() if w["behaviour"] == b), None)
     if kind == "pause-worker":
         p.send_signal(signal.SIGSTOP)
-        say(f"paused the {b.value} worker at generation {gen} for {down:.1f} s")
+        say(f"paused the {b} worker at generation {gen} for {down:.1f} s")
         time.sleep(down)
         p.send_signal(signal.SIGCONT)
-        chaos.add(kind, behaviour=b.value, generation=gen, down=round(down, 2))
+        chaos.add(kind, behaviour=b, generation=gen, down=round(down, 2))
         return
     t_kill = time.monotonic()
     os.kill(p.pid, signal.SIGKILL)
     p.wait()
     try:
-        wait_until(lambda: any(w["behaviour"] == b.value and w["state"] == "dead" for w in board.snapshot()), 10, "dead")
+        wait_until(lambda: any(w["behaviour"] == b and w["state"] == "dead" for w in board.snapshot()), 10, "dead")
         seen = time.monotonic() - t_kill
     except RunDirError:
         seen = None  # the broker was restarting, or the board missed it: reported as not seen
-    say(f"killed the {b.value} worker at generation {gen} (status showed it dead after "
+    say(f"killed the {b} worker at generation {gen} (status showed it dead after "
         f"{'-' if seen is None else f'{seen * 1000:.0f} ms'}); down for {down:.1f} s")
     time.sleep(down)
     lr.start_worker(b, resume=True)
-    wait_until(lambda: any(w["behaviour"] == b.value and w["state"] in ("alive", "done") for w in board.snapshot()), 60,
-               f"the restarted {b.value} worker")
-    chaos.add(kind, behaviour=b.value, generation=gen, down=round(down, 2),
+    wait_until(lambda: any(w["behaviour"] == b and w["state"] in ("alive", "done") for w in board.snapshot()), 60,
+               f"the restarted {b} worker")
+    chaos.add(kind, behaviour=b, generation=gen, down=round(down, 2),
               dead_seen_ms=None if seen is None else round(seen * 1000, 1))
 
 

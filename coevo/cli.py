@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from coevo.behaviours import Behaviour
+from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.config import GAConfig, WorldConfig, build
 from coevo.errors import CoevoError, ConfigError
 
@@ -92,11 +92,8 @@ def cmd_learn(args: argparse.Namespace) -> int:
 
     behaviour = Behaviour(args.behaviour)
     world, ga = _configs(args)
-    tracking = _read_rules(args.tracking, Behaviour.TRACKING)
-    docking = _read_rules(args.docking, Behaviour.DOCKING)
+    partners = {b.value: _read_rules(f, b) for b, f in ((Behaviour.TRACKING, args.tracking), (Behaviour.DOCKING, args.docking)) if f}
     seed_policy = _read_rules(args.seed_policy, behaviour)
-    if behaviour is Behaviour.EXECUTIVE and args.history is None and (tracking is None or docking is None):
-        raise ConfigError("--behaviour executive needs --tracking FILE and --docking FILE (best.rules of earlier learn runs)")
     if args.measure_epochs < 1:
         raise ConfigError(f"--measure-epochs must be at least 1, got {args.measure_epochs}")
     out = Path(args.out) if args.out else Path("runs") / f"learn-{behaviour.value}-seed{args.seed}-{time.strftime('%Y%m%d-%H%M%S')}"
@@ -112,7 +109,7 @@ def cmd_learn(args: argparse.Namespace) -> int:
             bar.update(task, advance=1, info=info)
 
         res = learn(
-            behaviour, world=world, ga=ga, seed=args.seed, out_dir=out, tracking=tracking, docking=docking,
+            behaviour, world=world, ga=ga, seed=args.seed, out_dir=out, partners=partners,
             seed_policy=seed_policy, measure_epochs=args.measure_epochs, on_generation=show,
             history=Path(args.history) if args.history else None, rate=args.rate,
         )
@@ -195,6 +192,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
     from coevo.agents.pacing import parse_max_lead
     from coevo.agents.worker import Worker
     from coevo.bus import config_from_args, sigterm_as_exit
+    from coevo.tasks import get_task
 
     world, ga = _configs(args)
     behaviour = Behaviour(args.behaviour)
@@ -202,7 +200,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
     worker_id = args.worker_id or f"{behaviour.value}-{args.seed}"
     out = Path(args.out) if args.out else Path("runs") / args.run / "workers" / behaviour.value
     sigterm_as_exit()
-    w = Worker(behaviour=behaviour, regime=args.regime, run=args.run, worker_id=worker_id, seed=args.seed,
+    w = Worker(task=get_task("fuel"), behaviour=behaviour, regime=args.regime, run=args.run, worker_id=worker_id, seed=args.seed,
                world=world, ga=ga, out_dir=out, conf=config_from_args(args), model=args.model,
                max_lead=parse_max_lead(args.max_lead), resume=args.resume, final_sync=args.final_sync)
     try:

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import re
 
-from coevo.behaviours import Behaviour
 from coevo.errors import ConfigError
+from coevo.policy.schema import registered
 
 __all__ = ["ROOT", "BROKER", "check_id", "valid_id", "policy", "current", "status", "control", "alive", "store_latest", "store_history",
            "store_versions", "broker_status", "parse"]
@@ -41,26 +41,26 @@ def valid_id(value: str) -> bool:
     return isinstance(value, str) and bool(_ID.match(value)) and value not in (".", "..")
 
 
-def _b(behaviour: Behaviour | str) -> str:
-    try:
-        return Behaviour(behaviour).value
-    except ValueError:
-        raise ConfigError(f"unknown behaviour {behaviour!r}") from None
+def _b(behaviour: str) -> str:
+    name = str(behaviour)
+    if name not in registered():
+        raise ConfigError(f"unknown behaviour {name!r} (known: {', '.join(registered())})")
+    return name
 
 
-def _w(b: Behaviour | str | None) -> str:
+def _w(b: str | None) -> str:
     return "*" if b is None else _b(b)
 
 
-def policy(run: str, behaviour: Behaviour | str | None = None) -> str:
+def policy(run: str, behaviour: str | None = None) -> str:
     return f"{ROOT}/{check_id('run id', run)}/policy/{_w(behaviour)}"
 
 
-def current(run: str, behaviour: Behaviour | str | None = None) -> str:
+def current(run: str, behaviour: str | None = None) -> str:
     return f"{ROOT}/{check_id('run id', run)}/current/{_w(behaviour)}"
 
 
-def status(run: str, behaviour: Behaviour | str | None = None, worker: str | None = None) -> str:
+def status(run: str, behaviour: str | None = None, worker: str | None = None) -> str:
     w = "*" if worker is None else check_id("worker id", worker)
     return f"{ROOT}/{check_id('run id', run)}/status/{_w(behaviour)}/{w}"
 
@@ -69,20 +69,20 @@ def control(run: str) -> str:
     return f"{ROOT}/{check_id('run id', run)}/control"
 
 
-def alive(run: str, behaviour: Behaviour | str | None = None, worker: str | None = None) -> str:
+def alive(run: str, behaviour: str | None = None, worker: str | None = None) -> str:
     w = "*" if worker is None else check_id("worker id", worker)
     return f"{ROOT}/{check_id('run id', run)}/alive/{_w(behaviour)}/{w}"
 
 
-def store_latest(run: str, behaviour: Behaviour | str | None = None) -> str:
+def store_latest(run: str, behaviour: str | None = None) -> str:
     return f"{ROOT}/{check_id('run id', run)}/store/latest/{_w(behaviour)}"
 
 
-def store_history(run: str, behaviour: Behaviour | str | None = None) -> str:
+def store_history(run: str, behaviour: str | None = None) -> str:
     return f"{ROOT}/{check_id('run id', run)}/store/history/{_w(behaviour)}"
 
 
-def store_versions(run: str, behaviour: Behaviour | str | None = None) -> str:
+def store_versions(run: str, behaviour: str | None = None) -> str:
     return f"{ROOT}/{check_id('run id', run)}/store/versions/{_w(behaviour)}"
 
 

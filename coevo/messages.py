@@ -13,6 +13,7 @@ from typing import Annotated, Any, Literal, Union
 
 import msgpack
 from pydantic import (
+    AfterValidator,
     BaseModel,
     ConfigDict,
     Field,
@@ -22,9 +23,9 @@ from pydantic import (
 )
 
 from coevo import keys
-from coevo.behaviours import Behaviour
 from coevo.errors import MessageError, RuleSetError
 from coevo.policy.rules import RuleSet
+from coevo.policy.schema import registered
 
 __all__ = ["SCHEMA_VERSION", "MAX_BYTES", "REASONS", "PolicyUpdate", "Status", "BrokerStatus", "Control", "Message", "encode",
            "decode"]
@@ -48,6 +49,17 @@ REASONS = {
 }
 
 
+def _known_behaviour(name: str) -> str:
+    if name not in registered():
+        raise ValueError(f"unknown behaviour {name!r}")
+    return name
+
+
+_Id = Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]{1,64}$")]
+#: A learning behaviour's name, of any task (messages name no task: behaviour names are unique).
+BehaviourName = Annotated[str, Field(pattern=r"^[a-z0-9_]{1,32}$"), AfterValidator(_known_behaviour)]
+
+
 class _Msg(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
@@ -60,7 +72,7 @@ class PolicyUpdate(_Msg):
     """A worker's new best-so-far policy."""
 
     kind: Literal["policy"] = "policy"
-    behaviour: Behaviour
+    behaviour: BehaviourName
     worker: Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]{1,64}$")]
     version: int = Field(ge=1)
     generation: int = Field(ge=0)
@@ -86,7 +98,7 @@ class PolicyUpdate(_Msg):
 
     def ruleset(self) -> RuleSet:
         rs = RuleSet.from_dict(self.rules)
-        if rs.behaviour is not self.behaviour:
+        if rs.behaviour != self.behaviour:
             raise RuleSetError(f"policy for {self.behaviour} carries {rs.behaviour} rules")
         return rs
 
@@ -95,9 +107,9 @@ class Status(_Msg):
     """A worker's heartbeat, once per generation."""
 
     kind: Literal["status"] = "status"
-    behaviour: Behaviour
-    worker: Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]{1,64}$")]
-    regime: Literal["mutual", "independent"]
+    behaviour: BehaviourName
+    worker: _Id
+    regime: _Id
     generation: int = Field(ge=0)
     generations: int = Field(ge=0)
     best_fitness: float
@@ -105,8 +117,9 @@ class Status(_Msg):
     rejected: dict[str, int] = Field(default_factory=dict)
     buffered: int = Field(default=0, ge=0)  # published versions the broker's store has not confirmed yet
     done: bool = False
-    # The latest generation's best on the behaviour's own measure, in % (coevo.ga.engine.own_measures):
-    # Tracking quality_tracking, Docking docking_from_random, the Executive dock_choice and docking_success_rate.
+    # The latest generation's best on the behaviour's own measures, in % (its task's status_measures; the
+    # fuel task's: Tracking quality_tracking, Docking docking_from_random, the Executive dock_choice and
+    # docking_success_rate).
     measures: dict[str, Annotated[float, Field(ge=0, le=100)]] = Field(default_factory=dict, max_length=8)
 
 
@@ -160,8 +173,8 @@ def decode(payload: bytes, *, key: str | None = None) -> PolicyUpdate | Status |
         elif field == "rules" and first["type"] == "value_error":
             reason = "bad_rules"
         raise MessageError(reason, f"{where}: {first['msg']}") from None
-    if isinstance(msg, PolicyUpdate) and msg.rules.get("behaviour") != msg.behaviour.value:
-        raise MessageError("bad_rules", f"a {msg.behaviour.value} policy carrying {msg.rules.get('behaviour')!r} rules")
+    if isinstance(msg, PolicyUpdate) and msg.rules.get("behaviour") != msg.behaviour:
+        raise MessageError("bad_rules", f"a {msg.behaviour} policy carrying {msg.rules.get('behaviour')!r} rules")
     if key is not None:
         _check_key(msg, key)
     return msg
@@ -177,8 +190,8 @@ def _check_key(msg: PolicyUpdate | Status | BrokerStatus | Control, key: str) ->
     if k["topic"] not in topics:
         raise MessageError("wrong_key", f"{msg.kind} message on {key!r}")
     beh = getattr(msg, "behaviour", None)
-    if beh is not None and k.get("behaviour") != beh.value:
-        raise MessageError("wrong_behaviour", f"{beh.value} {msg.kind} on {key!r}")
+    if beh is not None and k.get("behaviour") != beh:
+        raise MessageError("wrong_behaviour", f"{beh} {msg.kind} on {key!r}")
     worker = getattr(msg, "worker", None)
     if msg.kind == "status" and k.get("worker") != worker:
         raise MessageError("wrong_behaviour", f"status of worker {worker!r} on {key!r}")

@@ -15,17 +15,17 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from coevo.agents.models import PartnerModels
-from coevo.behaviours import Behaviour
-from coevo.config import GAConfig, WorldConfig
+from coevo.config import GAConfig, build
 from coevo.errors import RunDirError
 from coevo.ga import GA
 from coevo.messages import PolicyUpdate
 from coevo.policy.rules import RuleSet
 from coevo.rundir import read_jsonl
+from coevo.tasks import DEFAULT_TASK, get_task
 
 __all__ = ["WorkerReplay", "replay"]
 
-_COMPARED = ("generation", "best_fitness", "population_best", "population_mean", "best_so_far", "improved", "starved")
+_UNCOMPARED = ("seconds",)  # every other column of the learning curve must be identical
 
 
 @dataclass(frozen=True)
@@ -42,20 +42,21 @@ def _store(run_dir: Path) -> dict[tuple[str, str, int], RuleSet]:
     for f in sorted((run_dir / "store").glob("*.jsonl")):
         for row in read_jsonl(f):
             m = PolicyUpdate.model_validate(row)
-            out[(m.behaviour.value, m.worker, m.version)] = m.ruleset()
+            out[(m.behaviour, m.worker, m.version)] = m.ruleset()
     return out
 
 
 def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, until: int | None = None) -> WorkerReplay:
     meta = json.loads((wdir / "worker.json").read_text())
-    behaviour = Behaviour(meta["behaviour"])
-    world = WorldConfig(**meta["world"])
-    ga_cfg = GAConfig(**meta["ga"])
+    task = get_task(meta.get("task", DEFAULT_TASK))
+    behaviour = task.check_behaviour(meta["behaviour"])
+    world = build(task.world_settings, meta["world"])
+    ga_cfg = build(GAConfig, meta["ga"])
     curve = read_jsonl(wdir / "curve.jsonl")
     adoptions = read_jsonl(wdir / "adoptions.jsonl")
     n = len(curve) if until is None else min(until, len(curve))
-    models = PartnerModels(behaviour, meta["regime"], meta["seed"], kind=meta["model"], initial_rules=ga_cfg.initial_rules, initial=ga_cfg.initial)
-    ga = GA(behaviour, world=world, ga=ga_cfg, seed=meta["seed"])
+    models = PartnerModels(task, behaviour, meta["regime"], meta["seed"], kind=meta["model"], ga=ga_cfg)
+    ga = GA(task, behaviour, world=world, ga=ga_cfg, seed=meta["seed"])
     by_gen: dict[int, list[dict]] = {}
     for a in adoptions:
         by_gen.setdefault(int(a["generation"]), []).append(a)
@@ -68,12 +69,12 @@ def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, unt
                 rules = store[key]
             else:
                 raise RunDirError(f"{wdir.name}: adopted {key} is neither in the log nor in the store; the run directory is incomplete")
-            models.adopt(Behaviour(a["partner"]), int(a["version"]), rules)
+            models.adopt(a["partner"], int(a["version"]), rules)
         rep = ga.generation(models.partners()).as_dict()
-        for k in _COMPARED:
-            if rep[k] != curve[g][k]:
-                return WorkerReplay(behaviour.value, n, False, g + 1, f"{k}: recorded {curve[g][k]!r}, replayed {rep[k]!r}")
-    return WorkerReplay(behaviour.value, n, True, None, "identical")
+        for k in sorted(set(rep) | set(curve[g])):
+            if k not in _UNCOMPARED and rep.get(k) != curve[g].get(k):
+                return WorkerReplay(behaviour, n, False, g + 1, f"{k}: recorded {curve[g].get(k)!r}, replayed {rep.get(k)!r}")
+    return WorkerReplay(behaviour, n, True, None, "identical")
 
 
 def replay(run_dir: Path) -> list[WorkerReplay]:

@@ -29,14 +29,13 @@ from typing import Any
 
 from coevo import keys
 from coevo.agents.pacing import DEFAULT_MAX_LEAD
-from coevo.behaviours import Behaviour
 from coevo.bus import make_config, open_session, sigterm_as_exit
 from coevo.config import GAConfig, WorldConfig
 from coevo.errors import RunDirError
 from coevo.messages import Control, PolicyUpdate, decode, encode
-from coevo.robot import measure_robot
 from coevo.rundir import read_jsonl, write_csv, write_json
 from coevo.status import StatusBoard
+from coevo.tasks import get_task
 
 __all__ = ["free_port", "wait_until", "end_processes", "LocalRun", "run_local", "fetch_latest", "read_run_json"]
 
@@ -69,8 +68,8 @@ def _settings_args(world: WorldConfig, ga: GAConfig) -> list[str]:
     return out
 
 
-def fetch_latest(session: Any, run: str, timeout: float = 5.0) -> dict[Behaviour, PolicyUpdate]:
-    out: dict[Behaviour, PolicyUpdate] = {}
+def fetch_latest(session: Any, run: str, timeout: float = 5.0) -> dict[str, PolicyUpdate]:
+    out: dict[str, PolicyUpdate] = {}
     for reply in session.get(keys.store_latest(run), timeout=timeout):
         if reply.ok is None:
             continue
@@ -110,7 +109,8 @@ class LocalRun:
         self.log_level = log_level
         self.worker_env = worker_env or {}
         self.broker: subprocess.Popen[bytes] | None = None
-        self.workers: dict[Behaviour, subprocess.Popen[bytes]] = {}
+        self.task = get_task("fuel")
+        self.workers: dict[str, subprocess.Popen[bytes]] = {}
         self._all: list[subprocess.Popen[bytes]] = []
         self.starts: dict[str, int] = {}  # process name -> times started
 
@@ -141,23 +141,23 @@ class LocalRun:
         self.broker = self._spawn("broker", ["broker", "--listen", self.endpoint, "--data-dir", str(self.root)])
         return self.broker
 
-    def worker_dir(self, b: Behaviour) -> Path:
-        return self.dir / "workers" / b.value
+    def worker_dir(self, b: str) -> Path:
+        return self.dir / "workers" / b
 
-    def start_worker(self, b: Behaviour, *, resume: bool, env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
-        i = list(Behaviour).index(b)
-        args = ["worker", "--behaviour", b.value, "--regime", self.regime, "--run", self.run, "--connect", self.endpoint,
+    def start_worker(self, b: str, *, resume: bool, env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
+        i = self.task.behaviours.index(b)
+        args = ["worker", "--behaviour", b, "--regime", self.regime, "--run", self.run, "--connect", self.endpoint,
                 "--connect-timeout", "-1", "--seed", str(self.seed + i), "--model", self.model,
                 "--out", str(self.worker_dir(b)), "--max-lead", "off" if self.max_lead is None else str(self.max_lead),
                 *_settings_args(self.world, self.ga)]
         if resume:
             args.append("--resume")
-        self.workers[b] = self._spawn(f"worker-{b.value}", args, {**self.worker_env, **(env or {})})
+        self.workers[b] = self._spawn(f"worker-{b}", args, {**self.worker_env, **(env or {})})
         return self.workers[b]
 
     def start(self, *, resume: bool) -> None:
         self.start_broker()
-        for b in Behaviour:
+        for b in self.task.behaviours:
             self.start_worker(b, resume=resume)
 
     def workers_running(self) -> bool:
@@ -173,19 +173,18 @@ class LocalRun:
     def client_config(self) -> Any:
         return make_config(mode="client", connect=[self.endpoint], connect_timeout=30)
 
-    def finish(self, latest: dict[Behaviour, PolicyUpdate], *, seconds: float, interrupted: bool,
+    def finish(self, latest: dict[str, PolicyUpdate], *, seconds: float, interrupted: bool,
                measure_epochs: int, extra: dict[str, Any] | None = None) -> dict[str, Any]:
         """Measure the combined robot and write ``measures.json``, ``curves.csv`` and ``summary.json``."""
         summary: dict[str, Any] = {"run": self.run, "regime": self.regime, "seconds": seconds, "interrupted": interrupted,
-                                   "versions": {b.value: m.version for b, m in latest.items()},
-                                   "best_fitness": {b.value: m.fitness for b, m in latest.items()}, **(extra or {})}
-        if len(latest) == 3:
-            m = measure_robot(self.world, executive=latest[Behaviour.EXECUTIVE].ruleset(),
-                              tracking=latest[Behaviour.TRACKING].ruleset(), docking=latest[Behaviour.DOCKING].ruleset(),
-                              epochs=measure_epochs, seed=self.seed + 99)
-            summary["measures"] = m.as_dict()
-            write_json(self.dir / "measures.json", m.as_dict())
-        rows = [{"behaviour": b.value, **row} for b in Behaviour
+                                   "versions": {b: m.version for b, m in latest.items()},
+                                   "best_fitness": {b: m.fitness for b, m in latest.items()}, **(extra or {})}
+        m = self.task.run_measures({b: u.ruleset() for b, u in latest.items()}, world=self.world, epochs=measure_epochs,
+                                   seed=self.seed + 99)
+        if m is not None:
+            summary["measures"] = m
+            write_json(self.dir / "measures.json", m)
+        rows = [{"behaviour": b, **row} for b in self.task.behaviours
                 for row in read_jsonl(self.worker_dir(b) / "curve.jsonl", missing_ok=True)]
         write_csv(self.dir / "curves.csv", rows)
         write_json(self.dir / "summary.json", summary)
@@ -239,7 +238,7 @@ def run_local(
                 on_status(board)
             board.close()
             latest = fetch_latest(s, run)
-        failed = {b.value: p.returncode for b, p in lr.workers.items() if p.returncode not in (0, None)}
+        failed = {b: p.returncode for b, p in lr.workers.items() if p.returncode not in (0, None)}
         if failed and not interrupted:
             raise RunDirError(f"workers failed {failed}; see {lr.dir / 'logs'} (continue with --resume {lr.dir})")
     finally:

@@ -118,7 +118,7 @@ class StatusBoard:
             self.rejected += 1
 
     def _take(self, msg: Status) -> None:
-        v = self._view(msg.behaviour.value, msg.worker)
+        v = self._view(msg.behaviour, msg.worker)
         if msg.generation < v.generation and not v.died_at:
             return  # an older heartbeat overtaken by a newer one
         v.regime, v.generation, v.generations = msg.regime, msg.generation, msg.generations

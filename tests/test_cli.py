@@ -27,7 +27,7 @@ def test_learn_writes_a_complete_run_directory(tmp_path: Path) -> None:
     assert [c["generation"] for c in curve] == [1, 2]
     assert len((out / "curve.csv").read_text().strip().splitlines()) == 3
     best = parse_ruleset((out / "best.rules").read_text())
-    assert best.behaviour.value == "docking"
+    assert best.behaviour == "docking"
     m = json.loads((out / "measures.json").read_text())
     assert "docking_from_random_starts" in m and 0 <= m["quality_tracking"] <= 100
 

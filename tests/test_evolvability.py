@@ -20,7 +20,10 @@ from coevo.evolvability.bitga import GENOME_BITS, RunParams, breed, decode, gene
 from coevo.evolvability.experiment import GridSpec
 from coevo.evolvability.landscape import CLASSES, DynamicLandscape, LandscapeSpec
 from coevo.evolvability.report import shift_windows
-from coevo.ga import GA, Partners
+from coevo.ga import GA
+from coevo.tasks import get_task
+
+FUEL = get_task("fuel")
 from coevo.ga.mutation import FixedHypermutation, GeneticHypermutation, GeneticRate, control_rate, model_from_config
 
 P_MIN = 1e-3  # seeded tests: a correct model fails this only by a 1-in-1000 draw, and the seed fixes the draw
@@ -119,9 +122,9 @@ def test_rule_set_control_gene_mutation_and_hypermutation_statistics() -> None:
 def test_ga_carries_one_control_gene_per_individual(name: str) -> None:
     cfg = GAConfig(population=8, episodes=4, best_episodes=4, lane_episodes=2, initial_rules=4, max_rules=8,
                    mutation_model=name, hypermutation_rate=0.5, min_hypermutation_rate=0.5)
-    ga = GA("tracking", world=WorldConfig(), ga=cfg, seed=2)
+    ga = GA(FUEL, "tracking", world=WorldConfig(), ga=cfg, seed=2)
     assert type(ga.mutation) is type(model_from_config(cfg))
-    ga.generation(Partners())
+    ga.generation({})
     assert ga.genes.shape == (8,) and ga.genes.dtype == np.uint8 and ga.genes.max() < 8
     if name == "fh":
         assert not ga.genes.any()

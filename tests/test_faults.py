@@ -29,12 +29,15 @@ from coevo import keys
 from coevo.agents.checkpoint import CHECKPOINT, load_checkpoint, save_checkpoint
 from coevo.agents.models import PartnerModels
 from coevo.agents.worker import FAULT_HANG_ENV
-from coevo.behaviours import Behaviour
+from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.bus import make_config, open_session
 from coevo.check import check_run
 from coevo.config import GAConfig, WorldConfig
 from coevo.errors import RunDirError
 from coevo.ga import GA
+from coevo.tasks import get_task
+
+FUEL = get_task("fuel")
 from coevo.messages import MAX_BYTES, PolicyUpdate, Status, encode
 from coevo.policy import random_ruleset
 from coevo.run import LocalRun
@@ -63,18 +66,18 @@ def _local_run(tmp_path: Path, run: str, ga: GAConfig = MID, seed: int = 3) -> L
 def test_a_ga_restored_from_its_checkpoint_goes_on_exactly_as_the_original(tmp_path: Path) -> None:
     cfg = GAConfig(generations=4, population=6, episodes=10, best_episodes=10, initial_rules=8, mutation_model="gh")
     world = WorldConfig()
-    partners = PartnerModels(T, "mutual", 5, kind="recent", initial_rules=8)
-    straight = GA(T, world=world, ga=cfg, seed=11)
+    partners = PartnerModels(FUEL, T, "mutual", 5, kind="recent", ga=GAConfig(initial_rules=8))
+    straight = GA(FUEL, T, world=world, ga=cfg, seed=11)
     reports = [straight.generation(partners.partners()).as_dict() for _ in range(4)]
 
-    first = GA(T, world=world, ga=cfg, seed=11)
-    models = PartnerModels(T, "mutual", 5, kind="recent", initial_rules=8)
+    first = GA(FUEL, T, world=world, ga=cfg, seed=11)
+    models = PartnerModels(FUEL, T, "mutual", 5, kind="recent", ga=GAConfig(initial_rules=8))
     again = [first.generation(models.partners()).as_dict() for _ in range(2)]
     ident = {"run": "r", "behaviour": "tracking", "worker": "t", "seed": 11}
     save_checkpoint(tmp_path / CHECKPOINT, ident, {"ga": first.state_dict(), "models": models.state_dict()})
     state = load_checkpoint(tmp_path / CHECKPOINT, ident)
-    second = GA(T, world=world, ga=cfg, seed=999)  # another seed: everything must come from the checkpoint
-    models2 = PartnerModels(T, "mutual", 5, kind="recent", initial_rules=8)
+    second = GA(FUEL, T, world=world, ga=cfg, seed=999)  # another seed: everything must come from the checkpoint
+    models2 = PartnerModels(FUEL, T, "mutual", 5, kind="recent", ga=GAConfig(initial_rules=8))
     second.load_state(state["ga"])
     models2.load_state(state["models"])
     again += [second.generation(models2.partners()).as_dict() for _ in range(2)]

@@ -7,7 +7,11 @@ import pytest
 
 from coevo.config import GAConfig, WorldConfig
 from coevo.errors import ConfigError
-from coevo.ga import GA, Evaluator, FixedRate, Partners
+from coevo.ga import GA, FixedRate
+from coevo.tasks import get_task
+from coevo.tasks.fuel.evaluate import FuelEvaluator as Evaluator
+
+FUEL = get_task("fuel")
 from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise
 from coevo.policy import RuleSet, parse_ruleset, random_ruleset
 from coevo.policy.rules import interval_width
@@ -140,8 +144,8 @@ def test_fixed_rate_mutation_changes_about_rate_of_rules(rng) -> None:
 
 def test_same_seed_same_learning_curve_bit_for_bit(small_ga: GAConfig) -> None:
     def run() -> list[tuple[float, float]]:
-        ga = GA("tracking", world=WorldConfig(), ga=small_ga, seed=7)
-        reps = [ga.generation(Partners()) for _ in range(2)]
+        ga = GA(FUEL, "tracking", world=WorldConfig(), ga=small_ga, seed=7)
+        reps = [ga.generation({}) for _ in range(2)]
         return [(r.best_fitness, r.population_mean) for r in reps] + [tuple(ga.best.strength.tolist())]
 
     assert run() == run()
@@ -150,47 +154,47 @@ def test_same_seed_same_learning_curve_bit_for_bit(small_ga: GAConfig) -> None:
 def test_same_seed_same_world_outcome(world_cfg, rng) -> None:
     pols = [random_ruleset("docking", 10, np.random.default_rng(i)) for i in range(3)]
     ev = Evaluator("docking", world_cfg, GAConfig(episodes=20))
-    a = ev.evaluate(pols, Partners(), np.random.default_rng(5))
-    b = ev.evaluate(pols, Partners(), np.random.default_rng(5))
+    a = ev.evaluate(pols, {}, np.random.default_rng(5))
+    b = ev.evaluate(pols, {}, np.random.default_rng(5))
     for field in ("steps", "tracked", "payoff", "docked", "collided"):
-        assert np.array_equal(getattr(a.outcome, field), getattr(b.outcome, field))
+        assert np.array_equal(getattr(a.details, field), getattr(b.details, field))
     assert np.array_equal(a.fitness, b.fitness)
 
 
 def test_executive_needs_both_partners(world_cfg, small_ga) -> None:
-    ga = GA("executive", world=world_cfg, ga=small_ga, seed=0)
+    ga = GA(FUEL, "executive", world=world_cfg, ga=small_ga, seed=0)
     with pytest.raises(ConfigError, match="Tracking and Docking"):
-        ga.generation(Partners())
+        ga.generation({})
 
 
 def test_executive_learns_against_fixed_partners(world_cfg, small_ga) -> None:
     t = parse_ruleset("IF ANY THEN SET turn = 0 AND speed = 0 (strength 0.5)", "tracking")
     d = parse_ruleset("IF ANY THEN SET turn = 8 AND speed = 4 (strength 0.5)", "docking")
-    ga = GA("executive", world=world_cfg, ga=small_ga, seed=0)
-    rep = ga.generation(Partners(tracking=t, docking=d))
+    ga = GA(FUEL, "executive", world=world_cfg, ga=small_ga, seed=0)
+    rep = ga.generation({"tracking": t, "docking": d})
     assert 0.0 <= rep.best_fitness <= 1.0 and ga.best is not None
 
 
 def test_mutual_tracking_is_starved_when_the_executive_never_picks_it(world_cfg, small_ga) -> None:
     never_track = parse_ruleset("IF ANY THEN SET task = dock (strength 0.5)", "executive")
     d = parse_ruleset("IF ANY THEN SET turn = 0 AND speed = 0 (strength 0.5)", "docking")
-    ga = GA("tracking", world=world_cfg, ga=small_ga, seed=0)
-    rep = ga.generation(Partners(executive=never_track, docking=d))
+    ga = GA(FUEL, "tracking", world=world_cfg, ga=small_ga, seed=0)
+    rep = ga.generation({"executive": never_track, "docking": d})
     assert rep.starved == small_ga.population and rep.best_fitness == 0.0
 
 
 def test_seed_policy_starts_the_population(world_cfg, small_ga) -> None:
     seed = parse_ruleset("IF ANY THEN SET turn = 0 AND speed = 4 (strength 0.5)", "tracking")
-    ga = GA("tracking", world=world_cfg, ga=small_ga, seed=0, seed_policy=seed)
+    ga = GA(FUEL, "tracking", world=world_cfg, ga=small_ga, seed=0, seed_policy=seed)
     assert ga.population[0] == seed
     with pytest.raises(ConfigError):
-        GA("docking", world=world_cfg, ga=small_ga, seed=0, seed_policy=seed)
+        GA(FUEL, "docking", world=world_cfg, ga=small_ga, seed=0, seed_policy=seed)
 
 
 def test_population_rule_counts_stay_capped(world_cfg) -> None:
     cfg = GAConfig(population=6, episodes=10, best_episodes=10, initial_rules=8, max_rules=10, specialise_rate=1, cover_rate=1, generalise_rate=1)
-    ga = GA("tracking", world=world_cfg, ga=cfg, seed=1)
+    ga = GA(FUEL, "tracking", world=world_cfg, ga=cfg, seed=1)
     for _ in range(3):
-        ga.generation(Partners())
+        ga.generation({})
         assert all(1 <= len(p) <= 10 for p in ga.population)
         assert all(isinstance(p, RuleSet) for p in ga.population)

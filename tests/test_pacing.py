@@ -11,7 +11,7 @@ import pytest
 
 from coevo import keys
 from coevo.agents.pacing import Pacer, parse_max_lead
-from coevo.behaviours import Behaviour
+from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.bus import make_config, open_session
 from coevo.errors import ConfigError
 from coevo.messages import Status, encode

@@ -14,16 +14,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from coevo.behaviours import Behaviour
+from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.cli import main
 from coevo.config import WorldConfig
-from coevo.policy.defaults import default_ruleset
+from coevo.tasks.fuel import default_ruleset
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.text import format_ruleset, parse_ruleset
 from coevo.show import play, robot_from_rules, scene_for
 from coevo.show.rules_view import fire_counts, rule_rows, trace_lines
 from coevo.show.tracking_fuel import episode_endings
-from coevo.sim import BatchWorld, Recorder, Rules, run_lanes
+from coevo.tasks.fuel.recorder import Recorder
+from coevo.tasks.fuel.runner import Rules, run_lanes
+from coevo.tasks.fuel.world import BatchWorld
 
 EXEC_RULES = "# behaviour: executive\nIF fuel = [0, 20] THEN SET task = dock (strength 0.9)\nIF ANY THEN SET task = track (strength 0.5)\n"
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -112,7 +114,7 @@ def test_scene_and_rule_counts_agree_with_the_outcome() -> None:
     steps = {b: int(out.steps[0][out.task[0] == t].sum()) for b, t in ((Behaviour.TRACKING, 0), (Behaviour.DOCKING, 1))}
     for b, rs in robot.rulesets().items():
         counts = fire_counts(p, b, len(rs))
-        assert counts.sum() == (p.episodes if b is Behaviour.EXECUTIVE else steps[b])
+        assert counts.sum() == (p.episodes if b == Behaviour.EXECUTIVE else steps[b])
         rows = rule_rows(rs, counts)
         assert [r.strength for r in rows] == sorted((r.strength for r in rows), reverse=True)
     assert len(trace_lines(p)) == p.episodes

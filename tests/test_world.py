@@ -5,12 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from coevo.behaviours import Behaviour, schema
+from coevo.tasks.fuel.behaviours import Behaviour
+from coevo.policy.schema import schema
 from coevo.config import WorldConfig
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.text import parse_ruleset
-from coevo.sim import ALWAYS_DOCK, ALWAYS_TRACK, BatchWorld, Rules, run_lanes
-from coevo.sim.world import DOCK_HEADING
+from coevo.tasks.fuel.runner import ALWAYS_DOCK, ALWAYS_TRACK, Rules, run_lanes
+from coevo.tasks.fuel.world import BatchWorld
+from coevo.tasks.fuel.world import DOCK_HEADING
 
 STILL = np.zeros(1)
 QUIET = WorldConfig(target_speed=0.0, target_turn_sd=0.0)

@@ -1,4 +1,4 @@
-"""Feeding an Executive the recorded history of Tracking and Docking at a chosen rate.
+"""Feeding a learner its partners' recorded history at a chosen rate (an Executive, Tracking's and Docking's).
 
 The report's Independent regime lets Tracking and Docking learn first, then
 replays their best-so-far history to the Executive "at various rates of
@@ -16,7 +16,6 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
-from coevo.behaviours import Behaviour
 from coevo.errors import ConfigError, RunDirError
 from coevo.messages import PolicyUpdate
 
@@ -24,23 +23,23 @@ __all__ = ["HistoryFeed"]
 
 
 class HistoryFeed:
-    def __init__(self, run_dir: Path, rate: float) -> None:
+    def __init__(self, run_dir: Path, rate: float, *, partners: tuple[str, ...]) -> None:
         if not (rate > 0 and math.isfinite(rate)):
             raise ConfigError(f"rate of asynchrony must be positive and finite, got {rate!r}")
         self.rate = rate
-        self.updates: dict[Behaviour, list[PolicyUpdate]] = {}
-        _check_finished(Path(run_dir))
-        for b in (Behaviour.TRACKING, Behaviour.DOCKING):
-            f = Path(run_dir) / "store" / f"{b.value}.jsonl"
+        self.updates: dict[str, list[PolicyUpdate]] = {}
+        _check_finished(Path(run_dir), partners)
+        for b in partners:
+            f = Path(run_dir) / "store" / f"{b}.jsonl"
             if not f.exists():
-                raise RunDirError(f"{f} is missing: --history needs a run directory with stored {b.value} policies")
+                raise RunDirError(f"{f} is missing: --history needs a run directory with stored {b} policies")
             try:
                 rows = [PolicyUpdate.model_validate(json.loads(x)) for x in f.read_text().splitlines() if x.strip()]
             except (ValueError, ValidationError) as exc:  # JSONDecodeError is a ValueError
-                raise RunDirError(f"{f} holds a line that is not a stored {b.value} policy: "
+                raise RunDirError(f"{f} holds a line that is not a stored {b} policy: "
                                   f"{str(exc).splitlines()[0]}") from exc
-            if any(m.behaviour is not b for m in rows):
-                raise RunDirError(f"{f} holds policies of another behaviour than {b.value}")
+            if any(m.behaviour != b for m in rows):
+                raise RunDirError(f"{f} holds policies of another behaviour than {b}")
             if not rows:
                 raise RunDirError(f"{f} holds no policies")
             self.updates[b] = sorted(rows, key=lambda m: (m.generation, m.version))
@@ -61,18 +60,18 @@ class HistoryFeed:
         return out
 
 
-def _check_finished(run_dir: Path) -> None:
-    """A history must be a whole run: its run.json, and Tracking and Docking done with every generation."""
+def _check_finished(run_dir: Path, partners: tuple[str, ...]) -> None:
+    """A history must be a whole run: its run.json, and every partner done with every generation."""
     if not (run_dir / "run.json").is_file():
         raise RunDirError(f"{str(run_dir)!r} is not a run directory (no run.json): --history needs a finished "
                           "coevo run directory")
-    for b in (Behaviour.TRACKING, Behaviour.DOCKING):
-        f = run_dir / "workers" / b.value / "done.json"
+    for b in partners:
+        f = run_dir / "workers" / b / "done.json"
         try:
             done = json.loads(f.read_text())
         except (OSError, json.JSONDecodeError):
             done = None
         if not isinstance(done, dict) or not done.get("finished"):
             got = f"{done.get('generations')} generations" if isinstance(done, dict) else "no done.json"
-            raise RunDirError(f"{str(run_dir)!r} is incomplete: its {b.value} worker did not finish ({got}); "
+            raise RunDirError(f"{str(run_dir)!r} is incomplete: its {b} worker did not finish ({got}); "
                               f"continue it with coevo run --resume {run_dir}")

@@ -33,7 +33,6 @@ from collections.abc import Callable, Iterable
 from typing import Any
 
 from coevo import keys
-from coevo.behaviours import Behaviour
 from coevo.bus import drain_messages, is_put, ring_subscriber
 from coevo.errors import ConfigError
 from coevo.messages import Status
@@ -61,7 +60,7 @@ def parse_max_lead(value: str | int | None) -> int | None:
 class Pacer:
     """Follows the partners' heartbeats and liveliness and holds a worker back when it is too far ahead."""
 
-    def __init__(self, session: Any, run: str, partners: Iterable[Behaviour], *, max_lead: int | None,
+    def __init__(self, session: Any, run: str, partners: Iterable[str], *, max_lead: int | None,
                  wait_limit: float = 120.0, grace: float = 10.0) -> None:
         self.run = run
         self.partners = tuple(partners)
@@ -70,12 +69,12 @@ class Pacer:
         self.grace = grace
         self.waited = 0.0
         self._t0 = time.monotonic()
-        self._seen: set[Behaviour] = set()
-        self._progress: dict[Behaviour, int] = {b: 0 for b in self.partners}
-        self._finished: set[Behaviour] = set()
-        self._absent: set[Behaviour] = set()  # stopped reporting (wait_limit passed): back with a heartbeat
-        self._gone: set[Behaviour] = set()  # its token went (dead, or cut off): back only with a token
-        self._live: dict[Behaviour, set[str]] = {b: set() for b in self.partners}
+        self._seen: set[str] = set()
+        self._progress: dict[str, int] = {b: 0 for b in self.partners}
+        self._finished: set[str] = set()
+        self._absent: set[str] = set()  # stopped reporting (wait_limit passed): back with a heartbeat
+        self._gone: set[str] = set()  # its token went (dead, or cut off): back only with a token
+        self._live: dict[str, set[str]] = {b: set() for b in self.partners}
         self._lock = threading.Lock()
         on = max_lead is not None and bool(self.partners)
         self._subs = [ring_subscriber(session, keys.status(run, b), 64) for b in self.partners] if on else []
@@ -83,10 +82,7 @@ class Pacer:
 
     def _on_token(self, sample: Any) -> None:
         parts = keys.parse(str(sample.key_expr))
-        try:
-            beh = Behaviour(parts.get("behaviour", ""))
-        except ValueError:
-            return
+        beh = parts.get("behaviour", "")
         if beh not in self._live:
             return
         with self._lock:
@@ -113,7 +109,7 @@ class Pacer:
                     self._absent.discard(msg.behaviour)
                     self._seen.add(msg.behaviour)
 
-    def _behind(self, need: int) -> list[Behaviour]:
+    def _behind(self, need: int) -> list[str]:
         late = time.monotonic() - self._t0 > self.grace
         with self._lock:
             return [b for b in self.partners
@@ -141,7 +137,7 @@ class Pacer:
             if now >= end:
                 log.warning("pacing: partners %s still behind generation %d after %.0f s; going on "
                             "without waiting for them until they report again",
-                            [b.value for b in behind], need, self.wait_limit)
+                            [b for b in behind], need, self.wait_limit)
                 with self._lock:
                     self._absent.update(behind)
                 break

@@ -48,17 +48,18 @@ from coevo.agents.checkpoint import (
 )
 from coevo.agents.models import PartnerModels
 from coevo.agents.pacing import DEFAULT_MAX_LEAD, Pacer
-from coevo.behaviours import Behaviour
 from coevo.bus import drain, drain_messages, is_put, open_session, ring_subscriber
-from coevo.config import GAConfig, WorldConfig
+from pydantic import BaseModel
+
+from coevo.config import GAConfig
 from coevo.errors import ConfigError, MessageError, RunDirError
 from coevo.ga import GA, GenerationReport
-from coevo.ga.engine import own_measures
 from coevo.messages import Control, PolicyUpdate, Status, decode, encode
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
 from coevo.rejections import Rejections
 from coevo.rundir import read_jsonl, write_json, write_text
+from coevo.tasks import Task
 
 __all__ = ["Worker", "INBOX", "FAULT_HANG_ENV"]
 
@@ -75,12 +76,13 @@ class Worker:
     def __init__(
         self,
         *,
-        behaviour: Behaviour | str,
+        task: Task,
+        behaviour: str,
         regime: str,
         run: str,
         worker_id: str,
         seed: int,
-        world: WorldConfig,
+        world: BaseModel,
         ga: GAConfig,
         out_dir: Path,
         conf: Any,
@@ -93,7 +95,8 @@ class Worker:
         max_lead: int | None = DEFAULT_MAX_LEAD,
         resume: bool = False,
     ) -> None:
-        self.behaviour = Behaviour(behaviour)
+        self.task = task
+        self.behaviour = task.check_behaviour(behaviour)
         self.regime = regime
         self.run_id = keys.check_id("run id", run)
         self.worker_id = keys.check_id("worker id", worker_id)
@@ -102,7 +105,7 @@ class Worker:
         self.ga_cfg = ga
         self.out = Path(out_dir)
         self.conf = conf
-        self.models = PartnerModels(self.behaviour, regime, seed, kind=model, initial_rules=ga.initial_rules, initial=ga.initial)
+        self.models = PartnerModels(task, self.behaviour, task.check_regime(regime), seed, kind=model, ga=ga)
         self.store_timeout = store_timeout
         self.broker_wait = broker_wait
         self.final_sync = final_sync
@@ -125,7 +128,7 @@ class Worker:
         self._refetch = True  # ask the store for the partners' latest before the next generation
         self._completed = 0
         self._best = 0.0
-        self._measures: dict[str, float] = {}  # own_measures of the latest generation, for the heartbeat
+        self._measures: dict[str, float] = {}  # the task's status_measures of the latest generation, for the heartbeat
         self._last_beat = 0.0
         self._io: dict[str, Any] = {}  # session objects while running
 
@@ -135,13 +138,13 @@ class Worker:
     # ------------------------------------------------------------ the worker directory
     def _meta(self) -> dict[str, Any]:
         return {
-            "coevo": __version__, "behaviour": self.behaviour.value, "regime": self.regime, "run": self.run_id,
+            "coevo": __version__, "task": self.task.name, "behaviour": self.behaviour, "regime": self.regime, "run": self.run_id,
             "worker": self.worker_id, "seed": self.seed, "model": self.models.kind, "max_lead": self.max_lead,
             "world": self.world.model_dump(mode="json"), "ga": self.ga_cfg.model_dump(mode="json"),
         }
 
     def _ident(self) -> dict[str, Any]:
-        return {"run": self.run_id, "behaviour": self.behaviour.value, "worker": self.worker_id, "seed": self.seed}
+        return {"run": self.run_id, "behaviour": self.behaviour, "worker": self.worker_id, "seed": self.seed}
 
     def _prepare(self) -> dict[str, Any] | None:
         """Create the directory, or check it and cut its logs back to the checkpoint (``resume``)."""
@@ -213,7 +216,7 @@ class Worker:
                 self._reject(MessageError("flood", f"over {INBOX} messages on {got[0][0]!r} within one generation"), got[0][0])
                 self._refetch = True
             items += got
-        newest: dict[Behaviour, tuple[PolicyUpdate, RuleSet]] = {}
+        newest: dict[str, tuple[PolicyUpdate, RuleSet]] = {}
         for key, payload in items:
             if self._accepted.get(key) == payload:
                 continue  # the partner's every-generation repeat of what this worker already checked and holds
@@ -232,7 +235,7 @@ class Worker:
         for beh, (msg, rules) in newest.items():
             if self.models.adopt(beh, msg.version, rules):
                 entry = {
-                    "generation": generation, "partner": beh.value, "version": msg.version,
+                    "generation": generation, "partner": beh, "version": msg.version,
                     "from_worker": msg.worker, "fitness": msg.fitness, "received_at": time.time(),
                     "rules": msg.rules,  # so a replay needs nothing but this log
                 }
@@ -257,7 +260,7 @@ class Worker:
     # ------------------------------------------------------------ main loop
     def run(self) -> list[GenerationReport]:
         state = self._prepare()
-        ga = GA(self.behaviour, world=self.world, ga=self.ga_cfg, seed=self.seed)
+        ga = GA(self.task, self.behaviour, world=self.world, ga=self.ga_cfg, seed=self.seed)
         self._restore(ga, state)
         curve: list[GenerationReport] = []
         with open_session(self.conf, what=f"{self.behaviour} worker session") as s, \
@@ -276,7 +279,6 @@ class Worker:
             pacer = Pacer(s, self.run_id, self.models.needed, max_lead=self.max_lead)
             if state is not None:
                 pacer.waited = float(state["worker"]["pace_seconds"])
-            ga.evaluator.tick = self._tick
             hang_after = _fault_hang_after()
             try:
                 self._wait_for_broker()
@@ -291,7 +293,7 @@ class Worker:
                         self._fetch_from_store(s)
                     self._adopt(g, adopt_log)
                     self.net_seconds += time.perf_counter() - t_net
-                    rep = ga.generation(self.models.partners())
+                    rep = ga.generation(self.models.partners(), tick=self._tick)
                     curve.append(rep)
                     curve_log.write(json.dumps(rep.as_dict()) + "\n")
                     curve_log.flush()
@@ -307,7 +309,7 @@ class Worker:
                         self._published[msg.version] = encode(msg)
                         write_text(self.out / "best.rules", format_ruleset(ga.best))
                     self._completed, self._best = rep.generation, rep.best_so_far
-                    self._measures = own_measures(self.behaviour, rep)
+                    self._measures = self.task.status_measures(self.behaviour, rep.measures)
                     # Checkpoint before anything leaves: what was published is always in a checkpoint,
                     # so a resumed worker never publishes a different policy under a version number.
                     self._checkpoint(ga, pacer.waited)
@@ -331,7 +333,6 @@ class Worker:
                     self._final_sync(s)
                 self._heartbeat(done=finished)
             finally:
-                ga.evaluator.tick = None
                 pacer.close()
                 token.undeclare()
                 broker_watch.undeclare()
@@ -355,7 +356,7 @@ class Worker:
             run=self.run_id, behaviour=self.behaviour, worker=self.worker_id, regime=self.regime,
             generation=self._completed, generations=self.ga_cfg.generations,
             best_fitness=self._best if self._best > -1e300 else 0.0,
-            partner_versions={b.value: v for b, v in self.models.versions.items()},
+            partner_versions=dict(self.models.versions),
             rejected=self.rejected.as_dict(), buffered=len(set(self._published) - self._stored), done=done,
             measures=self._measures, sent_at=time.time(),
         )

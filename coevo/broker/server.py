@@ -139,7 +139,7 @@ class Broker:
         for run, beh in self.store.matching(parts.get("run", "*"), parts.get("behaviour", "*")):
             if topic == "store/versions":
                 query.reply(keys.store_versions(run, beh), msgpack.packb(
-                    {"run": run, "behaviour": beh.value, "workers": self.store.versions(run, beh)}))
+                    {"run": run, "behaviour": beh, "workers": self.store.versions(run, beh)}))
                 continue
             latest = topic == "store/latest"
             key = PolicyStore.key_of(run, beh, latest)

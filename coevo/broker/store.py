@@ -19,7 +19,6 @@ from collections import Counter
 from pathlib import Path
 
 from coevo import keys
-from coevo.behaviours import Behaviour
 from coevo.errors import MessageError
 from coevo.messages import PolicyUpdate
 from coevo.rejections import Rejections
@@ -33,15 +32,15 @@ class PolicyStore:
     def __init__(self, data_dir: Path) -> None:
         self.data_dir = Path(data_dir)
         self._lock = threading.Lock()
-        self._history: dict[tuple[str, Behaviour], list[PolicyUpdate]] = {}
+        self._history: dict[tuple[str, str], list[PolicyUpdate]] = {}
         self._seen: set[tuple[str, str, str, int]] = set()
         self._rejected: dict[str, Rejections] = {}  # per run (the key's run chunk)
         self._dropped: Counter[str] = Counter()  # per run: dropped unread (flood)
         self._active: set[str] = set()  # runs heard of since this broker started
         self._load()
 
-    def _file(self, run: str, behaviour: Behaviour) -> Path:
-        return self.data_dir / run / "store" / f"{behaviour.value}.jsonl"
+    def _file(self, run: str, behaviour: str) -> Path:
+        return self.data_dir / run / "store" / f"{behaviour}.jsonl"
 
     def _load(self) -> None:
         if not self.data_dir.exists():
@@ -61,7 +60,7 @@ class PolicyStore:
             log.info("store reloaded %d policies from %s", len(self._seen), self.data_dir)
 
     def _remember(self, msg: PolicyUpdate) -> bool:
-        ident = (msg.run, msg.behaviour.value, msg.worker, msg.version)
+        ident = (msg.run, msg.behaviour, msg.worker, msg.version)
         if ident in self._seen:
             return False
         self._seen.add(ident)
@@ -108,37 +107,37 @@ class PolicyStore:
         """For each run heard of since start: (policies stored per behaviour, rejections by reason, dropped)."""
         with self._lock:
             runs = sorted(r for r in self._active if keys.valid_id(r))
-            stored = {r: {b.value: len(h) for (rr, b), h in self._history.items() if rr == r} for r in runs}
+            stored = {r: {b: len(h) for (rr, b), h in self._history.items() if rr == r} for r in runs}
             dropped = {r: self._dropped[r] for r in runs}
         return {r: (stored[r], self.rejected(r), dropped[r]) for r in runs}
 
-    def versions(self, run: str, behaviour: Behaviour) -> dict[str, list[int]]:
+    def versions(self, run: str, behaviour: str) -> dict[str, list[int]]:
         """The versions held of each worker's policies for (run, behaviour)."""
         out: dict[str, list[int]] = {}
         for m in self.history(run, behaviour):
             out.setdefault(m.worker, []).append(m.version)
         return {w: sorted(v) for w, v in out.items()}
 
-    def latest(self, run: str, behaviour: Behaviour) -> PolicyUpdate | None:
+    def latest(self, run: str, behaviour: str) -> PolicyUpdate | None:
         with self._lock:
             h = self._history.get((run, behaviour))
             return h[-1] if h else None
 
-    def history(self, run: str, behaviour: Behaviour) -> list[PolicyUpdate]:
+    def history(self, run: str, behaviour: str) -> list[PolicyUpdate]:
         with self._lock:
             return list(self._history.get((run, behaviour), []))
 
-    def matching(self, run_pattern: str, behaviour_pattern: str) -> list[tuple[str, Behaviour]]:
+    def matching(self, run_pattern: str, behaviour_pattern: str) -> list[tuple[str, str]]:
         """(run, behaviour) pairs a query's chunks select (``*`` or a literal)."""
         with self._lock:
             pairs = list(self._history)
         return [
             (r, b) for r, b in pairs
-            if run_pattern in ("*", "**", r) and behaviour_pattern in ("*", "**", b.value)
+            if run_pattern in ("*", "**", r) and behaviour_pattern in ("*", "**", b)
         ]
 
     @staticmethod
-    def key_of(run: str, behaviour: Behaviour, latest: bool) -> str:
+    def key_of(run: str, behaviour: str, latest: bool) -> str:
         return keys.store_latest(run, behaviour) if latest else keys.store_history(run, behaviour)
 
 

@@ -42,9 +42,12 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from coevo.agents.models import MODELS, REGIMES
+from coevo.agents.models import MODELS
+from coevo.tasks.fuel import FuelTask
+
+REGIMES = FuelTask.regimes
 from coevo.agents.pacing import DEFAULT_MAX_LEAD
-from coevo.behaviours import Behaviour
+from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.config import GAConfig, WorldConfig
 from coevo.errors import ConfigError, RunDirError
 from coevo.rundir import write_json

@@ -21,14 +21,14 @@ import statistics
 from pathlib import Path
 from typing import Any
 
-from coevo.behaviours import Behaviour
+from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.compare import plots
 from coevo.compare.experiment import OFFLINE, CompareSpec, Replicate, groups, is_finished, replicates, run_dir
 from coevo.compare.stats import GroupComparison, RankComparison, compare_groups, compare_samples
 from coevo.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
 from coevo.errors import CoevoError, RuleSetError, RunDirError
 from coevo.policy.text import parse_ruleset
-from coevo.robot import docking_from_random_starts
+from coevo.tasks.fuel.robot import docking_from_random_starts
 from coevo.rundir import read_jsonl, write_csv, write_json, write_text
 
 __all__ = ["collect", "write_report", "MEASURES"]

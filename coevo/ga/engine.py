@@ -6,8 +6,11 @@ partner models; rule strengths are updated from the payoffs (Lamarckian: offspri
 inherit them); the generation's best is re-evaluated on ``best_episodes`` episodes
 for the learning curve; the best so far is kept; the next population is bred.
 
-The partner models are an argument of every generation, so an asynchronous worker
-can swap in new partner policies between generations without the GA knowing.
+The GA names no task: its task (:class:`~coevo.tasks.base.Task`) gives it the
+behaviour's initial rules and an evaluator.  The partner models are an argument of
+every generation, so an asynchronous worker can swap in new partner policies
+between generations without the GA knowing; so is the tick a worker's heartbeat
+hangs on.
 
 The mutation model (``GAConfig.mutation_model``, see :mod:`coevo.ga.mutation`) may
 give every individual a 3-bit control gene: ``GA.genes[i]`` (uint8, 0..7) belongs to
@@ -19,21 +22,23 @@ from __future__ import annotations
 import json
 import time
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from coevo.behaviours import Behaviour
-from coevo.config import GAConfig, WorldConfig
+from pydantic import BaseModel
+
+from coevo.config import GAConfig
 from coevo.errors import ConfigError
-from coevo.ga.evaluate import Evaluation, Evaluator, Partners
 from coevo.ga.mutation import CONTROL_LEVELS, MutationModel, model_from_config
 from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise, trim
-from coevo.policy.defaults import default_ruleset
 from coevo.policy.rules import RuleSet, random_ruleset
 from coevo.policy.strength import update_strengths
 
-__all__ = ["GA", "GenerationReport", "own_measures"]
+if TYPE_CHECKING:  # the tasks implement the interface on top of the GA's operators
+    from coevo.tasks.base import Evaluation, Partners, Task, Tick
+
+__all__ = ["GA", "GenerationReport"]
 
 
 @dataclass(frozen=True)
@@ -47,32 +52,14 @@ class GenerationReport:
     best_so_far: float  # the best re-evaluated fitness so far
     improved: bool  # the best so far changed this generation
     starved: int  # individuals that controlled no episode at all
-    quality_tracking: float
-    successful_docking: float
-    dock_choice: float
-    docking_success_rate: float
-    average_epoch_length: float
-    docking_from_random: float | None  # Docking only (else None): % of fresh random starts the generation's best docks from
+    measures: dict[str, float | None]  # the task's measures of the generation's best (its re-evaluation)
     seconds: float
 
     def as_dict(self) -> dict[str, float | int | bool | None]:
-        return asdict(self)
-
-
-def own_measures(behaviour: Behaviour | str, report: GenerationReport) -> dict[str, float]:
-    """The measures that say how a behaviour is doing, in %, for status displays.
-
-    Docking's fitness alone misleads (SPEC §1, "Where Docking learns"), so Docking shows
-    the share of fresh random starts it docks from; the Executive how often it picks
-    Docking and how often that docks; Tracking its Quality Tracking.
-    """
-    r = report
-    behaviour = Behaviour(behaviour)
-    if behaviour is Behaviour.TRACKING:
-        return {"quality_tracking": r.quality_tracking}
-    if behaviour is Behaviour.DOCKING:
-        return {} if r.docking_from_random is None else {"docking_from_random": r.docking_from_random}
-    return {"dock_choice": r.dock_choice, "docking_success_rate": r.docking_success_rate}
+        """One row of the learning curve: the GA's columns, the task's measures, the time."""
+        d = asdict(self)
+        return {**{k: v for k, v in d.items() if k not in ("measures", "seconds")}, **self.measures,
+                "seconds": self.seconds}
 
 
 class GA:
@@ -80,24 +67,26 @@ class GA:
 
     def __init__(
         self,
-        behaviour: Behaviour | str,
+        task: Task,
+        behaviour: str,
         *,
-        world: WorldConfig,
+        world: BaseModel,
         ga: GAConfig,
         seed: int,
         mutation: MutationModel | None = None,
         seed_policy: RuleSet | None = None,
     ) -> None:
-        self.behaviour = Behaviour(behaviour)
+        self.task = task
+        self.behaviour = task.check_behaviour(behaviour)
         self.world_cfg = world
         self.cfg = ga
         self.rng = np.random.default_rng(seed)
         self.mutation = mutation or model_from_config(ga)
-        self.evaluator = Evaluator(self.behaviour, world, ga)
+        self.evaluator = task.evaluator(self.behaviour, world, ga)
         if seed_policy is None and ga.initial == "default":
-            seed_policy = default_ruleset(self.behaviour)  # None for the Executive: it starts random
+            seed_policy = task.default_rules(self.behaviour)  # None where the behaviour starts random
         if seed_policy is not None:
-            if seed_policy.behaviour is not self.behaviour:
+            if seed_policy.behaviour != self.behaviour:
                 raise ConfigError(f"seed policy is a {seed_policy.behaviour} rule set, not {self.behaviour}")
             self.population = self._seeded(trim(seed_policy, ga.max_rules))
         else:
@@ -132,7 +121,7 @@ class GA:
     def load_state(self, state: dict[str, Any]) -> None:
         """Continue from :meth:`state_dict` of a GA with the same behaviour and settings."""
         population = [RuleSet.from_dict(d) for d in state["population"]]
-        if len(population) != self.cfg.population or any(p.behaviour is not self.behaviour for p in population):
+        if len(population) != self.cfg.population or any(p.behaviour != self.behaviour for p in population):
             raise ConfigError(f"checkpointed population ({len(population)} rule sets) does not fit a "
                               f"{self.behaviour} GA of population {self.cfg.population}")
         self.population = population
@@ -167,11 +156,12 @@ class GA:
     def _child_rng(self) -> np.random.Generator:
         return np.random.default_rng(int(self.rng.integers(2**63)))
 
-    def generation(self, partners: Partners) -> GenerationReport:
-        """Run one generation against ``partners`` and breed the next population."""
+    def generation(self, partners: Partners, *, tick: Tick | None = None) -> GenerationReport:
+        """Run one generation against ``partners`` and breed the next population; ``tick`` is
+        called between episode rounds of the population's evaluation (a worker's heartbeat)."""
         t0 = time.perf_counter()
         cfg = self.cfg
-        ev = self.evaluator.evaluate(self.population, partners, self._child_rng())
+        ev = self.evaluator.evaluate(self.population, partners, self._child_rng(), tick=tick)
         self.last = ev
         learned = [
             update_strengths(p, e.fired, e.payoff, cfg.strength_rate) for p, e in zip(self.population, ev.experience)
@@ -183,8 +173,7 @@ class GA:
         improved = best_fit > self.best_fitness
         if improved:
             self.best, self.best_fitness = learned[top], best_fit
-        m = check.measures(self.world_cfg.episode_steps)
-        from_random = self._docking_from_random(learned[top], partners, check)
+        measures = self.evaluator.measures(learned[top], partners, check, self._child_rng)
         self.generation_no += 1
         self.population, self.genes = self._breed(learned, ev.fitness, ev.experience)
         return GenerationReport(
@@ -195,28 +184,9 @@ class GA:
             best_so_far=float(self.best_fitness),
             improved=improved,
             starved=int((ev.episodes == 0).sum()),
-            quality_tracking=m.quality_tracking,
-            successful_docking=m.successful_docking,
-            dock_choice=m.dock_choice,
-            docking_success_rate=m.docking_success_rate,
-            average_epoch_length=m.average_epoch_length,
-            docking_from_random=from_random,
+            measures=measures,
             seconds=time.perf_counter() - t0,
         )
-
-    def _docking_from_random(self, best: RuleSet, partners: Partners, check: Evaluation) -> float | None:
-        """Docking's own measure (SPEC §1, "Where Docking learns"): % of fresh random starts it docks from.
-
-        Where the re-evaluation already played fresh starts (the trivial Executive) it is
-        that evaluation's docking rate; inside a learning Executive's epochs (Mutual) the
-        best is played once more, alone, on ``best_episodes`` fresh starts.
-        """
-        if self.behaviour is not Behaviour.DOCKING:
-            return None
-        if not self.evaluator.fresh_starts(partners):
-            check = self.evaluator.evaluate([best], Partners(), self._child_rng(), episodes=self.cfg.best_episodes,
-                                            fresh_starts=True)
-        return check.measures(self.world_cfg.episode_steps).docking_success_rate
 
     def _breed(
         self, pop: list[RuleSet], fitness: np.ndarray, exps: list[Experience]

@@ -21,7 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from coevo.behaviours import Schema
+from coevo.policy.schema import Schema
 from coevo.errors import ConfigError
 from coevo.policy.rules import RuleSet
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from coevo.behaviours import Behaviour, Schema, schema
+from coevo.policy.schema import Schema, schema
 from coevo.errors import RuleSetError
 
 __all__ = ["RuleSet", "MAX_RULES", "random_ruleset", "interval_width"]
@@ -28,7 +28,7 @@ MAX_RULES = 64  # matching packs one rule per bit of a uint64
 
 @dataclass(frozen=True, eq=False)
 class RuleSet:
-    behaviour: Behaviour
+    behaviour: str
     lo: np.ndarray
     hi: np.ndarray
     action: np.ndarray
@@ -36,8 +36,8 @@ class RuleSet:
     _schema: Schema = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "behaviour", Behaviour(self.behaviour))
         sch = schema(self.behaviour)
+        object.__setattr__(self, "behaviour", sch.behaviour)
         object.__setattr__(self, "_schema", sch)
         lo = np.asarray(self.lo)
         hi = np.asarray(self.hi)
@@ -113,7 +113,7 @@ class RuleSet:
         return RuleSet(self.behaviour, self.lo[idx], self.hi[idx], self.action[idx], self.strength[idx])
 
     @staticmethod
-    def concat(behaviour: Behaviour, parts: list[RuleSet], max_rules: int = MAX_RULES) -> RuleSet:
+    def concat(behaviour: str, parts: list[RuleSet], max_rules: int = MAX_RULES) -> RuleSet:
         """The rules of ``parts`` in order; past ``max_rules`` only the strongest stay (order kept)."""
         lo, hi, action, strength = (np.concatenate([getattr(p, k) for p in parts]) for k in ("lo", "hi", "action", "strength"))
         if len(strength) > max_rules:
@@ -131,7 +131,7 @@ class RuleSet:
     def to_dict(self) -> dict[str, object]:
         """Plain lists, for msgpack/JSON; :meth:`from_dict` validates on the way back."""
         return {
-            "behaviour": self.behaviour.value,
+            "behaviour": self.behaviour,
             "lo": self.lo.tolist(),
             "hi": self.hi.tolist(),
             "action": self.action.tolist(),
@@ -141,10 +141,12 @@ class RuleSet:
     @staticmethod
     def from_dict(d: dict[str, object]) -> RuleSet:
         try:
-            behaviour = Behaviour(d["behaviour"])
+            behaviour = d["behaviour"]
             arrays = {k: np.asarray(d[k]) for k in ("lo", "hi", "action", "strength")}
         except (KeyError, ValueError, TypeError) as exc:
             raise RuleSetError(f"not a rule set: {exc!r}") from exc
+        if not isinstance(behaviour, str):
+            raise RuleSetError(f"rule set behaviour must be a name, got {behaviour!r}")
         for k in ("lo", "hi", "action"):
             a = arrays[k]
             if a.size and (a.dtype.kind not in "iu"):
@@ -164,7 +166,7 @@ def interval_width(rs: RuleSet) -> np.ndarray:
     return np.where(lo <= hi, hi - lo + 1, bins - lo + hi + 1)
 
 
-def random_ruleset(behaviour: Behaviour | str, n_rules: int, rng: np.random.Generator) -> RuleSet:
+def random_ruleset(behaviour: str, n_rules: int, rng: np.random.Generator) -> RuleSet:
     """A random policy: each condition a random interval, often the full range (SAMUEL-like generality)."""
     sch = schema(behaviour)
     bins = np.array([s.bins for s in sch.sensors])

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from coevo.behaviours import Behaviour, Schema, schema
+from coevo.policy.schema import Schema, registered, schema
 from coevo.errors import ConfigError, RuleParseError, RuleSetError
 from coevo.policy.rules import RuleSet
 
@@ -43,7 +43,7 @@ def format_rule(rs: RuleSet, i: int) -> str:
 
 
 def format_ruleset(rs: RuleSet) -> str:
-    lines = [f"# behaviour: {rs.behaviour.value}"]
+    lines = [f"# behaviour: {rs.behaviour}"]
     lines += [format_rule(rs, i) for i in range(len(rs))]
     return "\n".join(lines) + "\n"
 
@@ -112,9 +112,9 @@ def _parse_rule(line: str, sch: Schema, lineno: int) -> tuple[list[int], list[in
     return lo, hi, action, strength
 
 
-def parse_ruleset(text: str, behaviour: Behaviour | str | None = None) -> RuleSet:
+def parse_ruleset(text: str, behaviour: str | None = None) -> RuleSet:
     """Parse rule-set text; the behaviour comes from the argument or the ``# behaviour:`` header."""
-    declared: Behaviour | None = None
+    declared: str | None = None
     rules: list[tuple[int, str]] = []
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
@@ -123,22 +123,20 @@ def parse_ruleset(text: str, behaviour: Behaviour | str | None = None) -> RuleSe
         if line.startswith("#"):
             h = _HEADER.match(line)
             if h:
-                try:
-                    declared = Behaviour(h.group("b").lower())
-                except ValueError:
-                    raise RuleParseError(f"unknown behaviour {h.group('b')!r} in header", line=lineno) from None
+                declared = h.group("b").lower()
+                if declared not in registered():
+                    raise RuleParseError(f"unknown behaviour {h.group('b')!r} in header", line=lineno)
             continue
         rules.append((lineno, line))
     if behaviour is not None:
-        try:
-            wanted = Behaviour(behaviour)
-        except ValueError:
-            raise RuleParseError(f"unknown behaviour {behaviour!r}") from None
+        wanted = str(behaviour)
+        if wanted not in registered():
+            raise RuleParseError(f"unknown behaviour {behaviour!r}")
         if declared is not None and declared != wanted:
             raise RuleParseError(f"rule set is for {declared}, expected {wanted}")
         declared = wanted
     if declared is None:
-        raise RuleParseError("no behaviour: add a '# behaviour: tracking|docking|executive' header")
+        raise RuleParseError(f"no behaviour: add a '# behaviour: {'|'.join(registered())}' header")
     if not rules:
         raise RuleParseError("rule set has no rules")
     sch = schema(declared)
@@ -159,7 +157,7 @@ def parse_ruleset(text: str, behaviour: Behaviour | str | None = None) -> RuleSe
         raise RuleParseError(str(exc)) from exc
 
 
-def read_rule_file(path: Path, behaviour: Behaviour | None = None) -> RuleSet:
+def read_rule_file(path: Path, behaviour: str | None = None) -> RuleSet:
     """A rule file parsed, its errors naming the file."""
     path = Path(path)
     if path.is_dir():

@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from coevo.behaviours import Behaviour
+from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.config import WorldConfig, build
 from coevo.errors import ConfigError
 from coevo.show.draw import ANIMATION_FORMATS, FORMATS, check_out_path

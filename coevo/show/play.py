@@ -12,11 +12,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from coevo.errors import ConfigError
-from coevo.robot import controllers
+from coevo.tasks.fuel.robot import controllers
 from coevo.show.source import Robot
-from coevo.sim.recorder import Recorder
-from coevo.sim.runner import Outcome, run_lanes
-from coevo.sim.world import BatchWorld
+from coevo.tasks.fuel.recorder import Recorder
+from coevo.tasks.fuel.runner import Outcome, run_lanes
+from coevo.tasks.fuel.world import BatchWorld
 
 __all__ = ["Played", "play"]
 

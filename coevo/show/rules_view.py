@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from coevo.behaviours import TASK_DOCK, TASK_TRACK, Behaviour
+from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK, Behaviour
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_rule
 from coevo.show.play import Played
@@ -34,7 +34,7 @@ class RuleRow:
 def fire_counts(played: Played, behaviour: Behaviour, rules: int) -> np.ndarray:
     """How many times each rule of ``behaviour`` fired (steps for Tracking/Docking, episodes for the Executive)."""
     rec = played.record
-    if behaviour is Behaviour.EXECUTIVE:
+    if behaviour == Behaviour.EXECUTIVE:
         fired = rec.executive_rule[:, 0]
     else:
         mine = rec.task[:, 0] == _TASK_OF[behaviour]
@@ -55,7 +55,7 @@ def rule_rows(rs: RuleSet, counts: np.ndarray) -> list[RuleRow]:
 
 
 def _unit(b: Behaviour) -> str:
-    return "episodes" if b is Behaviour.EXECUTIVE else "steps"
+    return "episodes" if b == Behaviour.EXECUTIVE else "steps"
 
 
 def print_rules(played: Played, *, console: Any | None = None, plain: bool | None = None) -> None:

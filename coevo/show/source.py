@@ -18,10 +18,10 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from coevo.behaviours import Behaviour
+from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.config import WorldConfig
 from coevo.errors import ConfigError, RunDirError
-from coevo.policy.defaults import HAS_DEFAULT, default_ruleset
+from coevo.tasks.fuel import HAS_DEFAULT, default_ruleset
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import read_rule_file
 
@@ -134,7 +134,7 @@ def _from_learn(d: Path, partners: dict[Behaviour, RuleSet]) -> Robot:
     world = _world_of(d / "config.json") if (d / "config.json").exists() else WorldConfig()
     rs = read_rule_file(best)
     rules = {rs.behaviour: rs}
-    if rs.behaviour is Behaviour.EXECUTIVE:
+    if rs.behaviour == Behaviour.EXECUTIVE:
         for b in (Behaviour.TRACKING, Behaviour.DOCKING):
             f = d / f"{b.value}.rules"
             if b in partners:

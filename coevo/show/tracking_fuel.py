@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from coevo.behaviours import TASK_DOCK, TASK_TRACK
+from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK
 from coevo.show.play import Played
 from coevo.show.scene import Event, Ring, Scene, Shape, Span, Track
 

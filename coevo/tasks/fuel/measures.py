@@ -6,8 +6,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from coevo.behaviours import TASK_DOCK, TASK_TRACK
-from coevo.sim.runner import Outcome
+from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK
+from coevo.tasks.fuel.runner import Outcome
 
 __all__ = ["Measures", "measure", "QUALITY_FRACTION"]
 

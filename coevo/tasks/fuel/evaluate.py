@@ -1,4 +1,4 @@
-"""Evaluating a population of one behaviour against models of the other two.
+"""The fuel task's evaluator: a population of one behaviour against models of the other two.
 
 The models of the partners are fixed rule sets for the duration of one evaluation
 (best so far, in the report's regimes) or the trivial Executive that always picks
@@ -8,55 +8,35 @@ the learner.  All individuals of a population run in one batched world: individu
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
-
 import numpy as np
 
-from coevo.behaviours import TASK_DOCK, TASK_TRACK, Behaviour
 from coevo.config import GAConfig, WorldConfig
 from coevo.errors import ConfigError
 from coevo.ga.operators import Experience
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.rules import RuleSet
-from coevo.sim.measures import Measures, measure
-from coevo.sim.runner import Outcome, Rules, Trivial, run_lanes
-from coevo.sim.world import BatchWorld
+from coevo.tasks.base import ChildRng, Evaluation, Evaluator, Partners, Tick
+from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK, Behaviour
+from coevo.tasks.fuel.measures import measure
+from coevo.tasks.fuel.runner import Outcome, Rules, Trivial, run_lanes
+from coevo.tasks.fuel.world import BatchWorld
 
-__all__ = ["Partners", "Evaluation", "Evaluator"]
-
-
-@dataclass(frozen=True)
-class Partners:
-    """The learner's models of the other agents; ``executive=None`` means "always picks me"."""
-
-    executive: RuleSet | None = None
-    tracking: RuleSet | None = None
-    docking: RuleSet | None = None
+__all__ = ["FuelEvaluator"]
 
 
-@dataclass
-class Evaluation:
-    """Fitness of each individual, with what each did (for the Lamarckian operators)."""
+class FuelEvaluator(Evaluator):
+    """Runs populations of ``behaviour`` in batched worlds (kept and reused per batch size).
 
-    fitness: np.ndarray
-    episodes: np.ndarray  # episodes each individual controlled (0: starved of experience)
-    experience: list[Experience]
-    outcome: Outcome
-
-    def measures(self, episode_steps: int) -> Measures:
-        return measure(self.outcome, episode_steps)
-
-
-class Evaluator:
-    """Runs populations of ``behaviour`` in batched worlds (kept and reused per batch size)."""
+    Partners: ``executive`` absent means the trivial Executive that always picks the
+    learner; a Tracking or Docking learner's sibling absent means none (the trivial
+    Executive never calls it).
+    """
 
     def __init__(self, behaviour: Behaviour | str, world: WorldConfig, ga: GAConfig) -> None:
         self.behaviour = Behaviour(behaviour)
         self.world_cfg = world
         self.ga = ga
         self._worlds: dict[int, BatchWorld] = {}
-        self.tick: Callable[[], None] | None = None  # called between episode rounds (a worker's heartbeat)
 
     def _world(self, lanes: int) -> BatchWorld:
         if lanes not in self._worlds:
@@ -66,11 +46,11 @@ class Evaluator:
     def fresh_starts(self, partners: Partners) -> bool:
         """Does every episode start from a fresh random placement? Docking with the trivial
         Executive does (``GAConfig.docking_fresh_starts``): that is where an Executive calls it."""
-        return self.behaviour is Behaviour.DOCKING and partners.executive is None and self.ga.docking_fresh_starts
+        return self.behaviour == Behaviour.DOCKING and partners.get("executive") is None and self.ga.docking_fresh_starts
 
     def layout(self, episodes: int, *, fresh_starts: bool = False) -> tuple[int, int, bool]:
         """(lanes per individual, episodes per lane, restart epochs) for an evaluation of ``episodes``."""
-        if self.behaviour is Behaviour.EXECUTIVE:
+        if self.behaviour == Behaviour.EXECUTIVE:
             k = self.world_cfg.epoch_episodes  # one epoch per lane: the Executive is paid per epoch
             return -(-episodes // k), k, False
         k = 1 if fresh_starts else self.ga.lane_episodes
@@ -78,13 +58,13 @@ class Evaluator:
 
     def evaluate(
         self, policies: list[RuleSet], partners: Partners, rng: np.random.Generator, *, episodes: int | None = None,
-        fresh_starts: bool | None = None,
+        tick: Tick | None = None, fresh_starts: bool | None = None,
     ) -> Evaluation:
         """Play ``policies`` against ``partners``; ``fresh_starts`` forces (or forbids) a fresh random
         placement for every episode, by default :meth:`fresh_starts` decides."""
         beh = self.behaviour
         for p in policies:
-            if p.behaviour is not beh:
+            if p.behaviour != beh:
                 raise ConfigError(f"cannot evaluate a {p.behaviour} rule set as {beh}")
         fresh = self.fresh_starts(partners) if fresh_starts is None else fresh_starts
         per, k, restart = self.layout(episodes or self.ga.episodes, fresh_starts=fresh)
@@ -92,22 +72,23 @@ class Evaluator:
         L = P * per
         world = self._world(L)
         own = Rules(CompiledPolicies(policies), np.repeat(np.arange(P), per))
-        if beh is Behaviour.EXECUTIVE:
-            if partners.tracking is None or partners.docking is None:
+        if beh == Behaviour.EXECUTIVE:
+            if partners.get("tracking") is None or partners.get("docking") is None:
                 raise ConfigError("the Executive learns against Tracking and Docking rule sets; give both")
             executive: Trivial | Rules = own
-            tracking = Rules.single(CompiledPolicies([partners.tracking]), L)
-            docking = Rules.single(CompiledPolicies([partners.docking]), L)
+            tracking = Rules.single(CompiledPolicies([partners["tracking"]]), L)
+            docking = Rules.single(CompiledPolicies([partners["docking"]]), L)
         else:
-            me = TASK_TRACK if beh is Behaviour.TRACKING else TASK_DOCK
-            executive = Trivial(me) if partners.executive is None else Rules.single(CompiledPolicies([partners.executive]), L)
-            sibling = partners.docking if beh is Behaviour.TRACKING else partners.tracking
+            me = TASK_TRACK if beh == Behaviour.TRACKING else TASK_DOCK
+            ex_rules = partners.get("executive")
+            executive = Trivial(me) if ex_rules is None else Rules.single(CompiledPolicies([ex_rules]), L)
+            sibling = partners.get("docking") if beh == Behaviour.TRACKING else partners.get("tracking")
             sib = Rules.single(CompiledPolicies([sibling]), L) if sibling is not None else None
-            tracking, docking = (own, sib) if beh is Behaviour.TRACKING else (sib, own)
+            tracking, docking = (own, sib) if beh == Behaviour.TRACKING else (sib, own)
         out = run_lanes(
             world, lane_episodes=k, executive=executive, tracking=tracking, docking=docking,
             restart_epochs=restart, rng=rng, learner=beh, conflict=self.ga.conflict,
-            scenarios=per if self.ga.common_scenarios else None, tick=self.tick,
+            scenarios=per if self.ga.common_scenarios else None, tick=tick,
         )
         fitness = np.zeros(P)
         count = np.zeros(P, dtype=np.int64)
@@ -116,7 +97,7 @@ class Evaluator:
             lanes = slice(i * per, (i + 1) * per)
             exp = self._experience(out, lanes, k)
             exps.append(exp)
-            if beh is Behaviour.EXECUTIVE:
+            if beh == Behaviour.EXECUTIVE:
                 sel = (out.epoch_lane >= i * per) & (out.epoch_lane < (i + 1) * per) & out.epoch_complete
                 fitness[i] = out.epoch_payoff[sel].mean() if sel.any() else 0.0
                 count[i] = out.played[lanes].sum()
@@ -125,21 +106,41 @@ class Evaluator:
                 fitness[i] = exp.payoff.mean() if exp.payoff.size else 0.0
         return Evaluation(fitness, count, exps, out)
 
+    def measures(self, best: RuleSet, partners: Partners, check: Evaluation, child_rng: ChildRng) -> dict[str, float | None]:
+        """The report's measures of the best's re-evaluation, and Docking's own (SPEC §1, "Where Docking
+        learns"): % of fresh random starts it docks from (None for the other behaviours).
+
+        Where the re-evaluation already played fresh starts (the trivial Executive) that is
+        its docking rate; inside a learning Executive's epochs (Mutual) the best is played
+        once more, alone, on ``best_episodes`` fresh starts.
+        """
+        m = measure(check.details, self.world_cfg.episode_steps)
+        from_random = None
+        if self.behaviour == Behaviour.DOCKING:
+            if not self.fresh_starts(partners):
+                check = self.evaluate([best], {}, child_rng(), episodes=self.ga.best_episodes, fresh_starts=True)
+            from_random = measure(check.details, self.world_cfg.episode_steps).docking_success_rate
+        return {
+            "quality_tracking": m.quality_tracking, "successful_docking": m.successful_docking,
+            "dock_choice": m.dock_choice, "docking_success_rate": m.docking_success_rate,
+            "average_epoch_length": m.average_epoch_length, "docking_from_random": from_random,
+        }
+
     def _experience(self, out: Outcome, lanes: slice, k: int) -> Experience:
         """The per-episode record and decision log of the individual owning ``lanes``."""
         beh = self.behaviour
-        if beh is Behaviour.EXECUTIVE:
+        if beh == Behaviour.EXECUTIVE:
             mine = out.played[lanes]
             e_id = out.epoch_of[lanes]
             payoff = np.where(mine, out.epoch_payoff[np.maximum(e_id, 0)], 0.0)
         else:
-            role = TASK_TRACK if beh is Behaviour.TRACKING else TASK_DOCK
+            role = TASK_TRACK if beh == Behaviour.TRACKING else TASK_DOCK
             mine = out.played[lanes] & (out.task[lanes] == role)
             payoff = out.payoff[lanes]
         epmap = np.full(mine.shape, -1, dtype=np.int64)  # (l, K) -> episode index
         epmap[mine] = np.arange(int(mine.sum()))
         tr = out.trace
-        if beh is Behaviour.EXECUTIVE:
+        if beh == Behaviour.EXECUTIVE:
             rule = tr.rule[:, lanes]  # (K, l)
             ep = epmap.T
             bins, full = tr.bins[:, lanes], tr.full[:, lanes]

@@ -27,11 +27,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from coevo.behaviours import TASK_DOCK, TASK_TRACK, Behaviour, schema
+from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK, Behaviour
+from coevo.policy.schema import schema
 from coevo.errors import ConfigError
 from coevo.policy.matcher import CompiledPolicies
-from coevo.sim.recorder import Recorder
-from coevo.sim.world import BatchWorld
+from coevo.tasks.fuel.recorder import Recorder
+from coevo.tasks.fuel.world import BatchWorld
 
 __all__ = ["Trivial", "Rules", "Trace", "Outcome", "run_lanes", "ALWAYS_TRACK", "ALWAYS_DOCK"]
 
@@ -127,7 +128,7 @@ def run_lanes(
     ``tick``, if given, is called before every episode round (a fraction of a second
     apart): a worker's heartbeat, so a long evaluation still shows it progressing.
     ``record``, if given, receives every lane's state and fired rules at every step
-    (:mod:`coevo.sim.recorder`; for a few lanes).  Without it the loop does no extra
+    (:mod:`coevo.tasks.fuel.recorder`; for a few lanes).  Without it the loop does no extra
     work beyond a test per controller and step.
     """
     cfg = world.cfg
@@ -164,7 +165,7 @@ def run_lanes(
     trace = None
     if learner is not None:
         S = schema(learner).n_sensors
-        shape = (K, L) if learner is Behaviour.EXECUTIVE else (K, T, L)
+        shape = (K, L) if learner == Behaviour.EXECUTIVE else (K, T, L)
         trace = Trace(np.zeros(shape + (S,), np.uint8), np.full(shape, -1, np.int16), np.zeros(shape, bool))
 
     if record is not None:
@@ -193,11 +194,11 @@ def run_lanes(
             pol = executive.lane_policy[live]
             rank, full = executive.compiled.decide(pol, bins, conflict=conflict, rng=rng)
             task[live, k] = executive.compiled.action_values(pol, rank)[:, 0]
-            if record is not None or learner is Behaviour.EXECUTIVE:
+            if record is not None or learner == Behaviour.EXECUTIVE:
                 rule = executive.compiled.rule_index(pol, rank)
             if record is not None:
                 record.decision(k, live, task[live, k], rule)
-            if learner is Behaviour.EXECUTIVE:
+            if learner == Behaviour.EXECUTIVE:
                 trace.bins[k, live], trace.rule[k, live], trace.full[k, live] = bins, rule, full
                 fired[live, k] |= _ONE << rule.astype(np.uint64)
         lane_task = task[:, k].astype(np.int64)

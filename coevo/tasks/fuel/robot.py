@@ -8,14 +8,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from coevo.behaviours import Behaviour
+from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.config import WorldConfig
 from coevo.errors import ConfigError
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.rules import RuleSet
-from coevo.sim.measures import Measures, measure
-from coevo.sim.runner import ALWAYS_DOCK, ALWAYS_TRACK, Rules, Trivial, run_lanes
-from coevo.sim.world import BatchWorld
+from coevo.tasks.fuel.measures import Measures, measure
+from coevo.tasks.fuel.runner import ALWAYS_DOCK, ALWAYS_TRACK, Rules, Trivial, run_lanes
+from coevo.tasks.fuel.world import BatchWorld
 
 __all__ = ["controllers", "measure_robot", "docking_from_random_starts", "measure_behaviour"]
 
@@ -79,10 +79,10 @@ def measure_behaviour(
     seed: int = 0,
 ) -> dict[str, float | int]:
     """The SPEC measures of one learned behaviour, as the ``learn`` command reports them."""
-    if behaviour is Behaviour.TRACKING:
+    if behaviour == Behaviour.TRACKING:
         m = measure_robot(world, executive=None, tracking=best, docking=None, epochs=epochs, seed=seed)
         return m.as_dict()
-    if behaviour is Behaviour.DOCKING:
+    if behaviour == Behaviour.DOCKING:
         m = measure_robot(world, executive=None, tracking=None, docking=best, epochs=epochs, seed=seed)
         d = m.as_dict()
         d["docking_from_random_starts"] = docking_from_random_starts(world, best, episodes=10 * epochs, seed=seed + 1)

@@ -1,6 +1,6 @@
 """What happened at every step of a few lanes, for pictures and animations (``coevo show``).
 
-:func:`~coevo.sim.runner.run_lanes` fills a :class:`Recorder` when one is given:
+:func:`~coevo.tasks.fuel.runner.run_lanes` fills a :class:`Recorder` when one is given:
 per episode ``k``, step ``t`` and lane, the robot's position and heading and the
 Target's position *before* step ``t`` (so ``t = 0`` is where the episode began and
 ``t = steps`` where it ended), the rule that fired for the controller in charge, and
@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from coevo.sim.world import BatchWorld
+from coevo.tasks.fuel.world import BatchWorld
 
 __all__ = ["Recorder", "NO_RULE"]
 

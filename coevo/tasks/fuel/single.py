@@ -1,6 +1,6 @@
 """A plain one-episode-at-a-time world: the baseline ``coevo bench`` compares against.
 
-The same task as :class:`~coevo.sim.world.BatchWorld` written the straightforward
+The same task as :class:`~coevo.tasks.fuel.world.BatchWorld` written the straightforward
 way: one pymunk space per episode, Python floats, one pymunk step and one rule
 lookup per robot step.  It is kept deliberately plain; it is not used for learning.
 """
@@ -12,7 +12,8 @@ import math
 import numpy as np
 import pymunk
 
-from coevo.behaviours import Behaviour, schema
+from coevo.tasks.fuel.behaviours import Behaviour
+from coevo.policy.schema import schema
 from coevo.config import WorldConfig
 from coevo.policy.rules import RuleSet
 
@@ -58,7 +59,7 @@ def run_episode(cfg: WorldConfig, policy: RuleSet, rng: np.random.Generator) -> 
     th = float(rng.uniform(-math.pi, math.pi))
     fuel = cfg.initial_fuel
     sch = policy.schema
-    docking = policy.behaviour is Behaviour.DOCKING
+    docking = policy.behaviour == Behaviour.DOCKING
     steps = 0
     for _ in range(cfg.episode_steps):
         x, y = body.position

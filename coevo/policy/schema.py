@@ -1,35 +1,27 @@
-"""What each learning agent senses and sets: the rule layout of the three behaviours.
+"""What a learning behaviour senses and sets: the rule layout, the same for every task.
 
-Every sensor is discretised into bins (report Appendix A §4): bearings in 5° bins,
-ranges in 5-inch bins from 0 to 150 (a last bin for "150 and beyond"), the Target's
-heading in 45° bins.  The Docking agent's dock sensors and the Executive's sensors
-are *(ours)*: the report does not list them.
+A task declares, for each of its learning behaviours, a :class:`Schema`: its
+discretised sensors and its actions.  Rules, the matcher, the rule text and the GA
+read everything they need from it and name no task.  Schemas are registered by
+behaviour name (names are unique across tasks: a rule set on the wire carries only
+its behaviour's name), and :func:`schema` finds them; the built-in tasks register
+theirs when :mod:`coevo.tasks` is imported, which :func:`schema` does on a miss.
 
-A rule condition is an interval of bin indices; it prints as the bins' lower
-edges (``range = [35, 45]`` covers bins 35..49.99 inches).  Circular sensors
-(bearings, headings) may wrap through 0: ``bearing = [340, 35]``.
+Every sensor is discretised into bins.  A rule condition is an interval of bin
+indices; it prints as the bins' lower edges (``range = [35, 45]`` covers bins
+35..49.99 inches).  Circular sensors (bearings, headings) may wrap through 0:
+``bearing = [340, 35]``.
 """
 
 from __future__ import annotations
 
-import enum
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Behaviour", "Sensor", "Action", "Schema", "schema", "TASK_TRACK", "TASK_DOCK"]
+from coevo.errors import RuleSetError
 
-TASK_TRACK = 0
-TASK_DOCK = 1
-
-
-class Behaviour(str, enum.Enum):
-    TRACKING = "tracking"
-    DOCKING = "docking"
-    EXECUTIVE = "executive"
-
-    def __str__(self) -> str:
-        return self.value
+__all__ = ["Sensor", "Action", "Schema", "schema", "register", "registered"]
 
 
 @dataclass(frozen=True)
@@ -84,9 +76,14 @@ class Action:
 
 @dataclass(frozen=True)
 class Schema:
-    behaviour: Behaviour
+    """The sensors and actions of one learning behaviour (its name: ``behaviour``)."""
+
+    behaviour: str
     sensors: tuple[Sensor, ...]
     actions: tuple[Action, ...]
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "behaviour", str(self.behaviour))
 
     @property
     def n_sensors(self) -> int:
@@ -121,50 +118,31 @@ class Schema:
         return None
 
 
-def _range(name: str) -> Sensor:
-    return Sensor(name, 5.0, 31, False, "inches")  # 0..145 plus a last "150+" bin
+_REGISTRY: dict[str, Schema] = {}
 
 
-def _bearing(name: str) -> Sensor:
-    return Sensor(name, 5.0, 72, True, "degrees")
+def register(*schemas: Schema) -> None:
+    """Make behaviours known by name; registering the same schema twice is harmless, a clash is an error."""
+    for s in schemas:
+        old = _REGISTRY.get(s.behaviour)
+        if old is not None and old != s:
+            raise RuleSetError(f"behaviour {s.behaviour!r} is declared twice with different schemas")
+        _REGISTRY[s.behaviour] = s
 
 
-TURN = Action("turn", tuple(range(-24, 25, 4)))  # deg/s, 13 values
-SPEED = Action("speed", tuple(range(-4, 17, 4)))  # inches/s, 6 values
-TASK = Action("task", ("track", "dock"))
+def registered() -> tuple[str, ...]:
+    """The names of every known behaviour (of every built-in task)."""
+    import coevo.tasks  # noqa: F401 - registers the built-in tasks' schemas
 
-_REPORT_FIVE = (
-    _range("range"),  # to the nearest object (wall, dock or Target)
-    _bearing("bearing"),
-    Sensor("heading", 45.0, 8, True, "degrees"),  # Target's heading relative to its bearing
-    _range("target_range"),
-    _bearing("target_bearing"),
-)
-
-_SCHEMAS = {
-    Behaviour.TRACKING: Schema(Behaviour.TRACKING, _REPORT_FIVE, (TURN, SPEED)),
-    Behaviour.DOCKING: Schema(
-        Behaviour.DOCKING,
-        _REPORT_FIVE
-        + (
-            _range("dock_range"),  # to the middle of the dock's front face
-            _bearing("dock_bearing"),
-            _bearing("dock_orientation"),  # robot heading minus the head-on docking heading
-        ),
-        (TURN, SPEED),
-    ),
-    Behaviour.EXECUTIVE: Schema(
-        Behaviour.EXECUTIVE,
-        (
-            Sensor("fuel", 10.0, 10, False, "percent"),
-            _range("target_range"),
-            _range("dock_range"),
-        ),
-        (TASK,),
-    ),
-}
+    return tuple(_REGISTRY)
 
 
-def schema(behaviour: Behaviour | str) -> Schema:
-    """The rule layout of a behaviour."""
-    return _SCHEMAS[Behaviour(behaviour)]
+def schema(behaviour: str) -> Schema:
+    """The rule layout of a behaviour, by name."""
+    name = str(behaviour)
+    if name not in _REGISTRY:
+        import coevo.tasks  # noqa: F401 - registers the built-in tasks' schemas
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise RuleSetError(f"unknown behaviour {name!r} (known: {', '.join(_REGISTRY)})") from None

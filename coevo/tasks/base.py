@@ -1,0 +1,129 @@
+"""What a task is: the one interface the rules, GA, workers, broker and run tools are written against.
+
+A task is a world with one or more *learning behaviours*.  For each behaviour it
+declares the rule layout (sensors and actions, :class:`~coevo.policy.schema.Schema`),
+its initial rules, the partners it learns against in each regime, and an
+:class:`Evaluator` that plays a population of rule sets in its batched world and
+returns a fitness, the experience the GA's Lamarckian operators read, and the
+task's own measures.  The core never names a task or a behaviour: the
+tracking-under-fuel task (:mod:`coevo.tasks.fuel`) is one implementation, the
+corridor (:mod:`coevo.tasks.corridor`) a tiny second one that keeps the interface
+honest.
+
+Settings: a task's world settings are a frozen pydantic model (its
+``world_settings``); the GA's are :class:`~coevo.config.GAConfig`, shared by all.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+from pydantic import BaseModel
+
+from coevo.config import GAConfig
+from coevo.errors import ConfigError
+from coevo.ga.operators import Experience
+from coevo.policy.rules import RuleSet, random_ruleset
+from coevo.policy.schema import Schema, schema
+
+__all__ = ["Task", "Evaluator", "Evaluation", "Partners", "Tick", "ChildRng"]
+
+#: The learner's models of the other behaviours it needs, by name; a behaviour that is
+#: absent is played by the task's trivial stand-in (e.g. an Executive that always picks the learner).
+Partners = Mapping[str, RuleSet]
+#: Called between episode rounds of a long evaluation (a worker's heartbeat).
+Tick = Callable[[], None]
+#: Draws a fresh generator from the GA's own stream, only when a measure needs one.
+ChildRng = Callable[[], np.random.Generator]
+
+
+@dataclass
+class Evaluation:
+    """Fitness of each individual, with what each did (for the Lamarckian operators)."""
+
+    fitness: np.ndarray
+    episodes: np.ndarray  # episodes each individual controlled (0: starved of experience)
+    experience: list[Experience]
+    details: Any = field(default=None, repr=False)  # the task's own record (its measures read it)
+
+
+class Evaluator(ABC):
+    """Plays populations of one behaviour in a task's batched world."""
+
+    behaviour: str
+
+    @abstractmethod
+    def evaluate(self, policies: list[RuleSet], partners: Partners, rng: np.random.Generator, *,
+                 episodes: int | None = None, tick: Tick | None = None) -> Evaluation:
+        """Fitness of every policy against ``partners`` (``episodes``: by default the GA's setting)."""
+
+    @abstractmethod
+    def measures(self, best: RuleSet, partners: Partners, check: Evaluation, child_rng: ChildRng) -> dict[str, float | None]:
+        """The task's measures of a generation's best, from its re-evaluation ``check``; the same
+        keys every generation (they are the learning curve's columns)."""
+
+
+class Task(ABC):
+    """A world with learning behaviours; see the module docstring."""
+
+    name: ClassVar[str]
+    behaviours: ClassVar[tuple[str, ...]]
+    regimes: ClassVar[tuple[str, ...]] = ("independent",)
+    world_settings: ClassVar[type[BaseModel]]
+
+    def schema(self, behaviour: str) -> Schema:
+        self.check_behaviour(behaviour)
+        return schema(behaviour)
+
+    def check_behaviour(self, behaviour: str) -> str:
+        if str(behaviour) not in self.behaviours:
+            raise ConfigError(f"task {self.name!r} has no behaviour {str(behaviour)!r} (it has {', '.join(self.behaviours)})")
+        return str(behaviour)
+
+    def check_regime(self, regime: str) -> str:
+        if regime not in self.regimes:
+            raise ConfigError(f"unknown regime {regime!r} for task {self.name!r} (use {' or '.join(self.regimes)})")
+        return regime
+
+    def default_rules(self, behaviour: str) -> RuleSet | None:
+        """The behaviour's shipped initial rules, or None where it starts random."""
+        return None
+
+    def initial_model(self, behaviour: str, ga: GAConfig, rng: np.random.Generator) -> RuleSet:
+        """How a partner that has not published yet is modelled: its initial behaviour."""
+        default = self.default_rules(behaviour) if ga.initial == "default" else None
+        return default if default is not None else random_ruleset(behaviour, ga.initial_rules, rng)
+
+    def partners_needed(self, behaviour: str, regime: str) -> tuple[str, ...]:
+        """The behaviours whose policies ``behaviour`` learns against in ``regime``."""
+        self.check_behaviour(behaviour)
+        self.check_regime(regime)
+        return ()
+
+    @abstractmethod
+    def evaluator(self, behaviour: str, world: BaseModel, ga: GAConfig) -> Evaluator:
+        """An evaluator of ``behaviour`` in a world with these settings."""
+
+    def status_measures(self, behaviour: str, measures: Mapping[str, float | None]) -> dict[str, float]:
+        """The few measures (in %) that say how a behaviour is doing, for status displays."""
+        return {}
+
+    def final_measures(self, behaviour: str, best: RuleSet, *, world: BaseModel, partners: Partners,
+                       epochs: int, seed: int) -> dict[str, float | int]:
+        """The task's measures of a learned policy on fresh trials (``coevo learn``'s summary)."""
+        return {}
+
+    def picture(self, path: Path, behaviour: str, best: RuleSet, *, world: BaseModel, partners: Partners, seed: int,
+                name: str) -> None:
+        """Draw the learned policy at work into ``path`` (a PNG), where the task knows how; else nothing."""
+        return None
+
+    def run_measures(self, policies: Mapping[str, RuleSet], *, world: BaseModel, epochs: int,
+                     seed: int) -> dict[str, float | int] | None:
+        """The measures of a whole run's final policies together (``coevo run``), or None if incomplete."""
+        return None

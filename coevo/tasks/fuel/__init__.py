@@ -1,0 +1,108 @@
+"""The tracking-under-fuel task (report Appendix A): Tracking, Docking and an Executive.
+
+A robot keeps a moving Target under observation without colliding and without
+running dry, refuelling at a dock; an Executive picks Tracking or Docking for each
+episode.  The world is batched on numpy arrays and pymunk (:mod:`.world`), the agent
+loop plays many lanes at once (:mod:`.runner`), the report's measures are in
+:mod:`.measures` and the evaluator the GA calls in :mod:`.evaluate`.
+
+Regimes (SPEC §2): ``independent``: Tracking and Docking learn with the trivial
+Executive that always picks them and need no partner; the Executive learns against
+Tracking's and Docking's best so far.  ``mutual``: every agent learns against the
+other two's best so far.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from functools import cache
+from importlib import resources
+from pathlib import Path
+
+from coevo.config import GAConfig, WorldConfig
+from coevo.policy.rules import RuleSet
+from coevo.policy.text import parse_ruleset
+from coevo.tasks.base import Partners, Task
+from coevo.tasks.fuel.behaviours import Behaviour
+from coevo.tasks.fuel.evaluate import FuelEvaluator
+
+__all__ = ["FuelTask", "Behaviour", "default_ruleset", "HAS_DEFAULT"]
+
+#: The behaviours with shipped initial rules (coevo/tasks/fuel/defaults/).  The Executive has
+#: none: a default that already chose when to dock would pre-empt the very thing the regimes compare.
+HAS_DEFAULT = (Behaviour.TRACKING, Behaviour.DOCKING)
+PICTURE_EPISODES = 3  # Tracking or Docking alone in a learned policy's picture; an Executive's is one epoch
+
+
+@cache
+def default_ruleset(behaviour: Behaviour | str) -> RuleSet | None:
+    """The shipped default rule set of ``behaviour``, or None (the Executive has none).
+
+    SAMUEL starts learning from a default rule set rather than from nothing (report
+    Appendix B: default rules "for moving toward the goal line ... say nothing about
+    obstacles or the walls").  Tracking's and Docking's give the direction to the
+    tracking ring and to the dock and nothing else (SPEC §1, "Initial behaviours").
+    """
+    behaviour = Behaviour(behaviour)
+    if behaviour not in HAS_DEFAULT:
+        return None
+    text = resources.files(__name__).joinpath(f"defaults/{behaviour.value}.rules").read_text(encoding="utf-8")
+    return parse_ruleset(text, behaviour)
+
+
+class FuelTask(Task):
+    name = "fuel"
+    behaviours = tuple(b.value for b in Behaviour)
+    regimes = ("mutual", "independent")
+    world_settings = WorldConfig
+
+    def default_rules(self, behaviour: str) -> RuleSet | None:
+        return default_ruleset(self.check_behaviour(behaviour))
+
+    def partners_needed(self, behaviour: str, regime: str) -> tuple[str, ...]:
+        b = Behaviour(self.check_behaviour(behaviour))
+        self.check_regime(regime)
+        if b == Behaviour.EXECUTIVE or regime == "mutual":
+            return tuple(o.value for o in Behaviour if o is not b)
+        return ()
+
+    def evaluator(self, behaviour: str, world: WorldConfig, ga: GAConfig) -> FuelEvaluator:  # type: ignore[override]
+        return FuelEvaluator(self.check_behaviour(behaviour), world, ga)
+
+    def status_measures(self, behaviour: str, measures: Mapping[str, float | None]) -> dict[str, float]:
+        """Docking's fitness alone misleads (SPEC §1, "Where Docking learns"), so Docking shows the
+        share of fresh random starts it docks from; the Executive how often it picks Docking and how
+        often that docks; Tracking its Quality Tracking."""
+        b = Behaviour(behaviour)
+        if b == Behaviour.TRACKING:
+            keys: tuple[str, ...] = ("quality_tracking",)
+        elif b == Behaviour.DOCKING:
+            keys = ("docking_from_random",)
+        else:
+            keys = ("dock_choice", "docking_success_rate")
+        return {k: float(measures[k]) for k in keys if measures.get(k) is not None}  # type: ignore[arg-type]
+
+    def final_measures(self, behaviour: str, best: RuleSet, *, world: WorldConfig, partners: Partners,  # type: ignore[override]
+                       epochs: int, seed: int) -> dict[str, float | int]:
+        from coevo.tasks.fuel.robot import measure_behaviour
+
+        return measure_behaviour(Behaviour(behaviour), best, world=world, tracking=partners.get("tracking"),
+                                 docking=partners.get("docking"), epochs=epochs, seed=seed)
+
+    def picture(self, path: Path, behaviour: str, best: RuleSet, *, world: WorldConfig, partners: Partners,  # type: ignore[override]
+                seed: int, name: str) -> None:
+        """best.png: the best policy playing a few episodes (or, for the Executive, one epoch); ~0.5 s."""
+        from coevo.show import picture, robot_from_rules
+
+        robot = robot_from_rules(name, world, {**partners, behaviour: best})
+        picture(robot, path, seed=seed, episodes=None if robot.combined else PICTURE_EPISODES,
+                title=f"{name}: the best {behaviour} policy, seed {seed}")
+
+    def run_measures(self, policies: Mapping[str, RuleSet], *, world: WorldConfig, epochs: int,  # type: ignore[override]
+                     seed: int) -> dict[str, float | int] | None:
+        from coevo.tasks.fuel.robot import measure_robot
+
+        if any(b not in policies for b in self.behaviours):
+            return None
+        return measure_robot(world, executive=policies["executive"], tracking=policies["tracking"],
+                             docking=policies["docking"], epochs=epochs, seed=seed).as_dict()

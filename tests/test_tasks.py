@@ -1,0 +1,69 @@
+"""The task interface: the core names no task, and a second task plugs in beside the fuel task."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from coevo.config import GAConfig
+from coevo.errors import ConfigError, RuleSetError
+from coevo.ga import GA
+from coevo.policy.rules import RuleSet, random_ruleset
+from coevo.policy.schema import registered, schema
+from coevo.policy.text import format_ruleset, parse_ruleset
+from coevo.tasks import TASKS, get_task, task_of
+from coevo.tasks.corridor import CorridorConfig
+
+CORRIDOR_GA = GAConfig(generations=12, population=20, episodes=12, best_episodes=24, initial_rules=6, max_rules=16)
+
+
+def test_every_task_declares_its_behaviours_with_unique_names() -> None:
+    names = [b for t in TASKS.values() for b in t.behaviours]
+    assert len(names) == len(set(names))
+    assert set(names) <= set(registered())
+    for t in TASKS.values():
+        for b in t.behaviours:
+            assert task_of(b) is t and t.schema(b) is schema(b)
+            assert t.world_settings()  # every setting has a default
+
+
+def test_unknown_tasks_behaviours_and_regimes_are_named() -> None:
+    with pytest.raises(ConfigError, match="'maze'"):
+        get_task("maze")
+    with pytest.raises(ConfigError, match="'flying'"):
+        task_of("flying")
+    with pytest.raises(RuleSetError, match="'flying'"):
+        schema("flying")
+    with pytest.raises(ConfigError, match="'mutual'"):
+        get_task("corridor").check_regime("mutual")
+
+
+def test_a_corridor_rule_set_prints_and_parses_like_any_other() -> None:
+    rs = random_ruleset("corridor", 5, np.random.default_rng(1))
+    assert parse_ruleset(format_ruleset(rs)) == rs
+    assert RuleSet.from_dict(rs.to_dict()) == rs
+
+
+def test_the_same_ga_learns_the_corridor_and_replays_it_exactly() -> None:
+    task = get_task("corridor")
+    world = CorridorConfig()
+
+    def run() -> list[dict]:
+        ga = GA(task, "corridor", world=world, ga=CORRIDOR_GA, seed=4)
+        return [ga.generation({}).as_dict() for _ in range(CORRIDOR_GA.generations)]
+
+    first, again = run(), run()
+    for row in (*first, *again):
+        row.pop("seconds")
+    assert first == again
+    assert set(first[0]) >= {"generation", "best_fitness", "arrived"}
+    # Learning: the best so far beats the random first population by far, and always arrives.
+    assert first[-1]["best_so_far"] > first[0]["population_mean"] + 0.2
+    assert first[-1]["arrived"] == 100.0
+
+
+def test_a_task_refuses_another_tasks_settings() -> None:
+    from coevo.config import WorldConfig
+
+    with pytest.raises(ConfigError, match="CorridorConfig"):
+        get_task("corridor").evaluator("corridor", WorldConfig(), GAConfig())
