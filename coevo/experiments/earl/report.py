@@ -217,7 +217,7 @@ def _plots(out: Path, spec: EarlSpec, grid: dict[str, Any], hid: dict[str, Any])
         ax.plot(np.arange(e.share.shape[0]), 100 * e.share.mean(axis=1), label=f"fitness: {_trials_label(t)}")
     ax.axhline(80, color="grey", ls=":", label="survey: about 80 %")
     ax.set(xlabel="generation", ylabel="% of population on (R, R, L)", ylim=(0, 100),
-           title=f"Hidden state: optimal policy in the EA population (mean of {spec.runs} runs)")
+           title=f"Hidden state: EA population on the optimum ({spec.runs} runs)")
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(out / "fig14_hidden.png", dpi=110)
