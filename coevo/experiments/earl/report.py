@@ -17,7 +17,8 @@ from typing import Any
 import numpy as np
 
 from coevo.experiments.earl import gridworld, hidden
-from coevo.experiments.earl.experiment import TABLE2_FITNESS, EarlSpec
+from coevo.experiments.earl.earl1 import implicit_values
+from coevo.experiments.earl.experiment import TABLE2, TABLE2_FITNESS, EarlSpec
 from coevo.rundir import write_csv, write_json, write_text
 
 __all__ = ["TABLE1_D", "TABLE4", "claims", "write_report"]
@@ -39,9 +40,6 @@ def _f(x: float, nd: int = 3) -> float | None:
 
 def _table4_match(fitness: np.ndarray) -> tuple[int, int]:
     """How many legible Table 4 numbers the implicit estimate of Table 2 (with these fitnesses) reproduces, rounded."""
-    from coevo.experiments.earl.earl1 import implicit_values
-    from coevo.experiments.earl.experiment import TABLE2
-
     est = np.round(implicit_values(TABLE2, fitness))  # numpy rounds halves to even, as the table appears to
     ok = n = 0
     for a in (0, 1):
