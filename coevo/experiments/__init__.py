@@ -1,0 +1,1 @@
+"""Small self-contained experiments that reproduce the report's appendices beside the robot tasks."""
