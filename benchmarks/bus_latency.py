@@ -18,17 +18,17 @@ import time
 
 import numpy as np
 
-from coevo import keys
-from coevo.bus import make_config, open_session
-from coevo.messages import PolicyUpdate, encode
+from coevo.bus import keys
+from coevo.bus.messages import PolicyUpdate, encode
+from coevo.bus.session import make_config, open_session
 from coevo.policy import random_ruleset
-from coevo.run import free_port
+from coevo.runs.local import free_port
 
 SUBSCRIBER = r"""
 import sys, time, json
-from coevo.bus import make_config, open_session
-from coevo.messages import decode
-from coevo import keys
+from coevo.bus.session import make_config, open_session
+from coevo.bus.messages import decode
+from coevo.bus import keys
 lat = []
 with open_session(make_config(mode="client", connect=[sys.argv[1]])) as s:
     sub = s.declare_subscriber(keys.policy("lat", "docking"),

@@ -17,14 +17,14 @@ from pathlib import Path
 
 import numpy as np
 
-from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK, Behaviour
-from coevo.config import WorldConfig
 from coevo.errors import CoevoError
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.text import parse_ruleset
-from coevo.run import read_run_json
+from coevo.runs.local import read_run_json
+from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK, Behaviour
 from coevo.tasks.fuel.recorder import Recorder
 from coevo.tasks.fuel.runner import Rules, run_lanes
+from coevo.tasks.fuel.settings import WorldConfig
 from coevo.tasks.fuel.world import BatchWorld
 
 

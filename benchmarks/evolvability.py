@@ -16,8 +16,8 @@ import platform
 import time
 from pathlib import Path
 
-from coevo.evolvability.experiment import GridSpec, run_grid
-from coevo.evolvability.report import write_report
+from coevo.experiments.evolvability.experiment import GridSpec, run_grid
+from coevo.experiments.evolvability.report import write_report
 
 
 def main() -> None:

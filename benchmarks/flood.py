@@ -44,11 +44,11 @@ from typing import Any
 
 import msgpack
 
-from coevo import keys
-from coevo.bus import drain, make_config, open_session, ring_subscriber
+from coevo.bus import keys
+from coevo.bus.messages import BrokerStatus, Control, decode, encode
+from coevo.bus.session import drain, make_config, open_session, ring_subscriber
 from coevo.errors import MessageError
-from coevo.messages import BrokerStatus, Control, decode, encode
-from coevo.run import end_processes, free_port
+from coevo.runs.local import end_processes, free_port
 
 RUN = "flood"
 FLOOD_KEYS = [keys.policy(RUN, "tracking"), keys.policy(RUN, "docking"), keys.control(RUN), keys.status(RUN, "tracking", "x")]

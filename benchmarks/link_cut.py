@@ -28,7 +28,7 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 
 PUBLISHER = r"""
 import sys, time
-from coevo.bus import make_config, open_session
+from coevo.bus.session import make_config, open_session
 with open_session(make_config(mode="client", connect=[sys.argv[1]], lease_ms=int(float(sys.argv[2]) * 1000))) as s:
     pub = s.declare_publisher("coevo/cut/policy/docking")
     print("ready", flush=True)
@@ -41,7 +41,7 @@ with open_session(make_config(mode="client", connect=[sys.argv[1]], lease_ms=int
 
 SUBSCRIBER = r"""
 import sys, time
-from coevo.bus import make_config, open_session
+from coevo.bus.session import make_config, open_session
 out = open(sys.argv[3], "w", buffering=1)
 with open_session(make_config(mode="client", connect=[sys.argv[1]], lease_ms=int(float(sys.argv[2]) * 1000))) as s:
     sub = s.declare_subscriber("coevo/cut/policy/docking", lambda smp: out.write(f"{smp.payload.to_bytes().decode()} {time.time()}\n"))

@@ -20,14 +20,14 @@ from pathlib import Path
 
 import numpy as np
 
-from coevo.tasks.fuel.behaviours import Behaviour
-from coevo.config import WorldConfig
-from coevo.tasks.fuel import default_ruleset
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.text import parse_ruleset
 from coevo.show import animate, draw_png, play, robot_from_path, robot_from_rules, scene_for
 from coevo.show.source import Robot
+from coevo.tasks.fuel import default_ruleset
+from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.runner import ALWAYS_DOCK, ALWAYS_TRACK, Rules, run_lanes
+from coevo.tasks.fuel.settings import WorldConfig
 from coevo.tasks.fuel.world import BatchWorld
 
 EXEC = "# behaviour: executive\nIF fuel = [0, 20] THEN SET task = dock (strength 0.9)\nIF ANY THEN SET task = track (strength 0.5)\n"

@@ -28,9 +28,9 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 PUBLISHER = r"""
 import sys, time
 import numpy as np
-from coevo import keys
-from coevo.bus import make_config, open_session
-from coevo.messages import PolicyUpdate, encode
+from coevo.bus import keys
+from coevo.bus.session import make_config, open_session
+from coevo.bus.messages import PolicyUpdate, encode
 from coevo.policy import random_ruleset
 rules = random_ruleset("docking", 48, np.random.default_rng(1)).to_dict()
 with open_session(make_config(mode="client", connect=[sys.argv[1]], lease_ms=10000)) as s:
@@ -43,9 +43,9 @@ with open_session(make_config(mode="client", connect=[sys.argv[1]], lease_ms=100
 
 SUBSCRIBER = r"""
 import sys, time
-from coevo import keys
-from coevo.bus import make_config, open_session
-from coevo.messages import decode
+from coevo.bus import keys
+from coevo.bus.session import make_config, open_session
+from coevo.bus.messages import decode
 out = open(sys.argv[2], "w", buffering=1)
 def got(smp):
     t = time.time()

@@ -1,6 +1,6 @@
 """coevo: asynchronous co-evolution of robot behaviours with SAMUEL-style rule GAs.
 
-The core (``coevo.sim``, ``coevo.policy``, ``coevo.ga``) is plain deterministic
+The core (``coevo.policy``, ``coevo.ga``) and the tasks (``coevo.tasks``) are plain deterministic
 library code with no network; ``coevo.agents`` and ``coevo.broker`` put it on
 Eclipse Zenoh.
 """

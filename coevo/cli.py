@@ -16,9 +16,10 @@ import time
 from pathlib import Path
 from typing import Any
 
-from coevo.tasks.fuel.behaviours import Behaviour
-from coevo.config import GAConfig, WorldConfig, build
+from coevo.config import GAConfig, build
 from coevo.errors import CoevoError, ConfigError
+from coevo.tasks.fuel.behaviours import Behaviour
+from coevo.tasks.fuel.settings import WorldConfig
 
 __all__ = ["main"]
 
@@ -88,7 +89,7 @@ def _add_max_lead(p: argparse.ArgumentParser) -> None:
 def cmd_learn(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from coevo.learn import learn
+    from coevo.runs.learn import learn
 
     behaviour = Behaviour(args.behaviour)
     world, ga = _configs(args)
@@ -124,7 +125,7 @@ def cmd_learn(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from coevo.bench import bench
+    from coevo.tasks.fuel.bench import bench
 
     world = build(WorldConfig, _settings(args.world, WorldConfig))
     if args.lanes < 1 or args.rules < 1 or args.rules > 64 or args.repeats < 1:
@@ -153,7 +154,7 @@ def _router_listen(args: argparse.Namespace) -> list[str]:
 
 def cmd_router(args: argparse.Namespace) -> int:
     """A plain Zenoh router (no store): a second site's meeting point, joined to the broker with --connect."""
-    from coevo.bus import config_from_args, open_session, sigterm_as_exit
+    from coevo.bus.session import config_from_args, open_session, sigterm_as_exit
 
     listen = _router_listen(args)
     conf = config_from_args(args)
@@ -170,7 +171,7 @@ def cmd_router(args: argparse.Namespace) -> int:
 
 def cmd_broker(args: argparse.Namespace) -> int:
     from coevo.broker.server import Broker
-    from coevo.bus import config_from_args, sigterm_as_exit
+    from coevo.bus.session import config_from_args, sigterm_as_exit
 
     listen = _router_listen(args)
     if args.inbox_mb <= 0:
@@ -188,10 +189,10 @@ def cmd_broker(args: argparse.Namespace) -> int:
 
 
 def cmd_worker(args: argparse.Namespace) -> int:
-    from coevo import keys
     from coevo.agents.pacing import parse_max_lead
     from coevo.agents.worker import Worker
-    from coevo.bus import config_from_args, sigterm_as_exit
+    from coevo.bus import keys
+    from coevo.bus.session import config_from_args, sigterm_as_exit
     from coevo.tasks import get_task
 
     world, ga = _configs(args)
@@ -215,8 +216,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from rich.live import Live
 
     from coevo.agents.pacing import parse_max_lead
-    from coevo.run import read_run_json, run_local
-    from coevo.status import PlainStatus, status_table
+    from coevo.bus.status import PlainStatus, status_table
+    from coevo.runs.local import read_run_json, run_local
 
     if args.resume:
         given = [f"--{n}" for n in ("regime", "run", "generations", "population", "episodes", "world", "ga", "seed", "model")
@@ -261,8 +262,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from coevo.agents.pacing import parse_max_lead
-    from coevo.compare import CompareSpec, prepare, run_all, write_report
-    from coevo.compare.experiment import default_jobs, replicates
+    from coevo.experiments.compare import CompareSpec, prepare, run_all, write_report
+    from coevo.experiments.compare.experiment import default_jobs, replicates
 
     world, ga = _configs(args)
     rates = {} if args.rates is None else {"rates": tuple(args.rates)}
@@ -310,9 +311,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_status(args: argparse.Namespace) -> int:
-    from coevo import keys
-    from coevo.bus import config_from_args, open_session, sigterm_as_exit
-    from coevo.status import PlainStatus, StatusBoard, status_table
+    from coevo.bus import keys
+    from coevo.bus.session import config_from_args, open_session, sigterm_as_exit
+    from coevo.bus.status import PlainStatus, StatusBoard, status_table
 
     keys.check_id("run id", args.run)
     sigterm_as_exit()
@@ -348,7 +349,7 @@ def cmd_status(args: argparse.Namespace) -> int:
 
 
 def cmd_chaos(args: argparse.Namespace) -> int:
-    from coevo.chaos import ChaosPlan, run_chaos, summary_lines
+    from coevo.runs.chaos import ChaosPlan, run_chaos, summary_lines
 
     world, ga = _configs(args)
     plan = ChaosPlan(faults=args.faults, kinds=tuple(args.kinds), gap=tuple(args.gap), down=tuple(args.down), seed=args.seed)
@@ -367,7 +368,7 @@ def cmd_chaos(args: argparse.Namespace) -> int:
 
 
 def cmd_check(args: argparse.Namespace) -> int:
-    from coevo.check import check_run
+    from coevo.runs.check import check_run
 
     res = check_run(Path(args.run_dir), replay=not args.no_replay)
     for beh, facts in sorted((k, v) for k, v in res.facts.items() if isinstance(v, dict)):
@@ -382,7 +383,7 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
-    from coevo.replay import replay
+    from coevo.runs.replay import replay
 
     results = replay(Path(args.run_dir))
     ok = True
@@ -424,7 +425,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print both figures and their ratio as JSON")
     p.set_defaults(func=cmd_bench)
 
-    from coevo.bus import add_connection_args
+    from coevo.bus.session import add_connection_args
 
     p = sub.add_parser("broker", help="the Zenoh router workers meet at, plus the policy store")
     add_connection_args(p, default_mode="router")
@@ -488,7 +489,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_settings(p)
     p.set_defaults(func=cmd_compare)
 
-    from coevo.evolvability.command import add_parser as add_evolvability
+    from coevo.experiments.evolvability.command import add_parser as add_evolvability
 
     add_evolvability(sub)
 

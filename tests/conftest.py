@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 from procs import broker  # noqa: F401  (a fixture for every test module)
 
-from coevo.config import GAConfig, WorldConfig
+from coevo.config import GAConfig
+from coevo.tasks.fuel.settings import WorldConfig
 
 
 @pytest.fixture

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from coevo import keys
-from coevo.bus import make_config, open_session
-from coevo.run import end_processes, free_port, wait_until
+from coevo.bus import keys
+from coevo.bus.session import make_config, open_session
+from coevo.runs.local import end_processes, free_port, wait_until
 
 __all__ = ["SMALL", "poll", "coevo_proc", "stop", "broker"]
 

@@ -128,7 +128,7 @@ class _Board:
 def test_status_table_fits_80_columns_without_cutting_words() -> None:
     from rich.console import Console
 
-    from coevo.status import _status_rows, status_table
+    from coevo.bus.status import _status_rows, status_table
 
     board = _Board()
     console = Console(width=80, record=True, color_system=None)
@@ -146,7 +146,7 @@ def test_status_table_fits_80_columns_without_cutting_words() -> None:
 
 
 def test_status_as_plain_lines_one_per_worker_when_it_changes() -> None:
-    from coevo.status import PlainStatus
+    from coevo.bus.status import PlainStatus
 
     plain = PlainStatus()
     first = plain.lines(_Board())

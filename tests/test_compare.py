@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from coevo.compare.stats import compare_groups, compare_samples, magnitude
-from coevo.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
+from coevo.experiments.compare.stats import compare_groups, compare_samples, magnitude
+from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
 
 TINY = ["--runs", "2", "--generations", "3", "--population", "6", "--episodes", "10", "--ga", "best_episodes=10",
         "--ga", "initial_rules=8", "--measure-epochs", "5", "--jobs", "2", "--quiet"]

@@ -29,7 +29,7 @@ import pytest
 from netns import Lab, unavailable
 from procs import SMALL, coevo_proc, poll, stop
 
-from coevo.run import free_port
+from coevo.runs.local import free_port
 
 REASON = unavailable()
 

@@ -15,7 +15,6 @@ from coevo.experiments.earl.experiment import TABLE2, TABLE2_FITNESS, EarlSpec, 
 from coevo.experiments.earl.qlearning import QConfig, QLearner, train
 from coevo.experiments.earl.report import TABLE1_D, TABLE4
 
-
 # --- the grid world -------------------------------------------------------------------------
 
 def test_grid_optimum_is_17_along_the_survey_path_by_exhaustive_search() -> None:

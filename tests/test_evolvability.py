@@ -13,15 +13,16 @@ import pytest
 from scipy import stats
 
 from coevo.cli import _configs, build_parser, main
-from coevo.config import GAConfig, WorldConfig
+from coevo.config import GAConfig
 from coevo.errors import ConfigError
-from coevo.run import _settings_args
-from coevo.evolvability.bitga import GENOME_BITS, RunParams, breed, decode, gene_of, run_batch
-from coevo.evolvability.experiment import GridSpec
-from coevo.evolvability.landscape import CLASSES, DynamicLandscape, LandscapeSpec
-from coevo.evolvability.report import shift_windows
+from coevo.experiments.evolvability.bitga import GENOME_BITS, RunParams, breed, decode, gene_of, run_batch
+from coevo.experiments.evolvability.experiment import GridSpec
+from coevo.experiments.evolvability.landscape import CLASSES, DynamicLandscape, LandscapeSpec
+from coevo.experiments.evolvability.report import shift_windows
 from coevo.ga import GA
+from coevo.runs.local import _settings_args
 from coevo.tasks import get_task
+from coevo.tasks.fuel.settings import WorldConfig
 
 FUEL = get_task("fuel")
 from coevo.ga.mutation import FixedHypermutation, GeneticHypermutation, GeneticRate, control_rate, model_from_config

@@ -25,23 +25,24 @@ import numpy as np
 import pytest
 from procs import SMALL, coevo_proc, poll, stop
 
-from coevo import keys
 from coevo.agents.checkpoint import CHECKPOINT, load_checkpoint, save_checkpoint
 from coevo.agents.models import PartnerModels
 from coevo.agents.worker import FAULT_HANG_ENV
-from coevo.tasks.fuel.behaviours import Behaviour
-from coevo.bus import make_config, open_session
-from coevo.check import check_run
-from coevo.config import GAConfig, WorldConfig
+from coevo.bus import keys
+from coevo.bus.session import make_config, open_session
+from coevo.config import GAConfig
 from coevo.errors import RunDirError
 from coevo.ga import GA
+from coevo.runs.check import check_run
 from coevo.tasks import get_task
+from coevo.tasks.fuel.behaviours import Behaviour
+from coevo.tasks.fuel.settings import WorldConfig
 
 FUEL = get_task("fuel")
-from coevo.messages import MAX_BYTES, PolicyUpdate, Status, encode
+from coevo.bus.messages import MAX_BYTES, PolicyUpdate, Status, encode
+from coevo.bus.status import StatusBoard
 from coevo.policy import random_ruleset
-from coevo.run import LocalRun
-from coevo.status import StatusBoard
+from coevo.runs.local import LocalRun
 
 T, D, E = Behaviour.TRACKING, Behaviour.DOCKING, Behaviour.EXECUTIVE
 MID = GAConfig(generations=30, population=8, episodes=20, best_episodes=20, initial_rules=8)
@@ -286,7 +287,7 @@ def test_every_kind_of_bad_message_is_rejected_counted_and_named_and_changes_not
 
 
 def test_a_broker_flooded_beyond_its_inbox_drops_and_counts_and_still_stores(tmp_path: Path) -> None:
-    from coevo.run import free_port
+    from coevo.runs.local import free_port
 
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     b = coevo_proc("broker", "--listen", endpoint, "--data-dir", str(tmp_path / "data"), "--inbox-mb", "1",

@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from coevo.config import GAConfig, WorldConfig
+from coevo.config import GAConfig
 from coevo.errors import ConfigError
 from coevo.ga import GA, FixedRate
 from coevo.tasks import get_task
 from coevo.tasks.fuel.evaluate import FuelEvaluator as Evaluator
+from coevo.tasks.fuel.settings import WorldConfig
 
 FUEL = get_task("fuel")
 from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise

@@ -10,9 +10,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from coevo import keys
+from coevo.bus import keys
+from coevo.bus.messages import MAX_BYTES, REASONS, Control, PolicyUpdate, Status, decode, encode
 from coevo.errors import ConfigError, MessageError
-from coevo.messages import MAX_BYTES, REASONS, Control, PolicyUpdate, Status, decode, encode
 from coevo.policy import random_ruleset
 
 

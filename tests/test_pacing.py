@@ -9,12 +9,12 @@ from collections.abc import Iterator
 
 import pytest
 
-from coevo import keys
 from coevo.agents.pacing import Pacer, parse_max_lead
-from coevo.tasks.fuel.behaviours import Behaviour
-from coevo.bus import make_config, open_session
+from coevo.bus import keys
+from coevo.bus.messages import Status, encode
+from coevo.bus.session import make_config, open_session
 from coevo.errors import ConfigError
-from coevo.messages import Status, encode
+from coevo.tasks.fuel.behaviours import Behaviour
 
 RUN = "pace"
 

@@ -7,10 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from coevo.tasks.fuel.behaviours import Behaviour
-from coevo.policy.schema import schema
 from coevo.errors import RuleParseError, RuleSetError
 from coevo.policy import CompiledPolicies, RuleSet, format_ruleset, parse_ruleset, random_ruleset
+from coevo.policy.schema import schema
+from coevo.tasks.fuel.behaviours import Behaviour
 
 BEHAVIOURS = [b.value for b in Behaviour]
 

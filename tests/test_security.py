@@ -16,10 +16,10 @@ from pathlib import Path
 import pytest
 from procs import SMALL, coevo_proc, poll, stop
 
-from coevo import keys
-from coevo.bus import PASSWORD_ENV, Security, make_config, open_session
+from coevo.bus import keys
+from coevo.bus.session import PASSWORD_ENV, Security, make_config, open_session
 from coevo.errors import ConfigError
-from coevo.run import free_port
+from coevo.runs.local import free_port
 
 REPO = Path(__file__).resolve().parent.parent
 pytestmark = pytest.mark.skipif(shutil.which("openssl") is None, reason="openssl is not installed")

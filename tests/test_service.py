@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 from procs import SMALL, coevo_proc, poll, stop
 
-from coevo import keys
-from coevo.bus import make_config, open_session
-from coevo.messages import PolicyUpdate, encode
+from coevo.bus import keys
+from coevo.bus.messages import PolicyUpdate, encode
+from coevo.bus.session import make_config, open_session
+from coevo.bus.status import StatusBoard
 from coevo.policy import random_ruleset
-from coevo.run import free_port
-from coevo.status import StatusBoard
+from coevo.runs.local import free_port
 
 
 def test_broker_stores_answers_and_rejects(broker, tmp_path: Path) -> None:

@@ -14,17 +14,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.cli import main
-from coevo.config import WorldConfig
-from coevo.tasks.fuel import default_ruleset
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.text import format_ruleset, parse_ruleset
 from coevo.show import play, robot_from_rules, scene_for
 from coevo.show.rules_view import fire_counts, rule_rows, trace_lines
 from coevo.show.tracking_fuel import episode_endings
+from coevo.tasks.fuel import default_ruleset
+from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.recorder import Recorder
 from coevo.tasks.fuel.runner import Rules, run_lanes
+from coevo.tasks.fuel.settings import WorldConfig
 from coevo.tasks.fuel.world import BatchWorld
 
 EXEC_RULES = "# behaviour: executive\nIF fuel = [0, 20] THEN SET task = dock (strength 0.9)\nIF ANY THEN SET task = track (strength 0.5)\n"

@@ -63,7 +63,7 @@ def test_the_same_ga_learns_the_corridor_and_replays_it_exactly() -> None:
 
 
 def test_a_task_refuses_another_tasks_settings() -> None:
-    from coevo.config import WorldConfig
+    from coevo.tasks.fuel.settings import WorldConfig
 
     with pytest.raises(ConfigError, match="CorridorConfig"):
         get_task("corridor").evaluator("corridor", WorldConfig(), GAConfig())

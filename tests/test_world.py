@@ -5,14 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from coevo.tasks.fuel.behaviours import Behaviour
-from coevo.policy.schema import schema
-from coevo.config import WorldConfig
 from coevo.policy.matcher import CompiledPolicies
+from coevo.policy.schema import schema
 from coevo.policy.text import parse_ruleset
+from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.runner import ALWAYS_DOCK, ALWAYS_TRACK, Rules, run_lanes
-from coevo.tasks.fuel.world import BatchWorld
-from coevo.tasks.fuel.world import DOCK_HEADING
+from coevo.tasks.fuel.settings import WorldConfig
+from coevo.tasks.fuel.world import DOCK_HEADING, BatchWorld
 
 STILL = np.zeros(1)
 QUIET = WorldConfig(target_speed=0.0, target_turn_sd=0.0)

@@ -1,4 +1,3 @@
-"""GA workers, one process per behaviour, on Eclipse Zenoh (the service issue; not built yet).
-
-The wire protocol they will speak is already in :mod:`coevo.keys` and :mod:`coevo.messages`.
-"""
+"""The GA workers, one process per behaviour, on Eclipse Zenoh: the worker (:mod:`.worker`), its
+partner models (:mod:`.models`), pacing (:mod:`.pacing`), checkpoints (:mod:`.checkpoint`) and the
+recorded-history feed of the offline regime (:mod:`.history`)."""

@@ -10,7 +10,7 @@ those lengths, so whatever a crash left after the checkpoint (a curve line, an
 adoption, a publication of a generation that is now done again) disappears and
 the logs agree with the restored state: a replay reproduces the whole run.
 
-The file is written atomically (:func:`coevo.rundir.write_bytes`) and carries a
+The file is written atomically (:func:`coevo.runs.layout.write_bytes`) and carries a
 CRC-32 of its body, so a crash mid-write leaves the previous checkpoint intact and
 a damaged file is refused with its name rather than half-read.
 """
@@ -24,7 +24,7 @@ from typing import Any
 import msgpack
 
 from coevo.errors import RunDirError
-from coevo.rundir import write_bytes
+from coevo.runs.layout import write_bytes
 
 __all__ = ["CHECKPOINT", "FORMAT", "save_checkpoint", "load_checkpoint", "truncate_log"]
 

@@ -16,8 +16,8 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
+from coevo.bus.messages import PolicyUpdate
 from coevo.errors import ConfigError, RunDirError
-from coevo.messages import PolicyUpdate
 
 __all__ = ["HistoryFeed"]
 

@@ -32,10 +32,10 @@ import time
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from coevo import keys
-from coevo.bus import drain_messages, is_put, ring_subscriber
+from coevo.bus import keys
+from coevo.bus.messages import Status
+from coevo.bus.session import drain_messages, is_put, ring_subscriber
 from coevo.errors import ConfigError
-from coevo.messages import Status
 
 __all__ = ["DEFAULT_MAX_LEAD", "Pacer", "parse_max_lead"]
 

@@ -38,8 +38,9 @@ from pathlib import Path
 from typing import Any
 
 import msgpack
+from pydantic import BaseModel
 
-from coevo import __version__, keys
+from coevo import __version__
 from coevo.agents.checkpoint import (
     CHECKPOINT,
     load_checkpoint,
@@ -48,17 +49,16 @@ from coevo.agents.checkpoint import (
 )
 from coevo.agents.models import PartnerModels
 from coevo.agents.pacing import DEFAULT_MAX_LEAD, Pacer
-from coevo.bus import drain, drain_messages, is_put, open_session, ring_subscriber
-from pydantic import BaseModel
-
+from coevo.bus import keys
+from coevo.bus.messages import Control, PolicyUpdate, Status, decode, encode
+from coevo.bus.rejections import Rejections
+from coevo.bus.session import drain, drain_messages, is_put, open_session, ring_subscriber
 from coevo.config import GAConfig
 from coevo.errors import ConfigError, MessageError, RunDirError
 from coevo.ga import GA, GenerationReport
-from coevo.messages import Control, PolicyUpdate, Status, decode, encode
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
-from coevo.rejections import Rejections
-from coevo.rundir import read_jsonl, write_json, write_text
+from coevo.runs.layout import read_jsonl, write_json, write_text
 from coevo.tasks import Task
 
 __all__ = ["Worker", "INBOX", "FAULT_HANG_ENV"]

@@ -8,7 +8,7 @@ queues, so a slow disk never stalls the connection).  The inbox holds at most
 (``flood``), and the workers' store sync republishes any real policy that was
 among it.  Queryables on ``coevo/*/store/{latest,history,versions}/*`` answer from
 memory.  Every ``status_every`` seconds the broker publishes, for each run it has
-heard of, a :class:`~coevo.messages.BrokerStatus` (policies stored, messages
+heard of, a :class:`~coevo.bus.messages.BrokerStatus` (policies stored, messages
 rejected by reason) on ``coevo/RUN/broker``.
 """
 
@@ -23,11 +23,11 @@ from typing import Any
 
 import msgpack
 
-from coevo import keys
 from coevo.broker.store import PolicyStore
-from coevo.bus import open_session
+from coevo.bus import keys
+from coevo.bus.messages import MAX_BYTES, BrokerStatus, PolicyUpdate, decode, encode
+from coevo.bus.session import open_session
 from coevo.errors import MessageError
-from coevo.messages import MAX_BYTES, BrokerStatus, PolicyUpdate, decode, encode
 
 __all__ = ["Broker"]
 

@@ -18,10 +18,10 @@ import threading
 from collections import Counter
 from pathlib import Path
 
-from coevo import keys
+from coevo.bus import keys
+from coevo.bus.messages import PolicyUpdate
+from coevo.bus.rejections import Rejections
 from coevo.errors import MessageError
-from coevo.messages import PolicyUpdate
-from coevo.rejections import Rejections
 
 __all__ = ["PolicyStore"]
 

@@ -20,7 +20,7 @@ is read from the gene the offspring inherited, before that gene mutates.  Rates 
 clipped to 1.
 
 On rule sets the probability applies per rule (a mutated rule gets one change, see
-:func:`mutate_rules`); on the bit strings of :mod:`coevo.evolvability.bitga` it applies
+:func:`mutate_rules`); on the bit strings of :mod:`coevo.experiments.evolvability.bitga` it applies
 per bit.  Models without a control gene (FM, FH) draw no random numbers for it, so
 an FM GA consumes its generator exactly as before these models existed.
 """

@@ -21,9 +21,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from coevo.policy.schema import Schema
 from coevo.errors import ConfigError
 from coevo.policy.rules import RuleSet
+from coevo.policy.schema import Schema
 
 __all__ = ["CompiledPolicies", "lowest_bit"]
 

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from coevo.policy.schema import Schema, schema
 from coevo.errors import RuleSetError
+from coevo.policy.schema import Schema, schema
 
 __all__ = ["RuleSet", "MAX_RULES", "random_ruleset", "interval_width"]
 

@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from coevo.policy.schema import Schema, registered, schema
 from coevo.errors import ConfigError, RuleParseError, RuleSetError
 from coevo.policy.rules import RuleSet
+from coevo.policy.schema import Schema, registered, schema
 
 __all__ = ["format_ruleset", "parse_ruleset", "format_rule", "read_rule_file"]
 

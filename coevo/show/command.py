@@ -13,12 +13,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from coevo.tasks.fuel.behaviours import Behaviour
-from coevo.config import WorldConfig, build
+from coevo.config import build
 from coevo.errors import ConfigError
-from coevo.show.draw import ANIMATION_FORMATS, FORMATS, check_out_path
 from coevo.policy.text import read_rule_file
+from coevo.show.draw import ANIMATION_FORMATS, FORMATS, check_out_path
 from coevo.show.source import Robot, robot_from_default, robot_from_path
+from coevo.tasks.fuel.behaviours import Behaviour
+from coevo.tasks.fuel.settings import WorldConfig
 
 __all__ = ["add_parser", "cmd_show", "DEFAULT_EPISODES", "MAX_EPISODES"]
 

@@ -12,11 +12,11 @@ from typing import Any
 
 import numpy as np
 
-from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK, Behaviour
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_rule
 from coevo.show.play import Played
 from coevo.show.tracking_fuel import CATEGORIES, episode_endings
+from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK, Behaviour
 
 __all__ = ["RuleRow", "fire_counts", "rule_rows", "print_rules", "trace_lines"]
 

@@ -18,12 +18,12 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from coevo.tasks.fuel.behaviours import Behaviour
-from coevo.config import WorldConfig
 from coevo.errors import ConfigError, RunDirError
-from coevo.tasks.fuel import HAS_DEFAULT, default_ruleset
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import read_rule_file
+from coevo.tasks.fuel import HAS_DEFAULT, default_ruleset
+from coevo.tasks.fuel.behaviours import Behaviour
+from coevo.tasks.fuel.settings import WorldConfig
 
 __all__ = ["Robot", "robot_from_path", "robot_from_default", "robot_from_rules"]
 

@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK
 from coevo.show.play import Played
 from coevo.show.scene import Event, Ring, Scene, Shape, Span, Track
+from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK
 
 __all__ = ["TASK", "scene_of", "episode_endings", "CATEGORIES"]
 

@@ -12,9 +12,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
 
-from coevo.config import GAConfig
+from coevo.config import GAConfig, Settings
 from coevo.errors import ConfigError
 from coevo.ga.operators import Experience
 from coevo.policy.matcher import CompiledPolicies
@@ -28,9 +28,7 @@ CORRIDOR = "corridor"
 _MAX_CELLS = 16  # the cell sensor's bins: the longest corridor
 
 
-class CorridorConfig(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
-
+class CorridorConfig(Settings):
     length: int = Field(12, ge=2, le=_MAX_CELLS, description="cells in the corridor")
     steps: int = Field(24, ge=1, le=10_000, description="steps an episode may take")
 

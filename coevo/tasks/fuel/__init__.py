@@ -19,12 +19,13 @@ from functools import cache
 from importlib import resources
 from pathlib import Path
 
-from coevo.config import GAConfig, WorldConfig
+from coevo.config import GAConfig
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import parse_ruleset
 from coevo.tasks.base import Partners, Task
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.evaluate import FuelEvaluator
+from coevo.tasks.fuel.settings import WorldConfig
 
 __all__ = ["FuelTask", "Behaviour", "default_ruleset", "HAS_DEFAULT"]
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from coevo.config import GAConfig, WorldConfig
+from coevo.config import GAConfig
 from coevo.errors import ConfigError
 from coevo.ga.operators import Experience
 from coevo.policy.matcher import CompiledPolicies
@@ -19,6 +19,7 @@ from coevo.tasks.base import ChildRng, Evaluation, Evaluator, Partners, Tick
 from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK, Behaviour
 from coevo.tasks.fuel.measures import measure
 from coevo.tasks.fuel.runner import Outcome, Rules, Trivial, run_lanes
+from coevo.tasks.fuel.settings import WorldConfig
 from coevo.tasks.fuel.world import BatchWorld
 
 __all__ = ["FuelEvaluator"]

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from coevo.tasks.fuel.behaviours import Behaviour
-from coevo.config import WorldConfig
 from coevo.errors import ConfigError
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.rules import RuleSet
+from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.measures import Measures, measure
 from coevo.tasks.fuel.runner import ALWAYS_DOCK, ALWAYS_TRACK, Rules, Trivial, run_lanes
+from coevo.tasks.fuel.settings import WorldConfig
 from coevo.tasks.fuel.world import BatchWorld
 
 __all__ = ["controllers", "measure_robot", "docking_from_random_starts", "measure_behaviour"]

@@ -27,10 +27,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK, Behaviour
-from coevo.policy.schema import schema
 from coevo.errors import ConfigError
 from coevo.policy.matcher import CompiledPolicies
+from coevo.policy.schema import schema
+from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK, Behaviour
 from coevo.tasks.fuel.recorder import Recorder
 from coevo.tasks.fuel.world import BatchWorld
 

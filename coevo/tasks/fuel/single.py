@@ -12,10 +12,10 @@ import math
 import numpy as np
 import pymunk
 
-from coevo.tasks.fuel.behaviours import Behaviour
-from coevo.policy.schema import schema
-from coevo.config import WorldConfig
 from coevo.policy.rules import RuleSet
+from coevo.policy.schema import schema
+from coevo.tasks.fuel.behaviours import Behaviour
+from coevo.tasks.fuel.settings import WorldConfig
 
 __all__ = ["run_episode"]
 

@@ -28,7 +28,7 @@ import numpy as np
 import pymunk
 import pymunk.batch as pb
 
-from coevo.config import WorldConfig
+from coevo.tasks.fuel.settings import WorldConfig
 
 __all__ = ["BatchWorld", "StepEvents", "MAX_SPEED", "MAX_TURN", "DOCK_HEADING", "SENSOR_NAMES"]
 

@@ -16,11 +16,11 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from coevo.tasks.fuel.behaviours import Behaviour
-from coevo.config import WorldConfig
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.rules import RuleSet, random_ruleset
+from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.runner import ALWAYS_DOCK, ALWAYS_TRACK, Rules, run_lanes
+from coevo.tasks.fuel.settings import WorldConfig
 from coevo.tasks.fuel.single import run_episode
 from coevo.tasks.fuel.world import BatchWorld
 

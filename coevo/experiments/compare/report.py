@@ -21,15 +21,23 @@ import statistics
 from pathlib import Path
 from typing import Any
 
-from coevo.tasks.fuel.behaviours import Behaviour
-from coevo.compare import plots
-from coevo.compare.experiment import OFFLINE, CompareSpec, Replicate, groups, is_finished, replicates, run_dir
-from coevo.compare.stats import GroupComparison, RankComparison, compare_groups, compare_samples
-from coevo.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
 from coevo.errors import CoevoError, RuleSetError, RunDirError
+from coevo.experiments.compare import plots
+from coevo.experiments.compare.experiment import (
+    OFFLINE,
+    CompareSpec,
+    Replicate,
+    groups,
+    is_finished,
+    replicates,
+    run_dir,
+)
+from coevo.experiments.compare.stats import GroupComparison, RankComparison, compare_groups, compare_samples
+from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
 from coevo.policy.text import parse_ruleset
+from coevo.runs.layout import read_jsonl, write_csv, write_json, write_text
+from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.robot import docking_from_random_starts
-from coevo.rundir import read_jsonl, write_csv, write_json, write_text
 
 __all__ = ["collect", "write_report", "MEASURES"]
 

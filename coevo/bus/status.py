@@ -6,7 +6,7 @@ seconds (a token proves the process exists, not that it progresses; a worker
 heartbeats about every second, even in the middle of a generation), *dead* when
 its token is gone (its process died: seen within milliseconds on a LAN, or its
 link stayed silent for a lease), and *done* when it said so.  The broker is *up*
-while its token exists; its last :class:`~coevo.messages.BrokerStatus` says what
+while its token exists; its last :class:`~coevo.bus.messages.BrokerStatus` says what
 it stored and rejected for this run.
 
 Heartbeats wait in a ring inside Zenoh and are decoded when the board is read, so
@@ -24,10 +24,10 @@ from typing import Any
 
 import zenoh
 
-from coevo import keys
-from coevo.bus import drain_messages, is_put, ring_subscriber
+from coevo.bus import keys
+from coevo.bus.messages import BrokerStatus, Status
+from coevo.bus.session import drain_messages, is_put, ring_subscriber
 from coevo.errors import MessageError
-from coevo.messages import BrokerStatus, Status
 
 __all__ = ["DEFAULT_STALL", "WorkerView", "StatusBoard", "status_table", "PlainStatus"]
 

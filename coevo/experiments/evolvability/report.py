@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from coevo.evolvability.experiment import GridResults
+from coevo.experiments.evolvability.experiment import GridResults
 
 __all__ = ["write_report", "shift_windows", "summarise"]
 

@@ -22,7 +22,7 @@ from pydantic import (
     field_validator,
 )
 
-from coevo import keys
+from coevo.bus import keys
 from coevo.errors import MessageError, RuleSetError
 from coevo.policy.rules import RuleSet
 from coevo.policy.schema import registered

@@ -28,8 +28,8 @@ from typing import Any
 
 import zenoh
 
+from coevo.bus.messages import Message, decode
 from coevo.errors import ConfigError, MessageError
-from coevo.messages import Message, decode
 
 __all__ = ["DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
            "drain", "drain_messages", "is_put", "make_config", "open_session", "ring_subscriber", "sigterm_as_exit"]

@@ -3,7 +3,7 @@
 The grid is landscape classes × base rates × models × landscapes × runs (default
 2 × 8 × 4 × 10 × 10 = 6400 runs of 200 generations, population 100).  All runs on
 one landscape (every model, rate and replicate) advance together as one batch of
-:func:`~coevo.evolvability.bitga.run_batch`.
+:func:`~coevo.experiments.evolvability.bitga.run_batch`.
 
 Seeds: landscape ``i`` of a class comes from ``(seed, class, i)`` and is the same
 whatever else the grid holds; the runs on it draw from ``(seed, class, i, 1)``, so a
@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from coevo.errors import ConfigError
-from coevo.evolvability.bitga import RunParams, run_batch
-from coevo.evolvability.landscape import CLASSES, DynamicLandscape
+from coevo.experiments.evolvability.bitga import RunParams, run_batch
+from coevo.experiments.evolvability.landscape import CLASSES, DynamicLandscape
 from coevo.ga.mutation import MODEL_NAMES
 
 __all__ = ["GridSpec", "GridResults", "RATES", "run_grid"]

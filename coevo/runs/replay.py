@@ -18,9 +18,9 @@ from coevo.agents.models import PartnerModels
 from coevo.config import GAConfig, build
 from coevo.errors import RunDirError
 from coevo.ga import GA
-from coevo.messages import PolicyUpdate
+from coevo.bus.messages import PolicyUpdate
 from coevo.policy.rules import RuleSet
-from coevo.rundir import read_jsonl
+from coevo.runs.layout import read_jsonl
 from coevo.tasks import DEFAULT_TASK, get_task
 
 __all__ = ["WorkerReplay", "replay"]

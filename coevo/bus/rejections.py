@@ -1,7 +1,7 @@
 """Counting and logging rejected bus messages, one counter per reason.
 
 Every receiver (worker, broker, status) rejects bad messages the same way: it
-counts them by :data:`coevo.messages.REASONS` key and names each in its log.  A
+counts them by :data:`coevo.bus.messages.REASONS` key and names each in its log.  A
 flood of thousands of bad messages a second must not turn into thousands of log
 lines a second, so after ``burst`` lines per reason the log falls silent for that
 reason and says every ``every`` seconds how many more arrived.

@@ -27,14 +27,15 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from coevo import keys
+from coevo.bus import keys
 from coevo.agents.pacing import DEFAULT_MAX_LEAD
-from coevo.bus import make_config, open_session, sigterm_as_exit
-from coevo.config import GAConfig, WorldConfig
+from coevo.bus.session import make_config, open_session, sigterm_as_exit
+from coevo.config import GAConfig
+from coevo.tasks.fuel.settings import WorldConfig
 from coevo.errors import RunDirError
-from coevo.messages import Control, PolicyUpdate, decode, encode
-from coevo.rundir import read_jsonl, write_csv, write_json
-from coevo.status import StatusBoard
+from coevo.bus.messages import Control, PolicyUpdate, decode, encode
+from coevo.runs.layout import read_jsonl, write_csv, write_json
+from coevo.bus.status import StatusBoard
 from coevo.tasks import get_task
 
 __all__ = ["free_port", "wait_until", "end_processes", "LocalRun", "run_local", "fetch_latest", "read_run_json"]

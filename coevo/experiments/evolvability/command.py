@@ -21,8 +21,8 @@ def cmd_evolvability(args: argparse.Namespace) -> int:
     """Run the grid (or only rewrite the report of a finished one) and print the claims' verdicts."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from coevo.evolvability.experiment import GridResults, GridSpec, run_grid
-    from coevo.evolvability.report import write_report
+    from coevo.experiments.evolvability.experiment import GridResults, GridSpec, run_grid
+    from coevo.experiments.evolvability.report import write_report
 
     if args.report_only:
         if not args.out:

@@ -10,7 +10,7 @@ One fault at a time, at random (seeded) moments while the workers evolve:
 * ``pause-worker``: SIGSTOP a worker for a moment, then SIGCONT (a frozen process).
 
 For every worker kill it measures how long the status board took to show the
-worker dead.  At the end it checks the run directory (:mod:`coevo.check`: every
+worker dead.  At the end it checks the run directory (:mod:`coevo.runs.check`: every
 generation, every published version in the store, replay exact) and writes
 ``chaos.json`` beside the run's other files.
 """
@@ -30,13 +30,14 @@ from typing import Any
 
 import numpy as np
 
-from coevo.bus import open_session, sigterm_as_exit
-from coevo.check import check_run
-from coevo.config import GAConfig, WorldConfig
+from coevo.bus.session import open_session, sigterm_as_exit
+from coevo.runs.check import check_run
+from coevo.config import GAConfig
+from coevo.tasks.fuel.settings import WorldConfig
 from coevo.errors import ConfigError, RunDirError
-from coevo.run import LocalRun, end_processes, fetch_latest, wait_until
-from coevo.rundir import write_json
-from coevo.status import StatusBoard
+from coevo.runs.local import LocalRun, end_processes, fetch_latest, wait_until
+from coevo.runs.layout import write_json
+from coevo.bus.status import StatusBoard
 
 __all__ = ["FAULTS", "ChaosPlan", "run_chaos", "summary_lines"]
 

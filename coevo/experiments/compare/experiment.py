@@ -47,10 +47,11 @@ from coevo.tasks.fuel import FuelTask
 
 REGIMES = FuelTask.regimes
 from coevo.agents.pacing import DEFAULT_MAX_LEAD
-from coevo.tasks.fuel.behaviours import Behaviour
-from coevo.config import GAConfig, WorldConfig
+from coevo.config import GAConfig
 from coevo.errors import ConfigError, RunDirError
-from coevo.rundir import write_json
+from coevo.runs.layout import write_json
+from coevo.tasks.fuel.behaviours import Behaviour
+from coevo.tasks.fuel.settings import WorldConfig
 
 __all__ = ["CompareSpec", "Replicate", "prepare", "replicates", "groups", "run_all", "default_jobs", "OFFLINE",
            "DEFAULT_RATES"]

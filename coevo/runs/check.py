@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from coevo.errors import RunDirError
-from coevo.rundir import read_jsonl
+from coevo.runs.layout import read_jsonl
 
 __all__ = ["RunCheck", "check_run"]
 
@@ -83,7 +83,7 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
             if model != "current" and (a["partner"], int(a["version"])) not in published_all:
                 check.problems.append(f"{beh}: adopted {a['partner']} v{a['version']}, which no worker published")
     if replay and not check.problems:
-        from coevo.replay import replay as replay_run
+        from coevo.runs.replay import replay as replay_run
 
         for r in replay_run(run_dir):
             if not r.reproduced:

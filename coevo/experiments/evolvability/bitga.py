@@ -2,7 +2,7 @@
 
 Every array has the shape ``(runs, population, ...)``; one numpy operation advances
 all runs, each with its own mutation model and rates.  All runs of one call share a
-:class:`~coevo.evolvability.landscape.DynamicLandscape` (the report runs every model
+:class:`~coevo.experiments.evolvability.landscape.DynamicLandscape` (the report runs every model
 on the same landscapes).
 
 The GA is the report's: generational, every individual evaluated in every generation,
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from coevo.errors import ConfigError
-from coevo.evolvability.landscape import DynamicLandscape
+from coevo.experiments.evolvability.landscape import DynamicLandscape
 from coevo.ga.mutation import CONTROL_BITS, CONTROL_LEVELS, MODEL_NAMES
 
 __all__ = ["COORD_BITS", "GENOME_BITS", "RunParams", "Trace", "decode", "gene_of", "run_batch", "breed"]

@@ -28,7 +28,7 @@ from coevo.ga import GA, GenerationReport
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
 from coevo.tasks import task_of
-from coevo.rundir import staged_dir, write_csv, write_json, write_text
+from coevo.runs.layout import staged_dir, write_csv, write_json, write_text
 
 __all__ = ["learn", "LearnResult"]
 

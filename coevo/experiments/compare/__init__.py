@@ -5,7 +5,7 @@ as the report's Table 1 does; ``stats`` compares two regimes; ``plots`` draws
 the learning curves; ``report`` writes it all down.
 """
 
-from coevo.compare.experiment import CompareSpec, prepare, run_all
-from coevo.compare.report import write_report
+from coevo.experiments.compare.experiment import CompareSpec, prepare, run_all
+from coevo.experiments.compare.report import write_report
 
 __all__ = ["CompareSpec", "prepare", "run_all", "write_report"]
