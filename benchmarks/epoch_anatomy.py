@@ -20,7 +20,7 @@ import numpy as np
 from coevo.errors import CoevoError
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.text import parse_ruleset
-from coevo.runs.local import read_run_json
+from coevo.runs.settings import RunSettings
 from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK, Behaviour
 from coevo.tasks.fuel.recorder import Recorder
 from coevo.tasks.fuel.runner import Rules, run_lanes
@@ -29,8 +29,9 @@ from coevo.tasks.fuel.world import BatchWorld
 
 
 def anatomy(run_dir: Path, epochs: int, seed: int) -> tuple[Counter[str], float, float, float]:
-    meta = read_run_json(run_dir)
-    world = meta["world"] if isinstance(meta["world"], WorldConfig) else WorldConfig(**meta["world"])
+    world = RunSettings.load(run_dir / "run.json").world_config()
+    if not isinstance(world, WorldConfig):
+        raise SystemExit(f"{run_dir} is not a run of the fuel task")
     rules = {b: parse_ruleset((run_dir / "workers" / b.value / "best.rules").read_text(), b) for b in Behaviour}
     ctrl = {b: Rules.single(CompiledPolicies([rules[b]]), epochs) for b in Behaviour}
     rec = Recorder()

@@ -7,7 +7,12 @@ Branches are chosen by how a caller reacts::
     ├── RuleSetError            a rule set that is malformed (bad interval, unknown sensor, ...)
     │   └── RuleParseError      rule-set text that does not parse (carries the line number)
     ├── RunDirError             a run directory that is missing, foreign or incomplete
+    ├── ServiceError            the bus or a service on it is unreachable, refused us, or did not answer in time
+    │                           (a router that cannot be reached, a store query that failed, a wait that timed out)
     └── MessageError            a bus message rejected on receipt (logged and counted, never fatal)
+
+Errors of the libraries underneath are translated at the boundary, with ``raise ... from``:
+zenoh's in :mod:`coevo.bus.session` (and nowhere else), files' in :mod:`coevo.runs.layout`.
 
 Every message names the bad value and, where there is one, the fix.
 """
@@ -20,6 +25,7 @@ __all__ = [
     "RuleSetError",
     "RuleParseError",
     "RunDirError",
+    "ServiceError",
     "MessageError",
 ]
 
@@ -46,6 +52,10 @@ class RuleParseError(RuleSetError):
 
 class RunDirError(CoevoError):
     """A run directory is missing, belongs to another run, or is incomplete."""
+
+
+class ServiceError(CoevoError):
+    """The bus or a service on it cannot be reached, refused this process, or did not answer in time."""
 
 
 class MessageError(CoevoError):

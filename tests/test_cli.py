@@ -102,7 +102,7 @@ def test_bench_json_reports_both_figures_and_ratio() -> None:
 
 def test_bench_rejects_bad_sizes() -> None:
     r = coevo("bench", "--lanes", "0")
-    assert r.returncode == 2 and "lanes=0" in r.stderr
+    assert r.returncode == 2 and "--lanes: invalid number 0" in r.stderr
 
 
 class _Board:

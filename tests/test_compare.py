@@ -134,15 +134,15 @@ def test_resume_reruns_only_what_is_unfinished(tiny: Path) -> None:
     (["--regimes", "mutual", "mutual"], "regimes repeat"),
     (["--runs", "0"], "runs"),
     (["--runs", "-3"], "runs"),
-    (["--jobs", "0"], "--jobs must be at least 1, got 0"),
+    (["--jobs", "0"], "--jobs: invalid number 0"),
     (["--generations", "0"], "generations"),
-    (["--measure-epochs", "0"], "measure_epochs"),
+    (["--measure-epochs", "0"], "--measure-epochs: invalid number 0"),
     (["--max-lead", "-1"], "-1"),
     (["--regimes", "mutual", "independent-offline"], "add independent to the regimes"),
-    (["--regimes", "independent", "independent-offline", "--rates", "0", "1"], "must be positive and finite, got 0.0"),
-    (["--regimes", "independent", "independent-offline", "--rates", "-2"], "got -2.0"),
+    (["--regimes", "independent", "independent-offline", "--rates", "0", "1"], "--rates: invalid number 0"),
+    (["--regimes", "independent", "independent-offline", "--rates", "-2"], "--rates: invalid number -2"),
     (["--regimes", "independent", "independent-offline", "--rates", "1", "1"], "rates repeat"),
-    (["--regimes", "independent", "independent-offline", "--rates", "nan"], "got nan"),
+    (["--regimes", "independent", "independent-offline", "--rates", "nan"], "--rates: invalid number nan"),
 ])
 def test_bad_settings_fail_before_anything_starts(tmp_path: Path, args: list[str], message: str) -> None:
     out = tmp_path / "never"

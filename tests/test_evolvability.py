@@ -12,15 +12,16 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from coevo.cli import _configs, build_parser, main
+from coevo.cli import build_parser, main
 from coevo.config import GAConfig
+from coevo.console import ga_settings
 from coevo.errors import ConfigError
 from coevo.experiments.evolvability.bitga import GENOME_BITS, RunParams, breed, decode, gene_of, run_batch
 from coevo.experiments.evolvability.experiment import GridSpec
 from coevo.experiments.evolvability.landscape import CLASSES, DynamicLandscape, LandscapeSpec
 from coevo.experiments.evolvability.report import shift_windows
 from coevo.ga import GA
-from coevo.runs.local import _settings_args
+from coevo.runs.settings import RunSettings
 from coevo.tasks import get_task
 from coevo.tasks.fuel.settings import WorldConfig
 
@@ -131,19 +132,18 @@ def test_ga_carries_one_control_gene_per_individual(name: str) -> None:
         assert not ga.genes.any()
 
 
-def test_mutation_model_flag_sets_the_ga_setting() -> None:
+def test_mutation_model_flag_sets_the_ga_setting(tmp_path: Path) -> None:
     args = build_parser().parse_args(["learn", "--behaviour", "docking", "--mutation-model", "gh",
                                       "--ga", "min_hypermutation_rate=0.1"])
-    ga = _configs(args)[1]
+    ga = ga_settings(args)
     assert (ga.mutation_model, ga.min_hypermutation_rate) == ("gh", 0.1)
     assert GAConfig().mutation_model == "fm"
     with pytest.raises(ConfigError, match="mutation_model='gx'"):
-        _configs(build_parser().parse_args(["run", "--mutation-model", "gx"]))
-    # coevo run / compare hand their GA settings to each worker process as --ga arguments
-    worker_argv = _settings_args(WorldConfig(), ga)
-    back = _configs(build_parser().parse_args(["worker", "--behaviour", "docking", "--regime", "mutual", "--run", "r",
-                                               *worker_argv]))[1]
-    assert back == ga
+        ga_settings(build_parser().parse_args(["run", "--mutation-model", "gx"]))
+    # coevo run / compare hand their GA settings to each worker process once, in the run's run.json
+    f = tmp_path / "run.json"
+    RunSettings.make(run="r", regime="mutual", ga=ga).save(f)
+    assert RunSettings.load(f).ga == ga
 
 
 # -- landscapes --------------------------------------------------------------------------------------------------

@@ -43,6 +43,7 @@ from coevo.bus.messages import MAX_BYTES, PolicyUpdate, Status, encode
 from coevo.bus.status import StatusBoard
 from coevo.policy import random_ruleset
 from coevo.runs.local import LocalRun
+from coevo.runs.settings import RunSettings
 
 T, D, E = Behaviour.TRACKING, Behaviour.DOCKING, Behaviour.EXECUTIVE
 MID = GAConfig(generations=30, population=8, episodes=20, best_episodes=20, initial_rules=8)
@@ -58,7 +59,7 @@ def _curve_len(lr: LocalRun, b: Behaviour) -> int:
 
 
 def _local_run(tmp_path: Path, run: str, ga: GAConfig = MID, seed: int = 3) -> LocalRun:
-    lr = LocalRun(regime="mutual", run=run, root=tmp_path, world=WorldConfig(), ga=ga, seed=seed, log_level="INFO")
+    lr = LocalRun(RunSettings.make(run=run, regime="mutual", ga=ga, seed=seed), root=tmp_path, log_level="INFO")
     lr.create()
     return lr
 

@@ -88,7 +88,7 @@ def _assert_member_joins_and_intruders_do_not(tmp_path: Path, endpoint: str, dat
     for name, (p, sec) in bad.items():
         rc = p.wait(60)
         log = (tmp_path / f"{name}.log").read_text()
-        assert rc == 2 and "ConfigError: cannot open the zenoh" in log, f"{name} got in (exit {rc}):\n{log}"
+        assert rc == 2 and "ServiceError: cannot open the zenoh" in log, f"{name} got in (exit {rc}):\n{log}"
         # Nor can it read from, or publish into, the run from a session of its own.
         with pytest.raises(ConfigError):
             with open_session(make_config(mode="client", connect=[endpoint], connect_timeout=3, security=sec)):

@@ -124,7 +124,7 @@ def test_worker_with_no_broker_fails_clearly(tmp_path: Path) -> None:
     r = subprocess.run([sys.executable, "-m", "coevo", "worker", "--behaviour", "tracking", "--regime", "mutual", "--run", "x",
                         "--connect", f"tcp/127.0.0.1:{free_port()}", "--connect-timeout", "1", "--out", str(tmp_path / "w")],
                        capture_output=True, text=True, timeout=60)
-    assert r.returncode == 2 and "ConfigError" in r.stderr and "broker" in r.stderr
+    assert r.returncode == 2 and "ServiceError" in r.stderr and "broker" in r.stderr
 
 
 def test_executive_learns_from_a_recorded_history_at_a_rate(tmp_path: Path) -> None:

@@ -48,7 +48,7 @@ def load_checkpoint(path: Path, ident: dict[str, Any]) -> dict[str, Any] | None:
         outer = msgpack.unpackb(path.read_bytes(), raw=False)
         body = outer["body"]
         fmt, saved, crc = outer["format"], outer["ident"], outer["crc32"]
-    except Exception as exc:
+    except (OSError, msgpack.UnpackException, ValueError, TypeError, KeyError) as exc:
         raise RunDirError(f"checkpoint {str(path)!r} cannot be read ({type(exc).__name__}: {exc}); "
                           "move it away to start this worker afresh") from None
     if fmt != FORMAT:

@@ -149,6 +149,12 @@ class Pacer:
         self.waited += waited
         return waited
 
+    def __enter__(self) -> Pacer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
     def close(self) -> None:
         for s in self._subs + self._tokens:
             s.undeclare()

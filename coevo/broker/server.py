@@ -14,6 +14,7 @@ rejected by reason) on ``coevo/RUN/broker``.
 
 from __future__ import annotations
 
+import argparse
 import logging
 import queue
 import threading
@@ -22,14 +23,15 @@ from pathlib import Path
 from typing import Any
 
 import msgpack
+import zenoh
 
 from coevo.broker.store import PolicyStore
 from coevo.bus import keys
 from coevo.bus.messages import MAX_BYTES, BrokerStatus, PolicyUpdate, decode, encode
-from coevo.bus.session import open_session
+from coevo.bus.session import config_from_args, open_session, sigterm_as_exit
 from coevo.errors import MessageError
 
-__all__ = ["Broker"]
+__all__ = ["Broker", "serve_broker", "serve_router"]
 
 log = logging.getLogger(__name__)
 
@@ -73,8 +75,8 @@ class Broker:
         for d in self._decls:
             try:
                 d.undeclare()
-            except Exception:  # already gone with the session
-                pass
+            except zenoh.ZError as exc:  # already gone with the session
+                log.debug("undeclare after the session went: %s", exc)
         self._decls.clear()
         self._stop.set()
         self._inbox.put(None)
@@ -129,7 +131,7 @@ class Broker:
                 try:
                     self.session.put(keys.broker_status(run), encode(BrokerStatus(
                         run=run, stored=stored, rejected=rejected, dropped=dropped, sent_at=time.time())))
-                except Exception as exc:  # the session is closing
+                except zenoh.ZError as exc:  # the session is closing
                     log.debug("broker status not sent: %s", exc)
                     return
 
@@ -147,3 +149,42 @@ class Broker:
             for m in msgs:
                 if m is not None:
                     query.reply(key, encode(m))
+
+
+def _listen(args: argparse.Namespace) -> list[str]:
+    """Where a router listens (default: loopback); a broker run as a client of another router only connects."""
+    if args.mode != "router":
+        return [f"(a {args.mode} of {', '.join(args.connect or [args.config or '?'])})"]
+    if not args.listen and not args.config:
+        args.listen = ["tls/127.0.0.1:7447" if args.tls_ca else "tcp/127.0.0.1:7447"]
+    return args.listen or ["(from " + args.config + ")"]
+
+
+def serve_broker(args: argparse.Namespace, *, data_dir: Path, inbox_bytes: int) -> int:
+    """``coevo broker``: serve until SIGINT/SIGTERM (a clean stop at any moment, even while the store loads)."""
+    listen = _listen(args)
+    conf = config_from_args(args)
+    sigterm_as_exit()
+    try:
+        with Broker(conf, data_dir, inbox_bytes=inbox_bytes) as broker:
+            log.info("broker listening on %s, store in %s", listen, data_dir)
+            print(f"coevo broker listening on {', '.join(listen)}; store in {data_dir}", flush=True)
+            broker.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    return 0
+
+
+def serve_router(args: argparse.Namespace) -> int:
+    """``coevo router``: a plain Zenoh router, no store: another site's meeting point, joined to the broker."""
+    listen = _listen(args)
+    conf = config_from_args(args)
+    sigterm_as_exit()
+    try:
+        with open_session(conf, what="router"):
+            print(f"coevo router listening on {', '.join(listen)}; joined to {', '.join(args.connect or ['-'])}", flush=True)
+            while True:
+                time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
+    return 0

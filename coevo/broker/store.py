@@ -22,6 +22,7 @@ from coevo.bus import keys
 from coevo.bus.messages import PolicyUpdate
 from coevo.bus.rejections import Rejections
 from coevo.errors import MessageError
+from coevo.runs.layout import RunPaths, read_store
 
 __all__ = ["PolicyStore"]
 
@@ -40,22 +41,18 @@ class PolicyStore:
         self._load()
 
     def _file(self, run: str, behaviour: str) -> Path:
-        return self.data_dir / run / "store" / f"{behaviour}.jsonl"
+        return RunPaths.of(self.data_dir, run).store_file(behaviour)
 
     def _load(self) -> None:
         if not self.data_dir.exists():
             return
         for f in sorted(self.data_dir.glob("*/store/*.jsonl")):
             _cut_torn_tail(f)
-            for n, line in enumerate(f.read_text(encoding="utf-8").splitlines(), start=1):
-                if not line.strip():
-                    continue
-                try:
-                    msg = PolicyUpdate.model_validate(json.loads(line))
-                except Exception as exc:  # damaged in the middle: keep the rest
-                    log.warning("store %s line %d unreadable, skipped: %s", f, n, exc)
-                    continue
+            damaged: list[str] = []
+            for msg in read_store(f, problems=damaged):  # damaged in the middle: keep the rest
                 self._remember(msg)
+            for problem in damaged:
+                log.warning("store: %s; skipped", problem)
         if self._seen:
             log.info("store reloaded %d policies from %s", len(self._seen), self.data_dir)
 

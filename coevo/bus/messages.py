@@ -153,7 +153,8 @@ def decode(payload: bytes, *, key: str | None = None) -> PolicyUpdate | Status |
         raise MessageError("oversize", f"{len(payload)} bytes > {MAX_BYTES}")
     try:
         data = msgpack.unpackb(payload, raw=False, strict_map_key=True)
-    except Exception as exc:  # msgpack raises several unrelated types
+    except (msgpack.UnpackException, ValueError, TypeError, OverflowError, RecursionError) as exc:
+        # msgpack's own errors, and ValueError/TypeError for bad UTF-8, unhashable or non-string map keys
         reason = "truncated" if "incomplete" in str(exc) else "not_msgpack"
         raise MessageError(reason, f"{type(exc).__name__}: {exc}") from None
     if not isinstance(data, dict):

@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import os
 import signal
 from collections.abc import Callable, Iterator
@@ -29,7 +30,7 @@ from typing import Any
 import zenoh
 
 from coevo.bus.messages import Message, decode
-from coevo.errors import ConfigError, MessageError
+from coevo.errors import ConfigError, MessageError, ServiceError
 
 __all__ = ["DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
            "drain", "drain_messages", "is_put", "make_config", "open_session", "ring_subscriber", "sigterm_as_exit"]
@@ -189,6 +190,28 @@ def check_config(conf: zenoh.Config, *, source: str = "flags") -> None:
                               f"{'listen' if mode == 'router' else 'connect'} endpoint must be tls/ or the run is open (or unreachable)")
 
 
+def _timeout_arg(text: str) -> float:
+    """Seconds a client waits for its router: a finite number >= 0, or -1 for ever."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid timeout {text!r}: give seconds, or -1 for ever") from None
+    if not (math.isfinite(v) and (v >= 0 or v == -1)) or v > 86400:
+        raise argparse.ArgumentTypeError(f"invalid timeout {text}: give 0 to 86400 seconds, or -1 for ever")
+    return v
+
+
+def _lease_arg(text: str) -> float:
+    """A link lease: 0.1 to 3600 seconds (zenoh counts it in whole milliseconds)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid lease {text!r}: give seconds") from None
+    if not (math.isfinite(v) and 0.1 <= v <= 3600):
+        raise argparse.ArgumentTypeError(f"invalid lease {text}: give 0.1 to 3600 seconds")
+    return v
+
+
 def add_connection_args(p: argparse.ArgumentParser, *, default_mode: str = "client") -> None:
     p.add_argument("--mode", choices=["client", "peer", "router"], default=default_mode, help=f"zenoh mode (default {default_mode})")
     p.add_argument("--connect", "-e", action="append", metavar="ENDPOINT", help=f"endpoint to connect to (default {DEFAULT_ENDPOINT} for clients)")
@@ -196,9 +219,9 @@ def add_connection_args(p: argparse.ArgumentParser, *, default_mode: str = "clie
     p.add_argument("--config", "--zenoh-config", "-c", dest="config", metavar="FILE",
                    help="a full zenoh JSON5 config file, e.g. from deploy/zenoh/ (flags override it)")
     p.add_argument("--no-multicast-scouting", action="store_true", default=True, help="(default) do not scout by multicast")
-    p.add_argument("--connect-timeout", type=float, metavar="SECONDS",
+    p.add_argument("--connect-timeout", type=_timeout_arg, metavar="SECONDS",
                    help="how long a client waits for its router before giving up (default 30; -1: for ever)")
-    p.add_argument("--lease", type=float, metavar="SECONDS",
+    p.add_argument("--lease", type=_lease_arg, metavar="SECONDS",
                    help=f"a link silent this long counts as dead and its session closes (default {DEFAULT_LEASE_S:g}; "
                         "across hosts use 10 or more: longer survives network cuts, shorter detects dead workers faster)")
     g = p.add_argument_group("members only (see deploy/README.md)")
@@ -225,7 +248,7 @@ def make_config(
         _readable("--zenoh-config file", config_file)
     try:
         conf = zenoh.Config.from_file(config_file) if config_file else zenoh.Config()
-    except Exception as exc:  # zenoh raises ZError with the parser's message
+    except zenoh.ZError as exc:  # with the parser's message
         raise ConfigError(f"zenoh config {config_file!r}: {exc}") from exc
     if mode not in ("client", "peer", "router"):
         raise ConfigError(f"zenoh mode {mode!r} is not client, peer or router")
@@ -247,9 +270,7 @@ def make_config(
             conf.insert_json5("transport/link/tx/lease", json.dumps(lease_ms))
         if security is not None:
             security.apply(conf, mode)
-    except ConfigError:
-        raise
-    except Exception as exc:
+    except (zenoh.ZError, ValueError, TypeError) as exc:
         raise ConfigError(f"bad zenoh setting: {exc}") from exc
     check_config(conf, source=f"--zenoh-config {config_file}" if config_file else "flags")
     return conf
@@ -269,16 +290,28 @@ def config_from_args(args: argparse.Namespace) -> zenoh.Config:
 
 @contextmanager
 def open_session(conf: zenoh.Config, *, what: str = "session") -> Iterator[Any]:
-    """A zenoh session closed on exit; a router that cannot be reached becomes a ConfigError."""
+    """A zenoh session closed on exit; a router that cannot be reached (or refuses us) becomes a ServiceError."""
     try:
         session = zenoh.open(conf)
-    except Exception as exc:
-        raise ConfigError(f"cannot open the zenoh {what}: {exc} (is 'coevo broker' running and reachable, "
-                          "and does it accept this process's certificate or password?)") from exc
+    except zenoh.ZError as exc:
+        raise ServiceError(f"cannot open the zenoh {what}: {exc} (is 'coevo broker' running and reachable, "
+                           "and does it accept this process's certificate or password?)") from exc
     try:
         yield session
     finally:
         session.close()
+
+
+def query(session: Any, key: str, *, timeout: float, what: str) -> list[bytes]:
+    """The payloads of the successful replies to a get on ``key`` (a store queryable), waiting up to ``timeout`` s.
+
+    A session closing or a router going away meanwhile becomes a ServiceError naming ``what``;
+    no reply at all within the timeout is an empty list (the caller knows whether that is news).
+    """
+    try:
+        return [bytes(r.ok.payload.to_bytes()) for r in session.get(key, timeout=timeout) if r.ok is not None]
+    except zenoh.ZError as exc:
+        raise ServiceError(f"query for {what} on {key!r} failed: {exc}") from exc
 
 
 def ring_subscriber(session: Any, key: str, capacity: int) -> Any:

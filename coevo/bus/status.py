@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import logging
+import sys
 import threading
 import time
 from dataclasses import dataclass, field
@@ -29,7 +30,7 @@ from coevo.bus.messages import BrokerStatus, Status
 from coevo.bus.session import drain_messages, is_put, ring_subscriber
 from coevo.errors import MessageError
 
-__all__ = ["DEFAULT_STALL", "WorkerView", "StatusBoard", "status_table", "PlainStatus"]
+__all__ = ["DEFAULT_STALL", "WorkerView", "StatusBoard", "status_table", "PlainStatus", "StatusDisplay", "follow"]
 
 log = logging.getLogger(__name__)
 
@@ -263,3 +264,59 @@ class PlainStatus:
                 self._last[who] = text
                 out.append(f"{stamp} {text}")
         return out
+
+
+class StatusDisplay:
+    """Shows a board on the terminal as it changes: a live table on a terminal, plain lines in a log
+    or a pipe (no box drawing, no redraws), JSON lines with ``json``, nothing with ``quiet``."""
+
+    def __init__(self, title: str, *, json_lines: bool = False, quiet: bool = False) -> None:
+        self.title, self.json_lines, self.quiet = title, json_lines, quiet
+        self.live = not (json_lines or quiet) and sys.stdout.isatty()
+        self._plain = PlainStatus()
+        self._rich: Any = None
+
+    def __enter__(self) -> StatusDisplay:
+        if self.live:
+            from rich.live import Live
+
+            self._rich = Live(auto_refresh=False, transient=False)
+            self._rich.start()
+        return self
+
+    def show(self, board: StatusBoard) -> None:
+        if self.quiet:
+            return
+        if self.json_lines:
+            print(board.json_line(), flush=True)
+        elif self._rich is not None:
+            self._rich.update(status_table(board, self.title.replace("{time}", time.strftime("%H:%M:%S"))), refresh=True)
+        else:
+            for line in self._plain.lines(board):
+                print(line, flush=True)
+
+    def __exit__(self, *exc: object) -> None:
+        if self._rich is not None:
+            self._rich.stop()
+            self._rich = None
+
+
+def follow(conf: Any, run: str, show: Any, *, every: float, stall: float = DEFAULT_STALL,
+           duration: float | None = None) -> None:
+    """``coevo status``: follow ``run``'s workers, calling ``show(board)`` when something changed (or every
+    ``every`` s), for ``duration`` s or until SIGINT/SIGTERM."""
+    from coevo.bus.session import open_session, sigterm_as_exit
+
+    sigterm_as_exit()
+    end = time.monotonic() + duration if duration else None
+    with open_session(conf, what="status session") as s:
+        board = StatusBoard(s, run, stall=stall)
+        try:
+            while end is None or time.monotonic() < end:
+                board.changed.wait(every)
+                board.changed.clear()
+                show(board)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            board.close()

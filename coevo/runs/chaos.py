@@ -32,11 +32,10 @@ import numpy as np
 
 from coevo.bus.session import open_session, sigterm_as_exit
 from coevo.runs.check import check_run
-from coevo.config import GAConfig
-from coevo.tasks.fuel.settings import WorldConfig
 from coevo.errors import ConfigError, RunDirError
 from coevo.runs.local import LocalRun, end_processes, fetch_latest, wait_until
 from coevo.runs.layout import write_json
+from coevo.runs.settings import RunSettings
 from coevo.bus.status import StatusBoard
 
 __all__ = ["FAULTS", "ChaosPlan", "run_chaos", "summary_lines"]
@@ -44,6 +43,7 @@ __all__ = ["FAULTS", "ChaosPlan", "run_chaos", "summary_lines"]
 log = logging.getLogger(__name__)
 
 FAULTS = ("kill-worker", "kill-broker", "pause-worker")
+CHAOS_REPORT = "chaos.json"  # in the run directory
 
 
 @dataclass(frozen=True)
@@ -76,12 +76,15 @@ class ChaosLog:
         log.info("chaos: %s %s", kind, info)
 
 
-def run_chaos(*, regime: str, run: str, root: Path, world: WorldConfig, ga: GAConfig, seed: int, plan: ChaosPlan,
-              model: str = "best", measure_epochs: int = 20, on_event: Callable[[str], None] | None = None,
-              log_level: str = "WARNING") -> dict[str, Any]:
-    lr = LocalRun(regime=regime, run=run, root=root, world=world, ga=ga, seed=seed, model=model, log_level=log_level)
+def run_chaos(settings: RunSettings, *, root: Path, plan: ChaosPlan, measure_epochs: int = 20,
+              on_event: Callable[[str], None] | None = None, log_level: str = "WARNING") -> dict[str, Any]:
+    """A whole run of ``settings`` under ``root`` while ``plan``'s faults strike; then checked (chaos.json)."""
+    if measure_epochs < 1:
+        raise ConfigError(f"--measure-epochs must be at least 1, got {measure_epochs}")
+    lr = LocalRun(settings, root=root, log_level=log_level)
     lr.create()
-    rng = np.random.default_rng([seed, 4242])
+    run = lr.run
+    rng = np.random.default_rng([plan.seed, 4242])
     chaos = ChaosLog()
     say = on_event or (lambda text: None)
     t0 = time.time()
@@ -91,7 +94,8 @@ def run_chaos(*, regime: str, run: str, root: Path, world: WorldConfig, ga: GACo
         lr.start(resume=False)
         with open_session(lr.client_config(), what="chaos status session") as s:
             board = StatusBoard(s, run)
-            wait_until(lambda: len([w for w in board.snapshot() if w["generation"] >= 1]) == 3 or not lr.workers_running(),
+            n = len(lr.task.behaviours)
+            wait_until(lambda: len([w for w in board.snapshot() if w["generation"] >= 1]) == n or not lr.workers_running(),
                        120, "every worker's first generation")
             next_fault = time.monotonic() + rng.uniform(*plan.gap)
             while lr.workers_running():
@@ -111,12 +115,12 @@ def run_chaos(*, regime: str, run: str, root: Path, world: WorldConfig, ga: GACo
     say("checking the run directory")
     check = check_run(lr.dir)
     report = {
-        "run": run, "regime": regime, "seconds": seconds, "faults": dict(chaos.counts), "events": chaos.events,
+        "run": run, "regime": settings.regime, "seconds": seconds, "faults": dict(chaos.counts), "events": chaos.events,
         "unplanned_restarts": dict(restarts), "starts": dict(lr.starts), "complete": check.ok, "problems": check.problems,
         "facts": check.facts,
     }
     lr.finish(latest, seconds=seconds, interrupted=False, measure_epochs=measure_epochs, extra={"chaos": dict(chaos.counts)})
-    write_json(lr.dir / "chaos.json", report)
+    write_json(lr.dir / CHAOS_REPORT, report)
     return report
 
 
@@ -130,7 +134,7 @@ def _revive_crashed(lr: LocalRun, restarts: Counter[str], chaos: ChaosLog, say: 
         if p.poll() is not None and p.returncode != 0:
             if restarts[b] >= 3:
                 raise RunDirError(f"chaos: the {b} worker keeps failing (exit {p.returncode}); see "
-                                  f"{lr.dir / 'logs' / f'worker-{b}.log'}")
+                                  f"{lr.paths.log(f'worker-{b}')}")
             restarts[b] += 1
             say(f"{b} worker exited with {p.returncode} on its own; restarting it")
             lr.start_worker(b, resume=True)

@@ -1,7 +1,15 @@
-"""Run directories: written in a temporary sibling and renamed into place when complete.
+"""The run directory: its layout (every path, in one place), its readers, and atomic writes.
 
-A run that fails or is interrupted leaves no half-written directory under the name
-the user asked for; files are written atomically (temp file, fsync, rename).
+    RUN/run.json                 the run's settings (coevo.runs.settings.RunSettings)
+    RUN/store/BEHAVIOUR.jsonl    the broker's store: every PolicyUpdate of a behaviour, in arrival order
+    RUN/workers/BEHAVIOUR/       one worker's directory (:class:`WorkerPaths`)
+    RUN/logs/PROCESS.log         each process's output, appended over restarts
+    RUN/summary.json, measures.json, curves.csv     written by coevo run at the end
+
+A directory written in one go (``coevo learn``) is built in a temporary sibling and
+renamed into place when complete, so a failed or interrupted command leaves no
+half-written directory under the name asked for; files are written atomically
+(temp file, fsync, rename).
 """
 
 from __future__ import annotations
@@ -13,12 +21,151 @@ import shutil
 import tempfile
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from coevo.errors import RunDirError
 
-__all__ = ["staged_dir", "read_jsonl", "write_bytes", "write_json", "write_text", "write_csv"]
+if TYPE_CHECKING:
+    from coevo.bus.messages import PolicyUpdate
+
+__all__ = ["RunPaths", "WorkerPaths", "read_store", "staged_dir", "read_jsonl", "read_json", "write_bytes", "write_json",
+           "write_text", "write_csv"]
+
+
+@dataclass(frozen=True)
+class WorkerPaths:
+    """A worker's directory (``RUN/workers/BEHAVIOUR/``; see :mod:`coevo.agents.worker` for what each holds)."""
+
+    dir: Path
+
+    #: The append-only logs a checkpoint records the sizes of (cut back to them on --resume).
+    LOGS = ("curve.jsonl", "adoptions.jsonl", "published.jsonl")
+
+    @property
+    def worker_json(self) -> Path:
+        return self.dir / "worker.json"
+
+    @property
+    def curve(self) -> Path:
+        return self.dir / "curve.jsonl"
+
+    @property
+    def adoptions(self) -> Path:
+        return self.dir / "adoptions.jsonl"
+
+    @property
+    def published(self) -> Path:
+        return self.dir / "published.jsonl"
+
+    @property
+    def checkpoint(self) -> Path:
+        return self.dir / "checkpoint.msgpack"
+
+    @property
+    def best_rules(self) -> Path:
+        return self.dir / "best.rules"
+
+    @property
+    def done(self) -> Path:
+        return self.dir / "done.json"
+
+
+@dataclass(frozen=True)
+class RunPaths:
+    """A run directory's paths (the module docstring draws the layout)."""
+
+    dir: Path
+
+    @staticmethod
+    def of(root: Path, run: str) -> RunPaths:
+        """The run ``run`` under ``root`` (a broker's --data-dir or coevo run's --root)."""
+        return RunPaths(Path(root) / run)
+
+    @property
+    def name(self) -> str:
+        return self.dir.name
+
+    @property
+    def run_json(self) -> Path:
+        return self.dir / "run.json"
+
+    @property
+    def store_dir(self) -> Path:
+        return self.dir / "store"
+
+    def store_file(self, behaviour: str) -> Path:
+        return self.store_dir / f"{behaviour}.jsonl"
+
+    def store_files(self) -> list[Path]:
+        return sorted(self.store_dir.glob("*.jsonl"))
+
+    @property
+    def workers_dir(self) -> Path:
+        return self.dir / "workers"
+
+    def worker(self, behaviour: str) -> WorkerPaths:
+        return WorkerPaths(self.workers_dir / str(behaviour))
+
+    def workers(self) -> list[WorkerPaths]:
+        """The directories of the workers that started (those with a worker.json), by behaviour name."""
+        return [WorkerPaths(p) for p in sorted(self.workers_dir.glob("*")) if (p / "worker.json").exists()]
+
+    @property
+    def logs_dir(self) -> Path:
+        return self.dir / "logs"
+
+    def log(self, process: str) -> Path:
+        return self.logs_dir / f"{process}.log"
+
+    @property
+    def summary(self) -> Path:
+        return self.dir / "summary.json"
+
+    @property
+    def measures(self) -> Path:
+        return self.dir / "measures.json"
+
+    @property
+    def curves_csv(self) -> Path:
+        return self.dir / "curves.csv"
+
+
+def read_store(path: Path, *, problems: list[str] | None = None) -> list[PolicyUpdate]:
+    """The policies of one store file, in order, validated.
+
+    A line that is not a stored policy is a RunDirError naming the file and line, or,
+    when ``problems`` is given, noted there and skipped (the broker reloading its
+    store, and ``coevo check``, keep the rest).
+    """
+    from pydantic import ValidationError
+
+    from coevo.bus.messages import PolicyUpdate
+
+    out = []
+    for n, row in read_jsonl(path, problems=problems, numbered=True):
+        try:
+            out.append(PolicyUpdate.model_validate(row))
+        except ValidationError as exc:
+            msg = f"{path} line {n} is not a stored policy: {str(exc).splitlines()[0]}"
+            if problems is None:
+                raise RunDirError(msg) from None
+            problems.append(msg)
+    return out
+
+
+def read_json(path: Path, *, what: str) -> dict[str, Any]:
+    """A JSON object from ``path``; a missing, unreadable or non-object file is a RunDirError naming it."""
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise RunDirError(f"{str(path)!r} is missing: not a complete {what}") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise RunDirError(f"{str(path)!r} cannot be read ({what}): {exc}") from None
+    if not isinstance(data, dict):
+        raise RunDirError(f"{str(path)!r} is not a JSON object ({what})")
+    return data
 
 
 @contextmanager
@@ -89,8 +236,9 @@ def write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
     write_text(path, buf.getvalue())
 
 
-def read_jsonl(path: Path, *, missing_ok: bool = False, problems: list[str] | None = None) -> list[dict[str, Any]]:
-    """The rows of a JSON-lines log (blank lines skipped).
+def read_jsonl(path: Path, *, missing_ok: bool = False, problems: list[str] | None = None,
+               numbered: bool = False) -> list[Any]:
+    """The rows of a JSON-lines log (blank lines skipped); with ``numbered``, ``(line number, row)`` pairs.
 
     A missing file is ``[]`` with ``missing_ok``, else a RunDirError; a line that is
     not JSON is a RunDirError naming the file and line, or, when ``problems`` is
@@ -109,7 +257,8 @@ def read_jsonl(path: Path, *, missing_ok: bool = False, problems: list[str] | No
         if not line.strip():
             continue
         try:
-            rows.append(json.loads(line))
+            row = json.loads(line)
+            rows.append((n, row) if numbered else row)
         except json.JSONDecodeError as exc:
             if problems is None:
                 raise RunDirError(f"{path} line {n} is not JSON: {exc}") from None

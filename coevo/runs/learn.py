@@ -30,7 +30,7 @@ from coevo.policy.text import format_ruleset
 from coevo.tasks import task_of
 from coevo.runs.layout import staged_dir, write_csv, write_json, write_text
 
-__all__ = ["learn", "LearnResult"]
+__all__ = ["learn", "LearnResult", "default_out"]
 
 log = logging.getLogger(__name__)
 
@@ -42,6 +42,11 @@ class LearnResult:
     curve: list[GenerationReport]
     measures: dict[str, float | int]
     seconds: float
+
+
+def default_out(behaviour: str, seed: int) -> Path:
+    """Where a learn run goes unless told: runs/learn-BEHAVIOUR-seedN-TIME."""
+    return Path("runs") / f"learn-{behaviour}-seed{seed}-{time.strftime('%Y%m%d-%H%M%S')}"
 
 
 def learn(

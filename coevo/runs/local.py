@@ -1,13 +1,14 @@
 """``coevo run``: a whole asynchronous run on one machine.
 
-Starts ``coevo broker`` and one ``coevo worker`` per behaviour as separate
-processes (``subprocess``: fork+exec, never a fork of a process with a session),
-shows the live status, and at the end measures the final combined robot from the
-store's latest policies.  Ctrl-C (or SIGTERM) asks the workers to stop, then ends
-every child; nothing is left running.  ``coevo run --resume RUN_DIR`` starts a
-new broker (its store reloads the run's policies from disk) and every worker with
-``--resume`` (each continues from its last checkpoint), with the settings of the
-run's ``run.json``.
+Writes the run's settings once to ``run.json`` (:class:`~coevo.runs.settings.RunSettings`),
+starts ``coevo broker`` and one ``coevo worker --settings RUN/run.json`` per behaviour
+of the task as separate processes (``subprocess``: fork+exec, never a fork of a
+process with a session), shows the live status, and at the end measures the run's
+final policies together from the store's latest.  Ctrl-C (or SIGTERM) asks the
+workers to stop, then ends every child; nothing is left running.  ``coevo run
+--resume RUN_DIR`` starts a new broker (its store reloads the run's policies from
+disk; run.json records where it now listens) and every worker with ``--resume``
+(each continues from its last checkpoint).
 
 :class:`LocalRun` owns the processes of one run directory; ``coevo chaos`` uses it
 to kill and restart them.
@@ -15,7 +16,6 @@ to kill and restart them.
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import signal
@@ -28,19 +28,21 @@ from pathlib import Path
 from typing import Any
 
 from coevo.bus import keys
-from coevo.agents.pacing import DEFAULT_MAX_LEAD
 from coevo.bus.session import make_config, open_session, sigterm_as_exit
-from coevo.config import GAConfig
-from coevo.tasks.fuel.settings import WorldConfig
-from coevo.errors import RunDirError
+from coevo.errors import ConfigError, RunDirError, ServiceError
 from coevo.bus.messages import Control, PolicyUpdate, decode, encode
-from coevo.runs.layout import read_jsonl, write_csv, write_json
+from coevo.runs.layout import RunPaths, read_jsonl, write_csv, write_json
+from coevo.runs.settings import RunSettings
 from coevo.bus.status import StatusBoard
-from coevo.tasks import get_task
 
-__all__ = ["free_port", "wait_until", "end_processes", "LocalRun", "run_local", "fetch_latest", "read_run_json"]
+__all__ = ["default_run_id", "free_port", "wait_until", "end_processes", "LocalRun", "run_local", "fetch_latest"]
 
 log = logging.getLogger(__name__)
+
+
+def default_run_id(prefix: str) -> str:
+    """A run id unless told: PREFIX-TIME (e.g. independent-20261123-154500)."""
+    return f"{prefix}-{time.strftime('%Y%m%d-%H%M%S')}"
 
 
 def free_port() -> int:
@@ -57,16 +59,7 @@ def wait_until(check: Callable[[], Any], timeout: float, what: str | Callable[[]
         if value:
             return value
         time.sleep(0.05)
-    raise RunDirError(f"timed out after {timeout:.0f} s waiting for {what() if callable(what) else what}")
-
-
-def _settings_args(world: WorldConfig, ga: GAConfig) -> list[str]:
-    out: list[str] = []
-    for k, v in world.model_dump(exclude_defaults=True).items():
-        out += ["--world", f"{k}={json.dumps(v)}"]
-    for k, v in ga.model_dump(exclude_defaults=True).items():
-        out += ["--ga", f"{k}={json.dumps(v)}"]
-    return out
+    raise ServiceError(f"timed out after {timeout:.0f} s waiting for {what() if callable(what) else what}")
 
 
 def fetch_latest(session: Any, run: str, timeout: float = 5.0) -> dict[str, PolicyUpdate]:
@@ -80,56 +73,63 @@ def fetch_latest(session: Any, run: str, timeout: float = 5.0) -> dict[str, Poli
     return out
 
 
-def read_run_json(run_dir: Path) -> dict[str, Any]:
-    """The settings of an existing run directory (for ``--resume``), checked."""
-    f = Path(run_dir) / "run.json"
-    if not f.exists():
-        raise RunDirError(f"{str(run_dir)!r} holds no run.json: not a coevo run directory")
-    try:
-        meta = json.loads(f.read_text(encoding="utf-8"))
-        meta["world"], meta["ga"] = WorldConfig(**meta["world"]), GAConfig(**meta["ga"])
-        for k in ("run", "regime", "seed", "model", "max_lead"):
-            meta[k]  # noqa: B018 - present?
-    except (ValueError, KeyError, TypeError) as exc:
-        raise RunDirError(f"{str(f)!r} cannot be read: {type(exc).__name__}: {exc}") from None
-    if meta["run"] != Path(run_dir).name:
-        raise RunDirError(f"{str(f)!r} is for run {meta['run']!r}, but the directory is named {Path(run_dir).name!r}")
-    return meta
-
-
 class LocalRun:
     """The broker and worker processes of one run directory on this machine."""
 
-    def __init__(self, *, regime: str, run: str, root: Path, world: WorldConfig, ga: GAConfig, seed: int,
-                 model: str = "best", max_lead: int | None = DEFAULT_MAX_LEAD, log_level: str = "WARNING",
-                 endpoint: str | None = None, worker_env: dict[str, str] | None = None) -> None:
-        self.regime, self.run, self.root = regime, keys.check_id("run id", run), Path(root)
-        self.world, self.ga, self.seed, self.model, self.max_lead = world, ga, seed, model, max_lead
-        self.dir = self.root / run
-        self.endpoint = endpoint or f"tcp/127.0.0.1:{free_port()}"
+    def __init__(self, settings: RunSettings, *, root: Path, log_level: str = "WARNING",
+                 worker_env: dict[str, str] | None = None) -> None:
+        self.root = Path(root)
+        self.paths = settings.paths(self.root)
+        self.dir = self.paths.dir
+        self.settings = settings.restarted(f"tcp/127.0.0.1:{free_port()}") if settings.endpoint is None else settings
+        self.task = settings.the_task
         self.log_level = log_level
         self.worker_env = worker_env or {}
         self.broker: subprocess.Popen[bytes] | None = None
-        self.task = get_task("fuel")
         self.workers: dict[str, subprocess.Popen[bytes]] = {}
         self._all: list[subprocess.Popen[bytes]] = []
         self.starts: dict[str, int] = {}  # process name -> times started
 
+    @property
+    def run(self) -> str:
+        return self.settings.run
+
+    @property
+    def endpoint(self) -> str:
+        return str(self.settings.endpoint)  # never None: __init__ gives a run without one a free port
+
+    @classmethod
+    def resume(cls, run_dir: Path, *, log_level: str = "WARNING", worker_env: dict[str, str] | None = None) -> LocalRun:
+        """The run in ``run_dir``, from its run.json, with a new broker endpoint (recorded in run.json)."""
+        paths = RunPaths(Path(run_dir))
+        if not paths.run_json.exists():
+            raise RunDirError(f"{str(paths.dir)!r} holds no run.json: not a coevo run directory (nothing to resume)")
+        settings = RunSettings.load(paths.run_json)
+        if settings.run != paths.name:
+            raise RunDirError(f"{str(paths.run_json)!r} is for run {settings.run!r}, but the directory is named {paths.name!r}")
+        lr = cls(settings.restarted(f"tcp/127.0.0.1:{free_port()}"), root=paths.dir.parent, log_level=log_level,
+                 worker_env=worker_env)
+        lr.settings.save(paths.run_json)  # where its broker listens now: a stale endpoint would mislead status
+        paths.summary.unlink(missing_ok=True)  # written again at the end
+        return lr
+
     def create(self) -> None:
         """Make the run directory with its ``run.json``; refuses one that is already in use."""
+        if self.dir.exists() and not self.dir.is_dir():
+            raise RunDirError(f"{str(self.dir)!r} is a file, not a run directory; choose another --run or --root")
         if self.dir.exists() and any(self.dir.iterdir()):
             raise RunDirError(f"run directory {str(self.dir)!r} already exists; choose another --run or --root, "
                               f"or continue it with coevo run --resume {self.dir}")
-        self.dir.mkdir(parents=True, exist_ok=True)
-        write_json(self.dir / "run.json", {
-            "run": self.run, "regime": self.regime, "seed": self.seed, "model": self.model, "max_lead": self.max_lead,
-            "endpoint": self.endpoint, "world": self.world.model_dump(), "ga": self.ga.model_dump(), "started": time.time()})
+        try:
+            self.dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RunDirError(f"cannot create the run directory {str(self.dir)!r}: {exc.strerror or exc}") from None
+        self.settings.save(self.paths.run_json)
 
     def _spawn(self, name: str, args: list[str], env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
-        logs = self.dir / "logs"
-        logs.mkdir(parents=True, exist_ok=True)
+        self.paths.logs_dir.mkdir(parents=True, exist_ok=True)
         self.starts[name] = self.starts.get(name, 0) + 1
-        with open(logs / f"{name}.log", "ab") as f:  # appended: a restarted process keeps its predecessor's log
+        with open(self.paths.log(name), "ab") as f:  # appended: a restarted process keeps its predecessor's log
             f.write(f"--- start {self.starts[name]} at {time.strftime('%H:%M:%S')}\n".encode())
             f.flush()
             p = subprocess.Popen([sys.executable, "-m", "coevo", "--log-level", self.log_level, *args], stdout=f,
@@ -143,14 +143,11 @@ class LocalRun:
         return self.broker
 
     def worker_dir(self, b: str) -> Path:
-        return self.dir / "workers" / b
+        return self.paths.worker(b).dir
 
     def start_worker(self, b: str, *, resume: bool, env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
-        i = self.task.behaviours.index(b)
-        args = ["worker", "--behaviour", b, "--regime", self.regime, "--run", self.run, "--connect", self.endpoint,
-                "--connect-timeout", "-1", "--seed", str(self.seed + i), "--model", self.model,
-                "--out", str(self.worker_dir(b)), "--max-lead", "off" if self.max_lead is None else str(self.max_lead),
-                *_settings_args(self.world, self.ga)]
+        args = ["worker", "--settings", str(self.paths.run_json), "--behaviour", b, "--connect", self.endpoint,
+                "--connect-timeout", "-1", "--out", str(self.worker_dir(b))]
         if resume:
             args.append("--resume")
         self.workers[b] = self._spawn(f"worker-{b}", args, {**self.worker_env, **(env or {})})
@@ -177,44 +174,32 @@ class LocalRun:
     def finish(self, latest: dict[str, PolicyUpdate], *, seconds: float, interrupted: bool,
                measure_epochs: int, extra: dict[str, Any] | None = None) -> dict[str, Any]:
         """Measure the combined robot and write ``measures.json``, ``curves.csv`` and ``summary.json``."""
-        summary: dict[str, Any] = {"run": self.run, "regime": self.regime, "seconds": seconds, "interrupted": interrupted,
+        summary: dict[str, Any] = {"run": self.run, "regime": self.settings.regime, "seconds": seconds, "interrupted": interrupted,
                                    "versions": {b: m.version for b, m in latest.items()},
                                    "best_fitness": {b: m.fitness for b, m in latest.items()}, **(extra or {})}
-        m = self.task.run_measures({b: u.ruleset() for b, u in latest.items()}, world=self.world, epochs=measure_epochs,
-                                   seed=self.seed + 99)
+        m = self.task.run_measures({b: u.ruleset() for b, u in latest.items()}, world=self.settings.world_config(),
+                                   epochs=measure_epochs, seed=self.settings.seed + 99)
         if m is not None:
             summary["measures"] = m
-            write_json(self.dir / "measures.json", m)
+            write_json(self.paths.measures, m)
         rows = [{"behaviour": b, **row} for b in self.task.behaviours
-                for row in read_jsonl(self.worker_dir(b) / "curve.jsonl", missing_ok=True)]
-        write_csv(self.dir / "curves.csv", rows)
-        write_json(self.dir / "summary.json", summary)
+                for row in read_jsonl(self.paths.worker(b).curve, missing_ok=True)]
+        write_csv(self.paths.curves_csv, rows)
+        write_json(self.paths.summary, summary)
         return summary
 
 
 def run_local(
+    lr: LocalRun,
     *,
-    regime: str,
-    run: str,
-    root: Path,
-    world: WorldConfig,
-    ga: GAConfig,
-    seed: int,
-    model: str = "best",
-    max_lead: int | None = DEFAULT_MAX_LEAD,
+    resume: bool,
     measure_epochs: int = 100,
     on_status: Callable[[StatusBoard], None] | None = None,
-    log_level: str = "WARNING",
-    resume: bool = False,
 ) -> dict[str, Any]:
-    lr = LocalRun(regime=regime, run=run, root=root, world=world, ga=ga, seed=seed, model=model, max_lead=max_lead,
-                  log_level=log_level)
-    if resume:
-        if not (lr.dir / "run.json").exists():
-            raise RunDirError(f"{str(lr.dir)!r} holds no run.json: nothing to resume")
-        (lr.dir / "summary.json").unlink(missing_ok=True)  # written again at the end
-    else:
-        lr.create()
+    """Run ``lr`` (made with :class:`LocalRun` and created, or :meth:`LocalRun.resume`) to its end; its summary."""
+    if measure_epochs < 1:
+        raise ConfigError(f"--measure-epochs must be at least 1, got {measure_epochs}")
+    run = lr.run
     t0 = time.time()
     interrupted = False
     previous = sigterm_as_exit()
@@ -230,7 +215,7 @@ def run_local(
                         on_status(board)
                     if lr.broker is not None and lr.broker.poll() is not None:
                         raise RunDirError(f"the broker exited with status {lr.broker.returncode}; "
-                                          f"see {lr.dir / 'logs' / 'broker.log'}")
+                                          f"see {lr.paths.log('broker')}")
             except KeyboardInterrupt:
                 interrupted = True
                 lr.ask_stop(s)
@@ -241,7 +226,7 @@ def run_local(
             latest = fetch_latest(s, run)
         failed = {b: p.returncode for b, p in lr.workers.items() if p.returncode not in (0, None)}
         if failed and not interrupted:
-            raise RunDirError(f"workers failed {failed}; see {lr.dir / 'logs'} (continue with --resume {lr.dir})")
+            raise RunDirError(f"workers failed {failed}; see {lr.paths.logs_dir} (continue with --resume {lr.dir})")
     finally:
         signal.signal(signal.SIGTERM, previous)
         lr.end_all()
@@ -267,4 +252,4 @@ def _wait(procs: list[subprocess.Popen[bytes]], timeout: float) -> None:
         try:
             p.wait(timeout=max(0.0, end - time.monotonic()))
         except subprocess.TimeoutExpired:
-            pass
+            continue  # the caller kills what is left

@@ -70,7 +70,7 @@ def _out_path(args: argparse.Namespace, robot: Robot, episodes: int | None, anim
 
 
 def cmd_show(args: argparse.Namespace) -> int:
-    from coevo.cli import _settings
+    from coevo.console import pairs
     from coevo.show import TASKS
 
     if args.task not in TASKS:
@@ -81,7 +81,7 @@ def cmd_show(args: argparse.Namespace) -> int:
         raise ConfigError(f"--fps must be between 1 and 60, got {args.fps}")
     if args.out is not None and not args.out.strip():
         raise ConfigError(f"--out {args.out!r}: expected a file name (.png, or .gif/.mp4 with --animate)")
-    robot = _robot(args, _settings(args.world, WorldConfig))
+    robot = _robot(args, pairs(args.world, "world"))
     episodes = _episodes(args, robot)
     animated = args.animate or (args.out is not None and Path(args.out).suffix.lower() in ANIMATION_FORMATS)
     draw = not args.rules or args.out is not None or args.animate

@@ -43,6 +43,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from coevo.agents.models import MODELS
+from coevo.runs.settings import RunSettings
 from coevo.tasks.fuel import FuelTask
 
 REGIMES = FuelTask.regimes
@@ -267,10 +268,13 @@ def _run_command(out: Path, spec: CompareSpec, rep: Replicate) -> list[str]:
                 *_settings_args(spec)]
     if (d / "run.json").exists():  # interrupted: continue it from the workers' checkpoints
         return [sys.executable, "-m", "coevo", "run", "--quiet", "--resume", str(d), "--measure-epochs", str(spec.measure_epochs)]
-    cmd = [sys.executable, "-m", "coevo", "run", "--quiet", "--regime", rep.regime, "--run", rep.run_id,
-           "--root", str(Path(out) / "runs"), "--seed", str(rep.seed), "--model", spec.model,
-           "--max-lead", "off" if spec.max_lead is None else str(spec.max_lead),
-           "--measure-epochs", str(spec.measure_epochs), *_settings_args(spec)]
+    settings = RunSettings.make(run=rep.run_id, regime=rep.regime, seed=rep.seed, model=spec.model, max_lead=spec.max_lead,
+                                world=spec.world.model_dump(mode="json"), ga=spec.ga)
+    f = Path(out) / "settings" / f"{rep.run_id}.json"
+    f.parent.mkdir(parents=True, exist_ok=True)
+    settings.save(f)
+    cmd = [sys.executable, "-m", "coevo", "run", "--quiet", "--settings", str(f), "--root", str(Path(out) / "runs"),
+           "--measure-epochs", str(spec.measure_epochs)]
     return cmd
 
 
@@ -291,7 +295,7 @@ def generations_done(out: Path, rep: Replicate) -> int:
             with open(f, "rb") as fh:
                 n += sum(1 for _ in fh)
         except OSError:
-            pass
+            continue  # that worker has not started its curve yet: no generations done
     return n
 
 

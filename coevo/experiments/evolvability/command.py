@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from coevo.cli import seed_arg
+from coevo.console import ProgressBar, seed_arg
 from coevo.errors import ConfigError
 
 __all__ = ["add_parser", "cmd_evolvability"]
@@ -19,8 +19,6 @@ __all__ = ["add_parser", "cmd_evolvability"]
 
 def cmd_evolvability(args: argparse.Namespace) -> int:
     """Run the grid (or only rewrite the report of a finished one) and print the claims' verdicts."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-
     from coevo.experiments.evolvability.experiment import GridResults, GridSpec, run_grid
     from coevo.experiments.evolvability.report import write_report
 
@@ -36,11 +34,8 @@ def cmd_evolvability(args: argparse.Namespace) -> int:
                          population=args.population, seed=args.seed)
     out = Path(args.out) if args.out else Path("runs") / f"evolvability-{time.strftime('%Y%m%d-%H%M%S')}"
     print(f"evolvability grid: {spec.total_runs} runs of {spec.generations} generations; output in {out}", flush=True)
-    columns = (TextColumn("[bold]evolvability[/]"), BarColumn(), TextColumn("{task.completed}/{task.total} batch-generations"),
-               TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn())
-    with Progress(*columns, disable=args.quiet) as bar:
-        task = bar.add_task("grid", total=1)
-        res = run_grid(spec, on_progress=lambda done, total: bar.update(task, completed=done, total=total))
+    with ProgressBar("evolvability", total=1, unit="batch-generations", quiet=args.quiet) as bar:
+        res = run_grid(spec, on_progress=lambda done, total: bar.update(done, total))
     results = write_report(res, out, elapsed=res.seconds)
     print(f"{res.seconds:.1f} s; report: {out / 'report.md'}")
     for c in results["claims"]:

@@ -86,7 +86,7 @@ def bench(
     base = base_steps / (time.perf_counter() - t0)
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return BenchResult(
-        behaviour=behaviour.value, lanes=lanes, rules_per_policy=len(pols[0]),
+        behaviour=str(behaviour), lanes=lanes, rules_per_policy=len(pols[0]),
         batched_steps_per_s=best, baseline_steps_per_s=base, ratio=best / base,
         batched_robot_steps=steps_total, baseline_robot_steps=base_steps,
         batch_peak_mb=peak, max_rss_mb=rss,

@@ -1,0 +1,121 @@
+"""What arrives for a worker: its partners' policies and the run's control messages.
+
+Partner policies wait in rings of the newest few inside Zenoh (no Python runs per
+arriving message, so a flood cannot slow the GA); between generations the
+:class:`Inbox` decodes and validates them, keeps the newest version of each
+partner, hands it to the partner models and logs the adoption (what ``coevo
+replay`` needs).  A late, restarted or flooded worker also asks the broker's store
+for its partners' latest.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+from collections.abc import Callable
+from typing import IO, Any
+
+from coevo.agents.models import PartnerModels
+from coevo.agents.outbox import BrokerWatch
+from coevo.bus import keys
+from coevo.bus.messages import Control, PolicyUpdate, decode
+from coevo.bus.session import drain, drain_messages, query, ring_subscriber
+from coevo.errors import MessageError, ServiceError
+from coevo.policy.rules import RuleSet
+
+__all__ = ["Inbox", "INBOX"]
+
+log = logging.getLogger(__name__)
+
+INBOX = 32  # newest partner messages kept per key between two generations
+
+
+class Inbox:
+    """A worker's subscriptions: partner policies (adopted between generations) and control (stop)."""
+
+    def __init__(self, session: Any, broker: BrokerWatch, *, run: str, models: PartnerModels, adoptions: IO[str],
+                 reject: Callable[[MessageError, str], None], store_timeout: float = 2.0) -> None:
+        self._session, self.broker = session, broker
+        self.run, self.models, self._adoptions, self._reject = run, models, adoptions, reject
+        self.store_timeout = store_timeout
+        self.stop = threading.Event()
+        self.refetch = True  # ask the store for the partners' latest before the next generation
+        self._fetched: list[tuple[str, bytes]] = []  # partner policies fetched from the store
+        self._accepted: dict[str, bytes] = {}  # key -> last partner payload accepted (repeats skip decoding)
+        self._partner_key = keys.current if models.kind == "current" else keys.policy
+        self._subs: list[Any] = []
+        self._control: Any = None
+
+    def __enter__(self) -> Inbox:
+        self._subs = [ring_subscriber(self._session, self._partner_key(self.run, b), INBOX) for b in self.models.needed]
+        self._control = ring_subscriber(self._session, keys.control(self.run), 64)
+        return self
+
+    def close(self) -> None:
+        for sub in (*self._subs, self._control):
+            if sub is not None:
+                sub.undeclare()
+        self._subs, self._control = [], None
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def stop_requested(self) -> bool:
+        """Has a stop arrived on the run's control key (or been asked for locally)?"""
+        if self._control is not None:
+            for _, msg in drain_messages(self._control, 64, self._reject):
+                if isinstance(msg, Control) and msg.command == "stop":
+                    self.stop.set()
+        return self.stop.is_set()
+
+    def fetch(self) -> None:
+        """If asked to: the partners' current best from the broker's store (a late, restarted or flooded worker)."""
+        if not self.refetch:
+            return
+        self.refetch = False
+        if self.models.kind == "current" or not self.models.needed or not self.broker.up.is_set():
+            return  # current policies are not stored; the next generation's arrives within a generation
+        for b in self.models.needed:
+            try:
+                for payload in query(self._session, keys.store_latest(self.run, b), timeout=self.store_timeout,
+                                     what=f"the store's latest {b}"):
+                    self._fetched.append((keys.policy(self.run, b), payload))
+            except ServiceError as exc:  # the broker went away meanwhile: the subscription will catch up
+                log.info("%s", exc)
+
+    def adopt(self, generation: int) -> None:
+        """Take the newest valid version of each partner that arrived; log each adoption."""
+        items, self._fetched = self._fetched, []
+        for sub in self._subs:
+            got = drain(sub, INBOX)
+            if len(got) == INBOX:  # the ring was full: older messages were dropped unread
+                self._reject(MessageError("flood", f"over {INBOX} messages on {got[0][0]!r} within one generation"), got[0][0])
+                self.refetch = True
+            items += got
+        newest: dict[str, tuple[PolicyUpdate, RuleSet]] = {}
+        for key, payload in items:
+            if self._accepted.get(key) == payload:
+                continue  # the partner's every-generation repeat of what this worker already checked and holds
+            try:
+                msg = decode(payload, key=key)
+                if not isinstance(msg, PolicyUpdate):
+                    raise MessageError("wrong_key", f"{msg.kind} on {key!r}")
+                rules = msg.ruleset()
+            except MessageError as err:
+                self._reject(err, key)
+                continue
+            self._accepted[key] = payload
+            cur = newest.get(msg.behaviour)
+            if cur is None or msg.version > cur[0].version:
+                newest[msg.behaviour] = (msg, rules)
+        for beh, (msg, rules) in newest.items():
+            if self.models.adopt(beh, msg.version, rules):
+                entry = {
+                    "generation": generation, "partner": beh, "version": msg.version,
+                    "from_worker": msg.worker, "fitness": msg.fitness, "received_at": time.time(),
+                    "rules": msg.rules,  # so a replay needs nothing but this log
+                }
+                self._adoptions.write(json.dumps(entry) + "\n")
+                self._adoptions.flush()

@@ -1,0 +1,168 @@
+"""What the commands share on the terminal: one progress display, the argument types, the settings flags.
+
+Progress goes to stderr (stdout is for results a script may read); ``quiet`` turns it
+off.  Every long command shows the same bar: a label, the bar, done/total, what is
+happening, the time spent and the time left.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from types import TracebackType
+from typing import Any
+
+from coevo.config import GAConfig, build
+from coevo.errors import ConfigError
+
+__all__ = ["ProgressBar", "seed_arg", "count_arg", "positive_float_arg", "pairs", "ga_settings", "world_settings",
+           "add_settings", "add_max_lead", "max_lead_arg"]
+
+
+class ProgressBar:
+    """A progress display with one or more stages (rich), or nothing when ``quiet``."""
+
+    def __init__(self, label: str, *, total: int | None = None, unit: str = "", quiet: bool = False) -> None:
+        self.label, self.unit, self.quiet = label, unit, quiet
+        self._first_total = total
+        self._bar: Any = None
+        self._tasks: dict[str, Any] = {}
+
+    def __enter__(self) -> ProgressBar:
+        if not self.quiet:
+            from rich.console import Console
+            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+            done = "{task.completed}/{task.total}" + (f" {self.unit}" if self.unit else "")
+            self._bar = Progress(TextColumn("[bold]{task.description}[/]"), BarColumn(), TextColumn(done),
+                                 TextColumn("{task.fields[info]}"), TimeElapsedColumn(), TextColumn("left"),
+                                 TimeRemainingColumn(), console=Console(file=sys.stderr))
+            self._bar.start()
+            if self._first_total is not None:
+                self.stage(self.label, 0, self._first_total)
+        return self
+
+    def stage(self, name: str, done: int, total: int, info: str = "") -> None:
+        """Show stage ``name`` at ``done`` of ``total`` (a new stage gets its own line)."""
+        if self._bar is None:
+            return
+        if name not in self._tasks:
+            self._tasks[name] = self._bar.add_task(name, total=total, info="")
+        self._bar.update(self._tasks[name], completed=done, total=total, info=info)
+
+    def update(self, done: int, total: int | None = None, info: str = "") -> None:
+        """The main stage (the label's) at ``done`` of ``total`` (unchanged if None)."""
+        if self._bar is None:
+            return
+        task = self._tasks.get(self.label)
+        current = self._bar.tasks[self._bar.task_ids.index(task)].total if task is not None else None
+        self.stage(self.label, done, int(total if total is not None else (current or 1)), info)
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+            self._bar = None
+
+
+def seed_arg(text: str) -> int:
+    """A seed: a whole number from 0 to 2**63 - 1 (numpy's generators refuse negative seeds)."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid seed {text!r}: give a whole number >= 0") from None
+    if not 0 <= v < 2**63:
+        raise argparse.ArgumentTypeError(f"invalid seed {v}: give a whole number from 0 to 2**63 - 1")
+    return v
+
+
+def count_arg(minimum: int = 1, maximum: int = 10**9) -> Any:
+    """An argument type: a whole number in [minimum, maximum]."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"invalid number {text!r}: give a whole number") from None
+        if not minimum <= v <= maximum:
+            raise argparse.ArgumentTypeError(f"invalid number {v}: give one from {minimum} to {maximum}")
+        return v
+
+    return parse
+
+
+def positive_float_arg(*, allow_zero: bool = False, maximum: float = math.inf) -> Any:
+    """An argument type: a finite number above 0 (or at least 0), at most ``maximum``."""
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"invalid number {text!r}") from None
+        if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero) or v > maximum:
+            bound = "0 or more" if allow_zero else "above 0"
+            raise argparse.ArgumentTypeError(f"invalid number {text}: give a finite number {bound}"
+                                             + (f", at most {maximum:g}" if math.isfinite(maximum) else ""))
+        return v
+
+    return parse
+
+
+# ---------------------------------------------------------------- run settings from flags
+def pairs(values: list[str] | None, flag: str) -> dict[str, Any]:
+    """``--world/--ga name=value`` pairs (values parsed as JSON when they can be)."""
+    out: dict[str, Any] = {}
+    for item in values or []:
+        if "=" not in item:
+            raise ConfigError(f"--{flag} {item!r}: expected name=value")
+        k, v = item.split("=", 1)
+        try:
+            out[k.strip()] = json.loads(v)
+        except json.JSONDecodeError:
+            out[k.strip()] = v
+    return out
+
+
+def ga_settings(args: argparse.Namespace) -> GAConfig:
+    over = pairs(args.ga, "ga")
+    for name in ("generations", "population", "episodes"):
+        if getattr(args, name, None) is not None:
+            over[name] = getattr(args, name)
+    return build(GAConfig, over)
+
+
+def world_settings(args: argparse.Namespace, task: str) -> dict[str, Any]:
+    """The world settings given, checked against the task's model (stored in full by whoever keeps them)."""
+    from coevo.tasks import get_task
+
+    values = pairs(args.world, "world")
+    return build(get_task(task).world_settings, values).model_dump(mode="json")
+
+
+def add_settings(p: argparse.ArgumentParser) -> None:
+    # Plain whole numbers: GAConfig checks their ranges (one place) and names the bad value.
+    p.add_argument("--generations", type=int, help="generations (default 50)")
+    p.add_argument("--population", type=int, help="population size (default 50)")
+    p.add_argument("--episodes", type=int, help="evaluation episodes per individual (default 90)")
+    p.add_argument("--world", action="append", metavar="NAME=VALUE", help="world setting, e.g. target_speed=3 (repeatable)")
+    p.add_argument("--ga", action="append", metavar="NAME=VALUE", help="GA setting, e.g. mutation_rate=0.05 (repeatable)")
+    p.add_argument("--initial", dest="ga", action="append", type=lambda v: f"initial={v}", metavar="default|random",
+                   help="how Tracking and Docking start: their shipped direction-only rule sets (default) or random "
+                        "rule sets; the Executive always starts random (the same as --ga initial=...)")
+    p.add_argument("--mutation-model", dest="ga", action="append", type=lambda v: f"mutation_model={v}", metavar="fm|gm|fh|gh",
+                   help="mutation model (default fm; the same as --ga mutation_model=...; parameters: see README)")
+
+
+def max_lead_arg(text: str) -> int | None:
+    from coevo.agents.pacing import parse_max_lead
+
+    try:
+        return parse_max_lead(text)
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_max_lead(p: argparse.ArgumentParser, *, default: str | None = "1") -> None:
+    p.add_argument("--max-lead", default=None if default is None else max_lead_arg(default), type=max_lead_arg, metavar="N|off",
+                   help="pacing: start a generation only when every partner is at most N generations behind (default 1; off = unpaced)")

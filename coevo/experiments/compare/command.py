@@ -1,0 +1,95 @@
+"""``coevo compare``: many real runs per regime, then Table 1, the curves, the rank tests and a verdict.
+
+Registered by :mod:`coevo.cli`; the experiment itself is :mod:`.experiment`, its report :mod:`.report`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from coevo.console import (
+    ProgressBar,
+    add_max_lead,
+    add_settings,
+    count_arg,
+    ga_settings,
+    pairs,
+    positive_float_arg,
+    seed_arg,
+)
+from coevo.errors import ConfigError
+
+__all__ = ["add_parser", "cmd_compare"]
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from coevo.config import build
+    from coevo.experiments.compare import CompareSpec, prepare, run_all, write_report
+    from coevo.experiments.compare.experiment import default_jobs, replicates
+    from coevo.tasks.fuel.settings import WorldConfig
+
+    rates = {} if args.rates is None else {"rates": tuple(args.rates)}
+    spec = CompareSpec.make(regimes=tuple(args.regimes), **rates, runs=args.runs, seed=args.seed, model=args.model,
+                            max_lead=args.max_lead, measure_epochs=args.measure_epochs,
+                            world=build(WorldConfig, pairs(args.world, "world")), ga=ga_settings(args))
+    jobs = default_jobs() if args.jobs is None else args.jobs
+    out = Path(args.out) if args.out else Path("runs") / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"
+    t0 = time.time()
+    if args.report_only:
+        if not (out / "compare.json").exists():
+            raise ConfigError(f"--report-only: {out} holds no comparison (no compare.json)")
+        todo = prepare(out, spec, resume=True)
+        print(f"{len(todo)} runs unfinished; reporting on the rest")
+    else:
+        todo = prepare(out, spec, resume=args.resume)
+        total = len(replicates(spec))
+        print(f"comparison in {out}: {total - len(todo)} of {total} runs already done, {len(todo)} to run, {jobs} at a time",
+              flush=True)
+        with ProgressBar("compare", total=1, unit="worker generations", quiet=args.quiet) as bar:
+
+            def show(p: Any) -> None:
+                bar.update(p.done_generations, p.total_generations,
+                           info=f"runs {p.runs_done}/{p.runs_total}" + (f", {len(p.failed)} failed" if p.failed else ""))
+
+            try:
+                failed = run_all(out, spec, todo, jobs=jobs, on_progress=show)
+            except KeyboardInterrupt:
+                print(f"interrupted; finished runs are kept: continue with the same command and --resume --out {out}",
+                      file=sys.stderr)
+                return 130
+        if failed:
+            print(f"{len(failed)} runs failed ({', '.join(failed)}); their logs are in {out / 'logs'}. "
+                  f"Run again with --resume to retry them.", file=sys.stderr)
+    results = write_report(out, spec, elapsed=None if args.report_only else time.time() - t0)
+    print(f"report: {out / 'report.md'}")
+    for r, counts in results["table1"].items():
+        print(f"  {r}: " + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
+    print(results["verdict"])
+    return 1 if results["runs_finished"] < results["runs_expected"] and not args.report_only else 0
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Add the ``compare`` sub-command to ``coevo``'s sub-parsers."""
+    p = sub.add_parser("compare", help="many real runs per regime: Table 1, learning curves, rank tests, verdict")
+    p.add_argument("--regimes", nargs="+", default=["mutual", "independent"], metavar="REGIME",
+                   help="regimes to compare (default: mutual independent); independent-offline: the Executive "
+                        "learns on the independent runs' recorded Tracking/Docking histories, at each --rates")
+    p.add_argument("--rates", nargs="+", type=positive_float_arg(maximum=1e6), metavar="R",
+                   help="independent-offline: rates of asynchrony, partner generations per Executive generation "
+                        "(default 0.25 0.5 1 2 4)")
+    p.add_argument("--runs", type=count_arg(1, 1000), default=10, help="runs per regime (default 10, as in the report)")
+    p.add_argument("--out", help="comparison directory (default runs/compare-TIME)")
+    p.add_argument("--resume", action="store_true", help="continue the comparison in --out, keeping its finished runs")
+    p.add_argument("--report-only", action="store_true", help="only (re)write the report from the finished runs in --out")
+    p.add_argument("--jobs", type=count_arg(1, 1024), help="runs at once (default: one per two cores; an offline Executive counts half)")
+    p.add_argument("--seed", type=seed_arg, default=0, help="base seed; run i of every regime uses seed + 1000 i")
+    p.add_argument("--model", default="best", choices=["best", "current", "recent"])
+    p.add_argument("--measure-epochs", type=count_arg(1, 100_000), default=100, help="fresh epochs measuring each final robot")
+    p.add_argument("--quiet", action="store_true", help="no progress display")
+    add_max_lead(p)
+    add_settings(p)
+    p.set_defaults(func=cmd_compare)
