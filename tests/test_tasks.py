@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -67,3 +72,17 @@ def test_a_task_refuses_another_tasks_settings() -> None:
 
     with pytest.raises(ConfigError, match="CorridorConfig"):
         get_task("corridor").evaluator("corridor", WorldConfig(), GAConfig())
+
+
+def test_the_same_worker_and_broker_run_the_corridor(tmp_path: Path) -> None:
+    """coevo run: a broker and the corridor's worker as real processes, then coevo check replays it."""
+    r = subprocess.run([sys.executable, "-m", "coevo", "run", "--task", "corridor", "--run", "c", "--root", str(tmp_path),
+                        "--generations", "6", "--population", "10", "--episodes", "10", "--quiet", "--measure-epochs", "20"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "arrived" in r.stdout
+    settings = json.loads((tmp_path / "c" / "run.json").read_text())
+    assert settings["task"] == "corridor" and settings["world"] == CorridorConfig().model_dump()
+    c = subprocess.run([sys.executable, "-m", "coevo", "check", str(tmp_path / "c")], capture_output=True, text=True,
+                       timeout=120)
+    assert c.returncode == 0 and "complete (replay exact)" in c.stdout, c.stdout + c.stderr

@@ -104,3 +104,8 @@ class CorridorTask(Task):
                        epochs: int, seed: int) -> dict[str, float | int]:
         ev = self.evaluator(behaviour, world, GAConfig()).evaluate([best], {}, np.random.default_rng(seed), episodes=epochs)
         return {"arrived": float(100.0 * ev.details.mean()), "payoff": float(ev.fitness[0])}
+
+    def run_measures(self, policies: Mapping[str, RuleSet], *, world: BaseModel, epochs: int,
+                     seed: int) -> dict[str, float | int] | None:
+        best = policies.get(CORRIDOR)
+        return None if best is None else self.final_measures(CORRIDOR, best, world=world, partners={}, epochs=epochs, seed=seed)
