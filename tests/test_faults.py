@@ -25,7 +25,10 @@ import numpy as np
 import pytest
 from procs import SMALL, coevo_proc, poll, stop
 
-from coevo.agents.checkpoint import CHECKPOINT, load_checkpoint, save_checkpoint
+from coevo.agents.checkpoint import load_checkpoint, save_checkpoint
+from coevo.runs.layout import WorkerPaths
+
+CHECKPOINT = WorkerPaths(Path(".")).checkpoint.name
 from coevo.agents.models import PartnerModels
 from coevo.agents.worker import FAULT_HANG_ENV
 from coevo.bus import keys

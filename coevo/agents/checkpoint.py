@@ -26,9 +26,8 @@ import msgpack
 from coevo.errors import RunDirError
 from coevo.runs.layout import write_bytes
 
-__all__ = ["CHECKPOINT", "FORMAT", "save_checkpoint", "load_checkpoint", "truncate_log"]
+__all__ = ["FORMAT", "save_checkpoint", "load_checkpoint", "truncate_log"]
 
-CHECKPOINT = "checkpoint.msgpack"
 FORMAT = "coevo-checkpoint/1"
 
 

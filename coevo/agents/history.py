@@ -14,10 +14,9 @@ import json
 import math
 from pathlib import Path
 
-from pydantic import ValidationError
-
 from coevo.bus.messages import PolicyUpdate
 from coevo.errors import ConfigError, RunDirError
+from coevo.runs.layout import RunPaths, read_store
 
 __all__ = ["HistoryFeed"]
 
@@ -30,14 +29,10 @@ class HistoryFeed:
         self.updates: dict[str, list[PolicyUpdate]] = {}
         _check_finished(Path(run_dir), partners)
         for b in partners:
-            f = Path(run_dir) / "store" / f"{b}.jsonl"
+            f = RunPaths(Path(run_dir)).store_file(b)
             if not f.exists():
                 raise RunDirError(f"{f} is missing: --history needs a run directory with stored {b} policies")
-            try:
-                rows = [PolicyUpdate.model_validate(json.loads(x)) for x in f.read_text().splitlines() if x.strip()]
-            except (ValueError, ValidationError) as exc:  # JSONDecodeError is a ValueError
-                raise RunDirError(f"{f} holds a line that is not a stored {b} policy: "
-                                  f"{str(exc).splitlines()[0]}") from exc
+            rows = read_store(f)
             if any(m.behaviour != b for m in rows):
                 raise RunDirError(f"{f} holds policies of another behaviour than {b}")
             if not rows:
@@ -62,15 +57,15 @@ class HistoryFeed:
 
 def _check_finished(run_dir: Path, partners: tuple[str, ...]) -> None:
     """A history must be a whole run: its run.json, and every partner done with every generation."""
-    if not (run_dir / "run.json").is_file():
+    if not RunPaths(run_dir).run_json.is_file():
         raise RunDirError(f"{str(run_dir)!r} is not a run directory (no run.json): --history needs a finished "
                           "coevo run directory")
     for b in partners:
-        f = run_dir / "workers" / b / "done.json"
+        f = RunPaths(run_dir).worker(b).done
         try:
             done = json.loads(f.read_text())
-        except (OSError, json.JSONDecodeError):
-            done = None
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+            done = None  # reported below as "no done.json"
         if not isinstance(done, dict) or not done.get("finished"):
             got = f"{done.get('generations')} generations" if isinstance(done, dict) else "no done.json"
             raise RunDirError(f"{str(run_dir)!r} is incomplete: its {b} worker did not finish ({got}); "

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from coevo.errors import RunDirError
-from coevo.runs.layout import read_jsonl
+from coevo.runs.layout import RunPaths, WorkerPaths, read_json, read_jsonl, read_store
 
 __all__ = ["RunCheck", "check_run"]
 
@@ -37,29 +37,26 @@ class RunCheck:
 
 
 def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
-    run_dir = Path(run_dir)
-    check = RunCheck(run_dir)
-    wdirs = sorted(p for p in (run_dir / "workers").glob("*") if (p / "worker.json").exists())
-    if not wdirs:
-        raise RunDirError(f"{str(run_dir)!r} holds no workers/*/worker.json: not a coevo run directory")
+    run = RunPaths(Path(run_dir))
+    check = RunCheck(run.dir)
+    wdirs = run.workers()
     stored: dict[tuple[str, str, int], dict[str, Any]] = {}
-    for f in sorted((run_dir / "store").glob("*.jsonl")):
-        for row in read_jsonl(f, problems=check.problems):
-            stored[(row["behaviour"], row["worker"], int(row["version"]))] = row
+    for f in run.store_files():
+        for m in read_store(f, problems=check.problems):
+            stored[(m.behaviour, m.worker, m.version)] = m.model_dump(mode="json")
     published_all: set[tuple[str, int]] = set()
     adoptions: list[tuple[str, str, list[dict[str, Any]]]] = []  # (behaviour, partner model, adoptions)
     for w in wdirs:
-        meta = json.loads((w / "worker.json").read_text(encoding="utf-8"))
-        beh, worker, gens = meta["behaviour"], meta["worker"], int(meta["ga"]["generations"])
-        curve = read_jsonl(w / "curve.jsonl", problems=check.problems)
+        meta = w.meta()
+        beh, worker, gens = meta["behaviour"], meta["worker"], int(meta["ga"].get("generations", 0))
+        curve = read_jsonl(w.curve, problems=check.problems)
         got = [int(r["generation"]) for r in curve]
         if got != list(range(1, gens + 1)):
             check.problems.append(f"{beh}: curve.jsonl has generations {_span(got)}, expected 1..{gens}")
-        done_file = w / "done.json"
-        done = json.loads(done_file.read_text(encoding="utf-8")) if done_file.exists() else {}
+        done = read_json(w.done, what="worker directory (its done.json)") if w.done.exists() else {}
         if not done.get("finished"):
             check.problems.append(f"{beh}: done.json missing or not finished")
-        published = read_jsonl(w / "published.jsonl", problems=check.problems)
+        published = read_jsonl(w.published, problems=check.problems)
         versions = [int(p["version"]) for p in published]
         if versions != list(range(1, len(versions) + 1)):
             check.problems.append(f"{beh}: published.jsonl versions {versions} are not 1..n in order")
@@ -73,7 +70,7 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
             published_all.add((beh, int(p["version"])))
         if lost:
             check.problems.append(f"{beh}: versions {lost} were published but are not in the store")
-        adopted = read_jsonl(w / "adoptions.jsonl", problems=check.problems)
+        adopted = read_jsonl(w.adoptions, problems=check.problems)
         adoptions.append((beh, meta["model"], adopted))
         check.facts[beh] = {"generations": len(curve), "published": len(published),
                             "republished": done.get("republished", 0), "rejected": done.get("rejected", {}),
@@ -85,7 +82,7 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
     if replay and not check.problems:
         from coevo.runs.replay import replay as replay_run
 
-        for r in replay_run(run_dir):
+        for r in replay_run(run.dir):
             if not r.reproduced:
                 check.problems.append(f"{r.behaviour}: replay differs at generation {r.first_mismatch}: {r.detail}")
         check.facts["replayed"] = True

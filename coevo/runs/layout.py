@@ -6,6 +6,9 @@
     RUN/logs/PROCESS.log         each process's output, appended over restarts
     RUN/summary.json, measures.json, curves.csv     written by coevo run at the end
 
+A ``coevo learn`` directory (:class:`LearnPaths`) holds config.json, curve.csv/json,
+best.rules, measures.json, timing.json, best.png and its partners' rules.
+
 A directory written in one go (``coevo learn``) is built in a temporary sibling and
 renamed into place when complete, so a failed or interrupted command leaves no
 half-written directory under the name asked for; files are written atomically
@@ -30,7 +33,7 @@ from coevo.errors import RunDirError
 if TYPE_CHECKING:
     from coevo.bus.messages import PolicyUpdate
 
-__all__ = ["RunPaths", "WorkerPaths", "read_store", "staged_dir", "read_jsonl", "read_json", "write_bytes", "write_json",
+__all__ = ["RunPaths", "WorkerPaths", "LearnPaths", "read_store", "staged_dir", "read_jsonl", "read_json", "write_bytes", "write_json",
            "write_text", "write_csv"]
 
 
@@ -71,6 +74,61 @@ class WorkerPaths:
     def done(self) -> Path:
         return self.dir / "done.json"
 
+    #: What every worker.json holds (more fields may follow).
+    META_KEYS = ("behaviour", "regime", "run", "worker", "seed", "model", "world", "ga")
+
+    def meta(self) -> dict[str, Any]:
+        """The worker's settings (worker.json), checked for the fields the run tools read."""
+        meta = read_json(self.worker_json, what="worker directory (its worker.json)")
+        missing = [k for k in self.META_KEYS if k not in meta]
+        if missing or not isinstance(meta.get("ga"), dict) or not isinstance(meta.get("world"), dict):
+            raise RunDirError(f"{str(self.worker_json)!r} is not a worker's settings: "
+                              f"{'missing ' + ', '.join(missing) if missing else 'ga and world must be objects'}")
+        return meta
+
+
+@dataclass(frozen=True)
+class LearnPaths:
+    """The directory of one ``coevo learn`` (written in one go, see :func:`staged_dir`)."""
+
+    dir: Path
+
+    @property
+    def config(self) -> Path:
+        return self.dir / "config.json"
+
+    @property
+    def curve_csv(self) -> Path:
+        return self.dir / "curve.csv"
+
+    @property
+    def curve_json(self) -> Path:
+        return self.dir / "curve.json"
+
+    @property
+    def best_rules(self) -> Path:
+        return self.dir / "best.rules"
+
+    @property
+    def adoptions(self) -> Path:
+        return self.dir / "adoptions.jsonl"
+
+    @property
+    def measures(self) -> Path:
+        return self.dir / "measures.json"
+
+    @property
+    def timing(self) -> Path:
+        return self.dir / "timing.json"
+
+    @property
+    def picture(self) -> Path:
+        return self.dir / "best.png"
+
+    def partner_rules(self, behaviour: str) -> Path:
+        """The rule set a partner was played with (so ``coevo show DIR`` can replay them together)."""
+        return self.dir / f"{behaviour}.rules"
+
 
 @dataclass(frozen=True)
 class RunPaths:
@@ -109,8 +167,12 @@ class RunPaths:
         return WorkerPaths(self.workers_dir / str(behaviour))
 
     def workers(self) -> list[WorkerPaths]:
-        """The directories of the workers that started (those with a worker.json), by behaviour name."""
-        return [WorkerPaths(p) for p in sorted(self.workers_dir.glob("*")) if (p / "worker.json").exists()]
+        """The directories of the workers that started (those with a worker.json), by behaviour name;
+        none at all is a RunDirError (not a run directory)."""
+        found = [WorkerPaths(p) for p in sorted(self.workers_dir.glob("*")) if (p / "worker.json").exists()]
+        if not found:
+            raise RunDirError(f"{str(self.dir)!r} holds no workers/*/worker.json: not a coevo run directory")
+        return found
 
     @property
     def logs_dir(self) -> Path:

@@ -28,7 +28,7 @@ from coevo.ga import GA, GenerationReport
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
 from coevo.tasks import task_of
-from coevo.runs.layout import staged_dir, write_csv, write_json, write_text
+from coevo.runs.layout import LearnPaths, staged_dir, write_csv, write_json, write_text
 
 __all__ = ["learn", "LearnResult", "default_out"]
 
@@ -85,8 +85,9 @@ def learn(
             f"{' and '.join(f'--{b} FILE' for b in missing)} (e.g. the best.rules of 'coevo learn --behaviour {missing[0]}')"
         )
     t0 = time.perf_counter()
-    with staged_dir(out_dir) as tmp:
-        write_json(tmp / "config.json", {
+    with staged_dir(out_dir) as tmp_dir:
+        tmp = LearnPaths(tmp_dir)
+        write_json(tmp.config, {
             "coevo": __version__, "task": task.name, "behaviour": behaviour, "seed": seed,
             "world": world.model_dump(), "ga": ga.model_dump(),
             "history": str(history) if history else None, "rate": rate if history else None,
@@ -108,22 +109,22 @@ def learn(
         if engine.best is None:  # GAConfig allows no fewer than one generation, so this is a bug
             raise RuntimeError("no generation ran: the GA has no best policy")
         rows = [r.as_dict() for r in curve]
-        write_csv(tmp / "curve.csv", rows)
-        write_json(tmp / "curve.json", rows)
-        write_text(tmp / "best.rules", format_ruleset(engine.best))
+        write_csv(tmp.curve_csv, rows)
+        write_json(tmp.curve_json, rows)
+        write_text(tmp.best_rules, format_ruleset(engine.best))
         if feed is not None:
-            write_text(tmp / "adoptions.jsonl", "".join(json.dumps(a) + "\n" for a in adoptions))
+            write_text(tmp.adoptions, "".join(json.dumps(a) + "\n" for a in adoptions))
         for b, rules in partners.items():
             # The partners it was measured with, so that 'coevo show DIR' can replay them together.
-            write_text(tmp / f"{b}.rules", format_ruleset(rules))
+            write_text(tmp.partner_rules(b), format_ruleset(rules))
         measures = task.final_measures(behaviour, engine.best, world=world, partners=partners, epochs=measure_epochs,
                                        seed=seed + 1_000_003)
         measures = {"best_fitness": engine.best_fitness, **measures}
-        write_json(tmp / "measures.json", measures)
-        task.picture(tmp / "best.png", behaviour, engine.best, world=world, partners=partners, seed=seed + 1_000_003,
+        write_json(tmp.measures, measures)
+        task.picture(tmp.picture, behaviour, engine.best, world=world, partners=partners, seed=seed + 1_000_003,
                      name=Path(out_dir).name)
         seconds = time.perf_counter() - t0
-        write_json(tmp / "timing.json", {"seconds": seconds, "generations": ga.generations})
+        write_json(tmp.timing, {"seconds": seconds, "generations": ga.generations})
     log.info("learned %s in %.1f s -> %s", behaviour, seconds, out_dir)
     return LearnResult(Path(out_dir), engine.best, curve, measures, seconds)
 

@@ -20,7 +20,7 @@ from coevo.errors import RunDirError
 from coevo.ga import GA
 from coevo.bus.messages import PolicyUpdate
 from coevo.policy.rules import RuleSet
-from coevo.runs.layout import read_jsonl
+from coevo.runs.layout import RunPaths, WorkerPaths, read_json, read_jsonl, read_store
 from coevo.tasks import DEFAULT_TASK, get_task
 
 __all__ = ["WorkerReplay", "replay"]
@@ -37,23 +37,19 @@ class WorkerReplay:
     detail: str
 
 
-def _store(run_dir: Path) -> dict[tuple[str, str, int], RuleSet]:
-    out: dict[tuple[str, str, int], RuleSet] = {}
-    for f in sorted((run_dir / "store").glob("*.jsonl")):
-        for row in read_jsonl(f):
-            m = PolicyUpdate.model_validate(row)
-            out[(m.behaviour, m.worker, m.version)] = m.ruleset()
-    return out
+def _store(run: RunPaths) -> dict[tuple[str, str, int], RuleSet]:
+    return {(m.behaviour, m.worker, m.version): m.ruleset() for f in run.store_files() for m in read_store(f)}
 
 
 def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, until: int | None = None) -> WorkerReplay:
-    meta = json.loads((wdir / "worker.json").read_text())
+    w = WorkerPaths(Path(wdir))
+    meta = w.meta()
     task = get_task(meta.get("task", DEFAULT_TASK))
     behaviour = task.check_behaviour(meta["behaviour"])
     world = build(task.world_settings, meta["world"])
     ga_cfg = build(GAConfig, meta["ga"])
-    curve = read_jsonl(wdir / "curve.jsonl")
-    adoptions = read_jsonl(wdir / "adoptions.jsonl")
+    curve = read_jsonl(w.curve)
+    adoptions = read_jsonl(w.adoptions)
     n = len(curve) if until is None else min(until, len(curve))
     models = PartnerModels(task, behaviour, meta["regime"], meta["seed"], kind=meta["model"], ga=ga_cfg)
     ga = GA(task, behaviour, world=world, ga=ga_cfg, seed=meta["seed"])
@@ -78,9 +74,7 @@ def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, unt
 
 
 def replay(run_dir: Path) -> list[WorkerReplay]:
-    run_dir = Path(run_dir)
-    workers = sorted(p for p in (run_dir / "workers").glob("*") if (p / "worker.json").exists())
-    if not workers:
-        raise RunDirError(f"{str(run_dir)!r} holds no workers/*/worker.json: not a coevo run directory")
-    store = _store(run_dir)
-    return [replay_worker(w, store) for w in workers]
+    run = RunPaths(Path(run_dir))
+    workers = run.workers()
+    store = _store(run)
+    return [replay_worker(w.dir, store) for w in workers]

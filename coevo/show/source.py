@@ -21,6 +21,7 @@ from pathlib import Path
 from coevo.errors import ConfigError, RunDirError
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import read_rule_file
+from coevo.runs.layout import LearnPaths, RunPaths
 from coevo.tasks.fuel import HAS_DEFAULT, default_ruleset
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.settings import WorldConfig
@@ -89,9 +90,9 @@ def robot_from_path(path: Path, *, world: WorldConfig | None = None,
     if not path.exists():
         raise ConfigError(f"no such file or directory: {str(path)!r}")
     if path.is_dir():
-        if (path / "run.json").exists():
+        if RunPaths(path).run_json.exists():
             return _from_run(path, partners)
-        if (path / "best.rules").exists() or (path / "config.json").exists():
+        if LearnPaths(path).best_rules.exists() or LearnPaths(path).config.exists():
             return _from_learn(path, partners)
         raise RunDirError(f"{str(path)!r} holds no policies: neither a coevo run (run.json, workers/*/best.rules) "
                           "nor a coevo learn directory (best.rules)")
@@ -109,11 +110,11 @@ def _world_of(f: Path, section: str = "world") -> WorldConfig:
 
 def _from_run(d: Path, partners: dict[Behaviour, RuleSet]) -> Robot:
     """A co-evolution run: its three workers' final best rule sets."""
-    world = _world_of(d / "run.json")
+    world = _world_of(RunPaths(d).run_json)
     rules: dict[Behaviour, RuleSet] = {}
     missing = []
     for b in ROLES:
-        f = d / "workers" / b.value / "best.rules"
+        f = RunPaths(d).worker(b).best_rules
         if b in partners:
             rules[b] = partners[b]
         elif f.exists():
@@ -128,15 +129,16 @@ def _from_run(d: Path, partners: dict[Behaviour, RuleSet]) -> Robot:
 
 def _from_learn(d: Path, partners: dict[Behaviour, RuleSet]) -> Robot:
     """A ``coevo learn`` directory: its best rule set, with the trivial Executive or its recorded partners."""
-    best = d / "best.rules"
+    best = LearnPaths(d).best_rules
     if not best.exists():
         raise RunDirError(f"learn directory {str(d)!r} holds no best.rules (was the run interrupted?)")
-    world = _world_of(d / "config.json") if (d / "config.json").exists() else WorldConfig()
+    config = LearnPaths(d).config
+    world = _world_of(config) if config.exists() else WorldConfig()
     rs = read_rule_file(best)
     rules = {rs.behaviour: rs}
     if rs.behaviour == Behaviour.EXECUTIVE:
         for b in (Behaviour.TRACKING, Behaviour.DOCKING):
-            f = d / f"{b.value}.rules"
+            f = LearnPaths(d).partner_rules(b)
             if b in partners:
                 rules[b] = partners[b]
             elif f.exists():

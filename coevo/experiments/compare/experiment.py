@@ -50,7 +50,7 @@ REGIMES = FuelTask.regimes
 from coevo.agents.pacing import DEFAULT_MAX_LEAD
 from coevo.config import GAConfig
 from coevo.errors import ConfigError, RunDirError
-from coevo.runs.layout import write_json
+from coevo.runs.layout import LearnPaths, RunPaths, write_json
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.settings import WorldConfig
 
@@ -184,8 +184,8 @@ def run_dir(out: Path, rep: Replicate) -> Path:
 
 def is_finished(out: Path, rep: Replicate) -> bool:
     if rep.offline:  # coevo learn writes its directory under a temporary name and renames it when complete
-        return (run_dir(out, rep) / "measures.json").exists()
-    f = run_dir(out, rep) / "summary.json"
+        return LearnPaths(run_dir(out, rep)).measures.exists()
+    f = RunPaths(run_dir(out, rep)).summary
     if not f.exists():
         return False
     try:
@@ -232,7 +232,7 @@ def prepare(out: Path, spec: CompareSpec, *, resume: bool) -> list[Replicate]:
         if is_finished(out, rep):
             continue
         d = run_dir(out, rep)
-        if not rep.offline and d.exists() and not (d / "run.json").exists():
+        if not rep.offline and d.exists() and not RunPaths(d).run_json.exists():
             log.info("removing the run %s, which stopped before it began, to run it again", d)
             shutil.rmtree(d)
         todo.append(rep)
@@ -266,7 +266,7 @@ def _run_command(out: Path, spec: CompareSpec, rep: Replicate) -> list[str]:
                 "--history", str(run_dir(out, rep.depends_on)), "--rate", repr(rep.rate),
                 "--seed", str(rep.seed + EXECUTIVE_SEED), "--out", str(d), "--measure-epochs", str(spec.measure_epochs),
                 *_settings_args(spec)]
-    if (d / "run.json").exists():  # interrupted: continue it from the workers' checkpoints
+    if RunPaths(d).run_json.exists():  # interrupted: continue it from the workers' checkpoints
         return [sys.executable, "-m", "coevo", "run", "--quiet", "--resume", str(d), "--measure-epochs", str(spec.measure_epochs)]
     settings = RunSettings.make(run=rep.run_id, regime=rep.regime, seed=rep.seed, model=spec.model, max_lead=spec.max_lead,
                                 world=spec.world.model_dump(mode="json"), ga=spec.ga)
@@ -290,7 +290,7 @@ def generations_done(out: Path, rep: Replicate) -> int:
         return 0
     n = 0
     for b in Behaviour:
-        f = run_dir(out, rep) / "workers" / b.value / "curve.jsonl"
+        f = RunPaths(run_dir(out, rep)).worker(b).curve
         try:
             with open(f, "rb") as fh:
                 n += sum(1 for _ in fh)

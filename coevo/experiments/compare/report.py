@@ -35,7 +35,7 @@ from coevo.experiments.compare.experiment import (
 from coevo.experiments.compare.stats import GroupComparison, RankComparison, compare_groups, compare_samples
 from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
 from coevo.policy.text import parse_ruleset
-from coevo.runs.layout import read_jsonl, write_csv, write_json, write_text
+from coevo.runs.layout import LearnPaths, RunPaths, read_jsonl, write_csv, write_json, write_text
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.robot import docking_from_random_starts
 
@@ -67,7 +67,7 @@ def collect(out: Path, spec: CompareSpec) -> list[dict[str, Any]]:
 
 def _docking_alone(d: Path, spec: CompareSpec, rep: Replicate) -> float:
     """% of fresh single episodes in which the run's final Docking policy docks (NaN if it published none)."""
-    f = d / "workers" / Behaviour.DOCKING.value / "best.rules"
+    f = RunPaths(d).worker(Behaviour.DOCKING).best_rules
     try:
         rules = parse_ruleset(f.read_text(), Behaviour.DOCKING)
     except (OSError, RuleSetError):
@@ -79,13 +79,13 @@ def _offline_record(out: Path, rep: Replicate, live: dict[str, Any] | None) -> d
     """An Executive learned on a live Independent run's recorded Tracking/Docking histories at one rate
     (``live``: that run's record, None if it is not finished)."""
     d = run_dir(out, rep)
-    m = json.loads((d / "measures.json").read_text())
-    rows = json.loads((d / "curve.json").read_text())
+    m = json.loads(LearnPaths(d).measures.read_text())
+    rows = json.loads(LearnPaths(d).curve_json.read_text())
     curves = {Behaviour.EXECUTIVE.value: {c: [_number(r.get(c)) for r in rows] for c in CURVE_COLUMNS}}
     final = {Behaviour.EXECUTIVE.value: float(rows[-1]["best_so_far"]) if rows else float("nan")}
     for b in (Behaviour.TRACKING, Behaviour.DOCKING):
         final[b.value] = live["final_best_so_far"][b.value] if live else float("nan")
-    timing = json.loads((d / "timing.json").read_text())
+    timing = json.loads(LearnPaths(d).timing.read_text())
     return {
         "run": rep.run_id, "regime": rep.regime, "group": rep.group, "rate": rep.rate, "index": rep.index,
         "seed": rep.seed, "docking_from_random_starts": live["docking_from_random_starts"] if live else float("nan"),
@@ -97,12 +97,12 @@ def _offline_record(out: Path, rep: Replicate, live: dict[str, Any] | None) -> d
 
 def _record(out: Path, spec: CompareSpec, rep: Replicate) -> dict[str, Any]:
     d = run_dir(out, rep)
-    summary = json.loads((d / "summary.json").read_text())
+    summary = json.loads(RunPaths(d).summary.read_text())
     m = summary["measures"]
     curves: dict[str, dict[str, list[float]]] = {}
     final: dict[str, float] = {}
     for b in Behaviour:
-        rows = read_jsonl(d / "workers" / b.value / "curve.jsonl", missing_ok=True)
+        rows = read_jsonl(RunPaths(d).worker(b).curve, missing_ok=True)
         curves[b.value] = {c: [_number(r.get(c)) for r in rows] for c in CURVE_COLUMNS}
         final[b.value] = float(rows[-1]["best_so_far"]) if rows else float("nan")
     return {
