@@ -84,7 +84,8 @@ class DoorWorld:
         self.working = np.array([s not in c.failed for s in SONARS])
         k = np.arange(c.sonar_rays)
         rays = (k + 0.5) / c.sonar_rays * SONAR_CONE - SONAR_CONE / 2
-        self._ray_offsets = np.deg2rad((np.array(SONAR_ANGLES)[:, None] + rays[None, :]).reshape(-1))  # (7*R,)
+        offsets = np.deg2rad((np.array(SONAR_ANGLES)[:, None] + rays[None, :]).reshape(-1))  # (7*R,)
+        self._ray_sin, self._ray_cos = np.sin(offsets)[None, :], np.cos(offsets)[None, :]
         self.path: list[np.ndarray] | None = [self.pose()] if record else None
         if self._collides(self.x, self.y, self.a, self.b).any():
             i = int(np.flatnonzero(self._collides(self.x, self.y, self.a, self.b))[0])
@@ -102,9 +103,13 @@ class DoorWorld:
     def sonars(self, lanes: np.ndarray) -> np.ndarray:
         """``(m, 7)`` sonar readings (inches) of ``lanes``, far-left to far-right."""
         c = self.cfg
+        # Each ray is the heading turned by a fixed offset: two sines and cosines per trial, not per ray
+        # (sonars are ~45 % of a generation; this made them ~30 % faster, measured in docs/door.md).
+        h = self.h[lanes, None]
+        sh, ch = np.sin(h), np.cos(h)
+        dx = -(sh * self._ray_cos + ch * self._ray_sin)
+        dy = ch * self._ray_cos - sh * self._ray_sin
         x, y = self.x[lanes, None], self.y[lanes, None]
-        ang = self.h[lanes, None] + self._ray_offsets[None, :]
-        dx, dy = -np.sin(ang), np.cos(ang)
         with np.errstate(divide="ignore", invalid="ignore"):
             ix, iy = 1.0 / dx, 1.0 / dy
             # The room: where the ray leaves its box.
@@ -114,12 +119,12 @@ class DoorWorld:
             for face in (c.wall_near, c.wall_far):
                 tf = (face - y) * iy
                 hx = x + tf * dx
-                t = np.where((tf > 0) & ((hx <= a) | (hx >= b)) & (tf < t), tf, t)
+                np.copyto(t, tf, where=(tf > 0) & (tf < t) & ((hx <= a) | (hx >= b)))
             # The opening's two edges (the wall's end faces).
             for edge in (a, b):
                 tf = (edge - x) * ix
                 hy = y + tf * dy
-                t = np.where((tf > 0) & (hy >= c.wall_near) & (hy <= c.wall_far) & (tf < t), tf, t)
+                np.copyto(t, tf, where=(tf > 0) & (tf < t) & (hy >= c.wall_near) & (hy <= c.wall_far))
         reading = t.reshape(len(lanes), len(SONARS), c.sonar_rays).min(axis=2) - c.robot_radius
         if c.sonar_noise > 0:
             reading = reading + self.rng.normal(0.0, c.sonar_noise, reading.shape)  # type: ignore[union-attr]
