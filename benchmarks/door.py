@@ -131,6 +131,17 @@ def figure3(path: Path, runs: list[dict[str, Any]], generations: int, blind: Doo
     plt.close(fig)
 
 
+def rounded(value: Any, digits: int = 4) -> Any:
+    """``value`` with every float rounded (the JSON stays readable and small)."""
+    if isinstance(value, float):
+        return round(value, digits)
+    if isinstance(value, dict):
+        return {k: rounded(v, digits) for k, v in value.items()}
+    if isinstance(value, list):
+        return [rounded(v, digits) for v in value]
+    return value
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, default=10)
@@ -192,7 +203,7 @@ def main() -> None:
           f"max {summary['ga_seconds_per_generations']['max']:.1f} s (target < 60 s); wall {summary['wall_seconds']:.0f} s")
     out = Path(args.json)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps({"summary": summary, "runs": runs}, indent=1) + "\n")
+    out.write_text(json.dumps(rounded({"summary": summary, "runs": runs})) + "\n")
     print(f"wrote {out}")
     if args.figures:
         from coevo.policy.text import parse_ruleset

@@ -127,11 +127,12 @@ class DoorEvaluator(Evaluator):
         return dict(outcome_rates(check.details.outcome))
 
 
-def measure(rules: RuleSet, cfg: DoorConfig, *, trials: int, seed: int) -> dict[str, float]:
-    """External performance (report §8.1): ``rules`` on ``trials`` fresh trials, % success and the rest."""
+def measure(rules: RuleSet, cfg: DoorConfig, *, trials: int, seed: int) -> dict[str, float | int | None]:
+    """External performance (report §8.1): ``rules`` on ``trials`` fresh trials, % success and the rest
+    (``mean_time_to_goal`` in seconds, None when no trial reached it)."""
     rng = np.random.default_rng(seed)
     out = play(cfg, CompiledPolicies([rules]), np.zeros(trials, dtype=np.int64), draw_trials(cfg, trials, rng), rng)
     pay = payoff(cfg, out.outcome, out.time)
     won = out.outcome == GOAL
     return {**outcome_rates(out.outcome), "payoff": float(pay.mean()), "trials": trials,
-            "mean_time_to_goal": float(out.time[won].mean()) if won.any() else float("nan")}
+            "mean_time_to_goal": float(out.time[won].mean()) if won.any() else None}

@@ -19,7 +19,7 @@ from coevo.policy.schema import Action, Schema, Sensor, register
 from coevo.tasks.door.settings import SONARS
 from coevo.tasks.door.world import DoorWorld
 
-__all__ = ["DOOR", "SCHEMA", "TURN", "SPEED", "sense"]
+__all__ = ["DOOR", "SCHEMA", "TURN", "SPEED", "sense", "action_values"]
 
 DOOR = "door"
 SONAR_BIN = 24.0
