@@ -2,6 +2,7 @@
 
     .venv/bin/python benchmarks/door.py [--seeds 10] [--generations 50] [--fail front,front_right,right]
                                         [--json docs/door/benchmark.json] [--figures docs/door]
+                                        [--world NAME=JSON ...] [--ga NAME=JSON ...]
 
 Per seed: the GA learns with all sonars for ``--generations`` generations; the three
 sonars fail; the best all-sonar rules are tried in the failed world (the drop); the GA
@@ -26,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from coevo.config import build
+from coevo.config import GAConfig, build
 from coevo.ga import GA
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.rules import RuleSet
@@ -64,9 +65,8 @@ def behaviour(rules: RuleSet, cfg: DoorConfig, seed: int, trials: int = 200) -> 
             **outcome_rates(out.outcome)}
 
 
-def one_seed(seed: int, generations: int, intact: DoorConfig, blind: DoorConfig) -> dict[str, Any]:
+def one_seed(seed: int, generations: int, intact: DoorConfig, blind: DoorConfig, ga_cfg: GAConfig) -> dict[str, Any]:
     task = get_task("door")
-    ga_cfg = task.default_ga()  # type: ignore[attr-defined]
     ga = GA(task, DOOR, world=intact, ga=ga_cfg, seed=seed)
     curve = [external(default_ruleset(), intact, seed, 0)]
     ga_seconds = [0.0, 0.0]
@@ -149,13 +149,19 @@ def main() -> None:
     ap.add_argument("--fail", default="front,front_right,right")
     ap.add_argument("--json", default="docs/door/benchmark.json")
     ap.add_argument("--figures", help="write figure3.png, figure4.png and figure5.png here")
+    ap.add_argument("--world", action="append", default=[], metavar="NAME=JSON",
+                    help="a DoorConfig setting for both phases, e.g. sonar_noise=12 (a sensitivity check; repeatable)")
+    ap.add_argument("--ga", action="append", default=[], metavar="NAME=JSON", help="a GAConfig override, e.g. episodes=20")
     args = ap.parse_args()
-    intact = DoorConfig()
-    blind = build(DoorConfig, {"failed": args.fail})
+    world_over, ga_over = (dict((k, json.loads(v)) for k, v in (i.split("=", 1) for i in items))
+                           for items in (args.world, args.ga))
+    intact = build(DoorConfig, world_over)
+    blind = build(DoorConfig, {**world_over, "failed": args.fail})
+    ga_cfg = get_task("door").default_ga(**ga_over)  # type: ignore[attr-defined]
     t0 = time.perf_counter()
     runs = []
     for s in range(args.seeds):
-        r = one_seed(s, args.generations, intact, blind)
+        r = one_seed(s, args.generations, intact, blind, ga_cfg)
         runs.append(r)
         print(f"seed {s}: default {r['default']:.1f} %, all sonars {r['all_sonars']:.1f} %, {capability_label(blind)} "
               f"{r['drop']:.1f} %, adapted {r['adapted']:.1f} %; GA {r['ga_seconds'][0]:.1f} + {r['ga_seconds'][1]:.1f} s",
@@ -177,7 +183,7 @@ def main() -> None:
         "ga_seconds_per_generations": {"mean": float(np.mean(per50)), "max": float(np.max(per50)), "runs": len(per50)},
         "wall_seconds": time.perf_counter() - t0, "cpus": os.cpu_count(),
         "load_average_at_end": [round(x, 2) for x in os.getloadavg()], "python": platform.python_version(),
-        "ga": get_task("door").default_ga().model_dump(),  # type: ignore[attr-defined]
+        "ga": ga_cfg.model_dump(),
         "world": intact.model_dump(),
     }
     print()
