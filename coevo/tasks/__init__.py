@@ -12,11 +12,12 @@ from __future__ import annotations
 from coevo.errors import ConfigError
 from coevo.tasks.base import Evaluation, Evaluator, Partners, Task
 from coevo.tasks.corridor import CorridorTask
+from coevo.tasks.door import DoorTask
 from coevo.tasks.fuel import FuelTask
 
 __all__ = ["Task", "Evaluator", "Evaluation", "Partners", "TASKS", "get_task", "task_of", "DEFAULT_TASK"]
 
-TASKS: dict[str, Task] = {t.name: t for t in (FuelTask(), CorridorTask())}
+TASKS: dict[str, Task] = {t.name: t for t in (FuelTask(), CorridorTask(), DoorTask())}
 DEFAULT_TASK = "fuel"
 
 

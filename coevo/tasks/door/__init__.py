@@ -1,0 +1,109 @@
+"""The door traversal task (report Appendix B; SPEC §5): cross a room through an opening in a wall.
+
+A robot starts on a line 4 ft in front of the back wall facing a random way and
+must pass through a 6 ft opening, at a random place in a wall across the room, to
+a goal line beyond it, sensing with seven sonars that may fail.  One behaviour,
+``door``, learns alone (regime ``independent``, no partners).  The world is in
+:mod:`.world` (batched, numpy ray casting), the settings with the sonar failures in
+:mod:`.settings`, the rule schema in :mod:`.sensors`, the evaluator and the external
+performance measure in :mod:`.evaluate`, the pictures in :mod:`.pictures`, and the
+restart on a change of capabilities (report §6) in :func:`restart`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from functools import cache
+from importlib import resources
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from pydantic import BaseModel
+
+from coevo.config import GAConfig
+from coevo.errors import ConfigError
+from coevo.policy.rules import RuleSet
+from coevo.policy.text import parse_ruleset
+from coevo.tasks.base import Partners, Task
+from coevo.tasks.door.evaluate import DoorEvaluator, measure
+from coevo.tasks.door.sensors import DOOR
+from coevo.tasks.door.settings import DOOR_GA, SONARS, DoorConfig, capability_label, door_ga
+
+if TYPE_CHECKING:
+    from coevo.ga import GA
+
+__all__ = ["DoorTask", "DoorConfig", "DOOR", "SONARS", "DOOR_GA", "door_ga", "default_ruleset", "restart",
+           "capability_label"]
+
+
+@cache
+def default_ruleset() -> RuleSet:
+    """The shipped initial rules: the direction to the goal line, nothing about walls (report §7)."""
+    text = resources.files(__name__).joinpath("defaults/door.rules").read_text(encoding="utf-8")
+    return parse_ruleset(text, DOOR)
+
+
+def _door_world(world: BaseModel) -> DoorConfig:
+    if not isinstance(world, DoorConfig):
+        raise ConfigError(f"the door task needs DoorConfig settings, got {type(world).__name__}")
+    return world
+
+
+class DoorTask(Task):
+    name = "door"
+    behaviours = (DOOR,)
+    regimes = ("independent",)
+    world_settings = DoorConfig
+
+    def default_rules(self, behaviour: str) -> RuleSet:
+        self.check_behaviour(behaviour)
+        return default_ruleset()
+
+    def default_ga(self, **overrides: object) -> GAConfig:
+        """GAConfig for this task: its defaults with :data:`DOOR_GA` on top, then ``overrides``."""
+        return door_ga(**overrides)
+
+    def evaluator(self, behaviour: str, world: BaseModel, ga: GAConfig) -> DoorEvaluator:
+        self.check_behaviour(behaviour)
+        return DoorEvaluator(_door_world(world), ga)
+
+    def status_measures(self, behaviour: str, measures: Mapping[str, float | None]) -> dict[str, float]:
+        return {"success": float(measures.get("success") or 0.0)}
+
+    def final_measures(self, behaviour: str, best: RuleSet, *, world: BaseModel, partners: Partners,
+                       epochs: int, seed: int) -> dict[str, float | int]:
+        """External performance (report §8.1): ``best`` on ``epochs`` fresh trials (100 in the report)."""
+        self.check_behaviour(behaviour)
+        return measure(best, _door_world(world), trials=epochs, seed=seed)
+
+    def picture(self, path: Path, behaviour: str, best: RuleSet, *, world: BaseModel, partners: Partners, seed: int,
+                name: str) -> None:
+        """best.png: a trial of the best rules, during the run and at its end (the report's Figures 4-5)."""
+        from coevo.tasks.door.pictures import path_figure
+
+        cfg = _door_world(world)
+        path_figure(path, best, cfg, seed=seed, title=f"{name}: the best door rules ({capability_label(cfg)}), seed {seed}")
+
+
+def restart(ga: GA, world: DoorConfig, *, keep: float = 0.5) -> None:
+    """Restart ``ga`` on a changed world (report §6): keep ``keep`` of its population, the rest become copies
+    of the initial rules; its best so far is forgotten (the execution module uses the best found since
+    the last change, report §7).
+
+    Which individuals stay *(ours)*: the elite, then a random draw from the GA's own generator (the
+    population has just been bred and has no fitness yet).
+    """
+    if not 0.0 <= keep <= 1.0:
+        raise ConfigError(f"keep must be a fraction in [0, 1], got {keep}")
+    n = len(ga.population)
+    n_keep = int(round(keep * n))
+    elite = min(ga.cfg.elite, n_keep)
+    rest = ga.rng.permutation(np.arange(elite, n))[: n_keep - elite]
+    kept = list(range(elite)) + sorted(int(i) for i in rest)
+    initial = default_ruleset()
+    ga.population = [ga.population[i] for i in kept] + [initial] * (n - n_keep)
+    ga.genes = np.concatenate([ga.genes[kept], np.zeros(n - n_keep, dtype=ga.genes.dtype)])
+    ga.world_cfg = world
+    ga.evaluator = ga.task.evaluator(ga.behaviour, world, ga.cfg)
+    ga.best, ga.best_fitness = None, -np.inf
