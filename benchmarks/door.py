@@ -194,7 +194,7 @@ def main() -> None:
     for k in keys:
         rep = ("> " if k == "adapted" else "") + f"{REPORT[k]:.0f}"
         print(f"| {names[k]} | {mean[k]:.1f} ± {sd[k]:.1f} | {rep} |")
-    print(f"\n| how the rules drive (200 trials; mean over seeds) | mean abs turn (deg/s) | turn reversals per 10 "
+    print("\n| how the rules drive (200 trials; mean over seeds) | mean abs turn (deg/s) | turn reversals per 10 "
           "decisions | decisions not moving forward (%) | collisions (%) | timeouts (%) |")
     print("|---|---|---|---|---|---|")
     stats = {}

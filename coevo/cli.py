@@ -50,18 +50,33 @@ def _read_rules(path: str | None, behaviour: str) -> Any:
 # ---------------------------------------------------------------- commands
 def cmd_learn(args: argparse.Namespace) -> int:
     from coevo.runs.learn import default_out, learn
-    from coevo.tasks import task_of
+    from coevo.tasks import get_task, task_of
 
+    if args.behaviour is None:
+        if args.task is None or len(get_task(args.task).behaviours) != 1:
+            raise ConfigError("give --behaviour" + (f" (task {args.task!r} has {', '.join(get_task(args.task).behaviours)})"
+                                                    if args.task else ""))
+        args.behaviour = get_task(args.task).behaviours[0]
     task = task_of(args.behaviour)
-    world = build(task.world_settings, pairs(args.world, "world"))
+    if args.task is not None and args.task != task.name:
+        raise ConfigError(f"--behaviour {args.behaviour} belongs to task {task.name!r}, not {args.task!r}")
+    world_values = pairs(args.world, "world")
+    if args.fail is not None:
+        world_values["failed"] = args.fail
+    world = build(task.world_settings, world_values)
     ga = ga_settings(args)
     partners = {b: _read_rules(f, b) for b, f in (("tracking", args.tracking), ("docking", args.docking)) if f}
     out = Path(args.out) if args.out else default_out(args.behaviour, args.seed)
+
+    def info(r: Any) -> str:
+        own = "".join(f" {k} {v:.0f}%" for k, v in task.status_measures(args.behaviour, r.measures).items())
+        return f"best {r.best_fitness:.3f} (so far {r.best_so_far:.3f}){own}"
+
     with ProgressBar(args.behaviour, total=ga.generations, unit="gen", quiet=args.quiet) as bar:
         res = learn(
             args.behaviour, world=world, ga=ga, seed=args.seed, out_dir=out, partners=partners,
             seed_policy=_read_rules(args.seed_policy, args.behaviour), measure_epochs=args.measure_epochs,
-            on_generation=lambda r: bar.update(r.generation, info=f"best {r.best_fitness:.3f} (so far {r.best_so_far:.3f})"),
+            on_generation=lambda r: bar.update(r.generation, info=info(r)),
             history=Path(args.history) if args.history else None, rate=args.rate,
         )
     m = res.measures
@@ -245,8 +260,13 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     behaviours = list(registered())
 
+    from coevo.tasks import TASKS
+
     p = sub.add_parser("learn", help="one behaviour learns offline (no network)")
-    p.add_argument("--behaviour", required=True, choices=behaviours)
+    p.add_argument("--behaviour", choices=behaviours, help="the behaviour to learn (optional for a task with one)")
+    p.add_argument("--task", choices=list(TASKS), help="the task (default: the behaviour's; door: --behaviour door)")
+    p.add_argument("--fail", metavar="SONARS",
+                   help="door task: sonars that fail, e.g. front,front-right,right (the same as --world failed=...)")
     p.add_argument("--seed", type=seed_arg, default=0)
     p.add_argument("--out", help="run directory to create (default runs/learn-BEHAVIOUR-seedN-TIME)")
     p.add_argument("--tracking", help="Tracking rule file (for --behaviour executive)")

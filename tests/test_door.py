@@ -143,7 +143,7 @@ def test_the_door_task_is_registered_and_learns_alone() -> None:
     assert task.regimes == ("independent",) and task.partners_needed(DOOR, "independent") == ()
     with pytest.raises(ConfigError, match="'mutual'"):
         task.check_regime("mutual")
-    from coevo.config import WorldConfig
+    from coevo.tasks.fuel.settings import WorldConfig
 
     with pytest.raises(ConfigError, match="DoorConfig"):
         task.evaluator(DOOR, WorldConfig(), GAConfig())
@@ -196,7 +196,7 @@ def test_restart_keeps_half_and_seeds_the_rest_with_the_initial_rules() -> None:
 
 
 def test_learn_writes_the_run_directory_with_external_performance(tmp_path: Path) -> None:
-    from coevo.learn import learn
+    from coevo.runs.learn import learn
 
     out = tmp_path / "door"
     ga = GAConfig(generations=2, population=6, episodes=8, best_episodes=10)
