@@ -37,6 +37,16 @@ __all__ = ["RunPaths", "WorkerPaths", "LearnPaths", "read_store", "staged_dir", 
            "write_text", "write_csv"]
 
 
+def _umask() -> int:
+    mask = os.umask(0)  # read at import, before any thread runs: umask can only be read by setting it
+    os.umask(mask)
+    return mask
+
+
+_UMASK = _umask()
+_FILE_MODE = 0o666 & ~_UMASK
+
+
 @dataclass(frozen=True)
 class WorkerPaths:
     """A worker's directory (``RUN/workers/BEHAVIOUR/``; see :mod:`coevo.agents.worker` for what each holds)."""
@@ -241,6 +251,7 @@ def staged_dir(final: Path) -> Iterator[Path]:
     try:
         final.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".partial", dir=final.parent))
+        tmp.chmod(0o777 & ~_UMASK)  # mkdtemp makes it private; the finished directory is as open as any other
     except OSError as exc:
         raise RunDirError(f"cannot create output directory {str(final)!r}: {exc.strerror or exc}") from exc
     try:
@@ -253,6 +264,8 @@ def staged_dir(final: Path) -> Iterator[Path]:
     os.replace(tmp, final)
 
 
+
+
 def write_bytes(path: Path, data: bytes) -> None:
     """Write ``path`` atomically: a temporary sibling, fsynced, renamed over it, the directory fsynced.
 
@@ -261,6 +274,7 @@ def write_bytes(path: Path, data: bytes) -> None:
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        os.fchmod(fd, _FILE_MODE)  # mkstemp makes it private (0600); a result file is as readable as any other
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()
