@@ -108,6 +108,69 @@ def _check(name: str, c: Trivial | Rules | None, lanes: int, behaviour: Behaviou
             raise ConfigError(f"{name} lane_policy has shape {c.lane_policy.shape}, expected ({lanes},)")
 
 
+@dataclass
+class _Controls:
+    """The controllers of one run and what the learner's decisions are logged into."""
+
+    executive: Trivial | Rules
+    roles: list[tuple[int, Behaviour, Rules | None]]  # (task, behaviour, controller) of Tracking and Docking
+    learner: Behaviour | None
+    conflict: str
+    rng: np.random.Generator
+    record: Recorder | None
+
+
+class _Lanes:
+    """Everything that happens on the lanes of one run: the per-episode arrays, the epoch records
+    (keyed by epoch id, handed out as epochs open: at most L*K of them) and the learner's trace."""
+
+    def __init__(self, world: BatchWorld, K: int, g: int, learner: Behaviour | None, rng: np.random.Generator) -> None:
+        cfg = world.cfg
+        L, T = world.n, cfg.episode_steps
+        self.world, self.cfg, self.L, self.K, self.T, self.g = world, cfg, L, K, T, g
+        self.slot = np.arange(L) % g
+        self.starts = world.random_starts(g * K, rng).reshape(g, K, -1)  # a lane has at most K epochs
+        self.epoch_no = np.zeros(L, dtype=np.int64)
+        self.played = np.zeros((L, K), dtype=bool)
+        self.task = np.full((L, K), -1, dtype=np.int8)
+        self.steps = np.zeros((L, K), dtype=np.int32)
+        self.tracked = np.zeros((L, K), dtype=np.int32)
+        self.collided = np.zeros((L, K), dtype=bool)
+        self.docked = np.zeros((L, K), dtype=bool)
+        self.dry = np.zeros((L, K), dtype=bool)
+        self.payoff = np.zeros((L, K))
+        self.epoch_of = np.full((L, K), -1, dtype=np.int64)
+        self.fired = np.zeros((L, K), dtype=np.uint64)
+        self.e_lane = np.zeros(L * K, dtype=np.int64)
+        self.e_tr = np.zeros(L * K, dtype=np.int64)
+        self.e_pen = np.zeros(L * K, dtype=np.int64)
+        self.e_eps = np.zeros(L * K, dtype=np.int64)
+        self.e_cmp = np.zeros(L * K, dtype=bool)
+        self.trace = None
+        if learner is not None:
+            S = schema(learner).n_sensors
+            shape = (K, L) if learner == Behaviour.EXECUTIVE else (K, T, L)
+            self.trace = Trace(np.zeros(shape + (S,), np.uint8), np.full(shape, -1, np.int16), np.zeros(shape, bool))
+        self.alive = np.ones(L, dtype=bool)
+        self.ep_tracked = np.zeros(L, dtype=np.int64)
+        self.ep_count = np.zeros(L, dtype=np.int64)
+        self.ep_id = np.arange(L)
+        self.n_epochs = L
+        self.min_steps = np.zeros(L)  # per episode: the fewest steps a Docking lane could dock in
+        world.reset(np.arange(L), starts=self.starts[:, 0][self.slot])
+
+    def outcome(self) -> Outcome:
+        n = self.n_epochs
+        e_lane, e_tr, e_pen, e_eps, e_cmp = (a[:n] for a in (self.e_lane, self.e_tr, self.e_pen, self.e_eps, self.e_cmp))
+        e_pay = e_tr / (self.T * self.cfg.epoch_episodes + e_pen)
+        return Outcome(
+            played=self.played, task=self.task, steps=self.steps, tracked=self.tracked, collided=self.collided,
+            docked=self.docked, dry=self.dry, payoff=self.payoff, epoch_of=self.epoch_of, fired=self.fired,
+            epoch_lane=e_lane, epoch_tracked=e_tr, epoch_penalty=e_pen, epoch_episodes=e_eps, epoch_complete=e_cmp,
+            epoch_payoff=e_pay, trace=self.trace,
+        )
+
+
 def run_lanes(
     world: BatchWorld,
     *,
@@ -131,169 +194,156 @@ def run_lanes(
     (:mod:`coevo.tasks.fuel.recorder`; for a few lanes).  Without it the loop does no extra
     work beyond a test per controller and step.
     """
-    cfg = world.cfg
-    L, K, T = world.n, lane_episodes, cfg.episode_steps
+    L, K, T = world.n, lane_episodes, world.cfg.episode_steps
     g = L if scenarios is None else scenarios
     if not 1 <= g <= L or L % g:
         raise ConfigError(f"scenarios={scenarios} must divide the {L} lanes")
-    slot = np.arange(L) % g
-    starts = world.random_starts(g * K, rng).reshape(g, K, -1)  # a lane has at most K epochs
-    epoch_no = np.zeros(L, dtype=np.int64)
+    learner = Behaviour(learner) if learner is not None else None
+    s = _Lanes(world, K, g, learner, rng)
     _check("executive", executive, L, Behaviour.EXECUTIVE)
     _check("tracking", tracking, L, Behaviour.TRACKING)
     _check("docking", docking, L, Behaviour.DOCKING)
-    learner = Behaviour(learner) if learner is not None else None
-    roles = [(TASK_TRACK, Behaviour.TRACKING, tracking), (TASK_DOCK, Behaviour.DOCKING, docking)]
-
-    played = np.zeros((L, K), dtype=bool)
-    task = np.full((L, K), -1, dtype=np.int8)
-    steps = np.zeros((L, K), dtype=np.int32)
-    tracked = np.zeros((L, K), dtype=np.int32)
-    collided = np.zeros((L, K), dtype=bool)
-    docked = np.zeros((L, K), dtype=bool)
-    dry = np.zeros((L, K), dtype=bool)
-    payoff = np.zeros((L, K))
-    epoch_of = np.full((L, K), -1, dtype=np.int64)
-    fired = np.zeros((L, K), dtype=np.uint64)
-    # Epoch records keyed by epoch id; ids are handed out as epochs open (at most L*K of them).
-    e_lane = np.zeros(L * K, dtype=np.int64)
-    e_tr = np.zeros(L * K, dtype=np.int64)
-    e_pen = np.zeros(L * K, dtype=np.int64)
-    e_eps = np.zeros(L * K, dtype=np.int64)
-    e_cmp = np.zeros(L * K, dtype=bool)
-
-    trace = None
-    if learner is not None:
-        S = schema(learner).n_sensors
-        shape = (K, L) if learner == Behaviour.EXECUTIVE else (K, T, L)
-        trace = Trace(np.zeros(shape + (S,), np.uint8), np.full(shape, -1, np.int16), np.zeros(shape, bool))
-
+    c = _Controls(executive, [(TASK_TRACK, Behaviour.TRACKING, tracking), (TASK_DOCK, Behaviour.DOCKING, docking)],
+                  learner, conflict, rng, record)
     if record is not None:
         record.open(L, K, T)
-    alive = np.ones(L, dtype=bool)
-    world.reset(np.arange(L), starts=starts[:, 0][slot])
-    ep_tracked = np.zeros(L, dtype=np.int64)
-    ep_count = np.zeros(L, dtype=np.int64)
-    ep_id = np.arange(L)
-    n_epochs = L
-
     for k in range(K):
-        live = np.flatnonzero(alive)
+        live = np.flatnonzero(s.alive)
         if live.size == 0:
             break
         if tick is not None:
             tick()
-        # The Executive picks this episode's task.
-        if isinstance(executive, Trivial):
-            task[live, k] = executive.task
-            if record is not None:
-                record.decision(k, live, task[live, k], None)
-        else:
-            sch = executive.compiled.schema
-            bins = sch.discretise(world.observe(sch.sensor_names))[live]
-            pol = executive.lane_policy[live]
-            rank, full = executive.compiled.decide(pol, bins, conflict=conflict, rng=rng)
-            task[live, k] = executive.compiled.action_values(pol, rank)[:, 0]
-            if record is not None or learner == Behaviour.EXECUTIVE:
-                rule = executive.compiled.rule_index(pol, rank)
-            if record is not None:
-                record.decision(k, live, task[live, k], rule)
-            if learner == Behaviour.EXECUTIVE:
-                trace.bins[k, live], trace.rule[k, live], trace.full[k, live] = bins, rule, full
-                fired[live, k] |= _ONE << rule.astype(np.uint64)
-        lane_task = task[:, k].astype(np.int64)
-        for role, beh, ctrl in roles:
-            if ctrl is None and (lane_task[live] == role).any():
-                raise ConfigError(f"the Executive picked {beh} but no {beh} policy was given")
-        played[live, k] = True
-        epoch_of[live, k] = ep_id[live]
-        min_steps = np.zeros(L)
-        dock_lanes = live[lane_task[live] == TASK_DOCK]
-        min_steps[dock_lanes] = world.min_dock_steps(dock_lanes)
-        # Which controllers run, on which lanes (all lanes at once when one controller has them all).
-        groups = []
-        for role, beh, ctrl in roles:
-            lanes = np.flatnonzero(lane_task == role)
-            if lanes.size:
-                sel = None if lanes.size == L else lanes
-                groups.append((beh, ctrl, sel, ctrl.lane_policy if sel is None else ctrl.lane_policy[sel]))
-        names = tuple(dict.fromkeys(n for beh, *_ in groups for n in schema(beh).sensor_names))
+        _choose_tasks(s, c, k, live)
+        _play_episode(s, c, k, live)
+        _pay_episode(s, k, live)
+        _close_epochs(s, k, live, restart_epochs)
+    return s.outcome()
 
-        active = alive.copy()
-        if record is not None:
-            record.state(world, k, 0, live)
-        turn = np.zeros(L)
-        speed = np.zeros(L)
-        for t in range(T):
-            if not active.any():
-                break
-            obs = world.observe(names)
-            for beh, ctrl, sel, pol in groups:
-                bins = ctrl.compiled.schema.discretise(obs)
-                if sel is not None:
-                    bins = bins[sel]
-                rank, full = ctrl.compiled.decide(pol, bins, conflict=conflict, rng=rng)
-                act = ctrl.compiled.action_values(pol, rank)
-                where = slice(None) if sel is None else sel
-                turn[where] = _TURN[act[:, 0]]
-                speed[where] = _SPEED[act[:, 1]]
-                if record is None and learner is not beh:
-                    continue
-                lanes = np.arange(L) if sel is None else sel
-                mine = active[lanes]
-                lanes, rule = lanes[mine], ctrl.compiled.rule_index(pol[mine], rank[mine])
-                if record is not None:
-                    record.fired(k, t, lanes, rule)
-                if learner is beh:
-                    bins, full = bins[mine], full[mine]
-                    trace.bins[k, t, lanes], trace.rule[k, t, lanes], trace.full[k, t, lanes] = bins, rule, full
-                    fired[lanes, k] |= _ONE << rule.astype(np.uint64)
-            noise = rng.normal(0.0, cfg.target_turn_sd, g)[slot]
-            ev = world.step(active, turn, speed, noise)
-            steps[:, k] += active
-            tracked[:, k] += ev.tracking
-            collided[:, k] |= ev.collided
-            docked[:, k] |= ev.docked
-            dry[:, k] |= ev.dry
-            if record is not None:
-                record.state(world, k, t + 1, active)
-            active &= ~(ev.collided | ev.docked | ev.dry)
 
-        # Episode payoffs (report Appendix A §6.1).
-        lk = live
-        track_pay = np.where(collided[lk, k], 0.0, tracked[lk, k] / T)
-        ratio = np.minimum(1.0, min_steps[lk] / np.maximum(steps[lk, k], 1))
-        dock_pay = np.where(docked[lk, k], 0.5 + 0.5 * ratio, 0.0)
-        payoff[lk, k] = np.where(lane_task[lk] == TASK_DOCK, dock_pay, track_pay)
+def _choose_tasks(s: _Lanes, c: _Controls, k: int, live: np.ndarray) -> None:
+    """The Executive picks episode ``k``'s task on every live lane."""
+    ex = c.executive
+    if isinstance(ex, Trivial):
+        s.task[live, k] = ex.task
+        if c.record is not None:
+            c.record.decision(k, live, s.task[live, k], None)
+    else:
+        sch = ex.compiled.schema
+        bins = sch.discretise(s.world.observe(sch.sensor_names))[live]
+        pol = ex.lane_policy[live]
+        rank, full = ex.compiled.decide(pol, bins, conflict=c.conflict, rng=c.rng)
+        s.task[live, k] = ex.compiled.action_values(pol, rank)[:, 0]
+        if c.record is not None or c.learner == Behaviour.EXECUTIVE:
+            rule = ex.compiled.rule_index(pol, rank)
+        if c.record is not None:
+            c.record.decision(k, live, s.task[live, k], rule)
+        if c.learner == Behaviour.EXECUTIVE:
+            tr = s.trace
+            tr.bins[k, live], tr.rule[k, live], tr.full[k, live] = bins, rule, full
+            s.fired[live, k] |= _ONE << rule.astype(np.uint64)
+    lane_task = s.task[:, k].astype(np.int64)
+    for role, beh, ctrl in c.roles:
+        if ctrl is None and (lane_task[live] == role).any():
+            raise ConfigError(f"the Executive picked {beh} but no {beh} policy was given")
+    s.played[live, k] = True
+    s.epoch_of[live, k] = s.ep_id[live]
 
-        # Epoch bookkeeping.
-        ep_tracked[lk] += tracked[lk, k]
-        ep_count[lk] += 1
-        ends = collided[lk, k] | dry[lk, k] | (ep_count[lk] >= cfg.epoch_episodes)
-        last = k == K - 1
-        closing = lk[ends | last]
-        ids = ep_id[closing]
-        e_lane[ids] = closing
-        e_tr[ids] = ep_tracked[closing]
-        e_pen[ids] = np.where(dry[closing, k], cfg.towing_penalty, 0)
-        e_eps[ids] = ep_count[closing]
-        e_cmp[ids] = ends[ends | last]
-        ended = lk[ends]
-        world.place_at_dock(lk[docked[lk, k] & ~ends])
-        if restart_epochs and not last:
-            epoch_no[ended] += 1
-            world.reset(ended, starts=starts[slot[ended], epoch_no[ended]])
-            ep_tracked[ended] = 0
-            ep_count[ended] = 0
-            ep_id[ended] = n_epochs + np.arange(ended.size)
-            n_epochs += ended.size
-        else:
-            alive[ended] = False
 
-    e_lane, e_tr, e_pen, e_eps, e_cmp = (a[:n_epochs] for a in (e_lane, e_tr, e_pen, e_eps, e_cmp))
-    e_pay = e_tr / (T * cfg.epoch_episodes + e_pen)
-    return Outcome(
-        played=played, task=task, steps=steps, tracked=tracked, collided=collided, docked=docked, dry=dry,
-        payoff=payoff, epoch_of=epoch_of, fired=fired, epoch_lane=e_lane, epoch_tracked=e_tr,
-        epoch_penalty=e_pen, epoch_episodes=e_eps, epoch_complete=e_cmp, epoch_payoff=e_pay, trace=trace,
-    )
+def _play_episode(s: _Lanes, c: _Controls, k: int, live: np.ndarray) -> None:
+    """Episode ``k``: Tracking and Docking drive their lanes step by step until each lane's episode ends."""
+    L, T, world = s.L, s.T, s.world
+    lane_task = s.task[:, k].astype(np.int64)
+    s.min_steps[:] = 0.0
+    dock_lanes = live[lane_task[live] == TASK_DOCK]
+    s.min_steps[dock_lanes] = world.min_dock_steps(dock_lanes)
+    # Which controllers run, on which lanes (all lanes at once when one controller has them all).
+    groups = []
+    for role, beh, ctrl in c.roles:
+        lanes = np.flatnonzero(lane_task == role)
+        if lanes.size:
+            sel = None if lanes.size == L else lanes
+            groups.append((beh, ctrl, sel, ctrl.lane_policy if sel is None else ctrl.lane_policy[sel]))
+    names = tuple(dict.fromkeys(n for beh, *_ in groups for n in schema(beh).sensor_names))
+    active = s.alive.copy()
+    if c.record is not None:
+        c.record.state(world, k, 0, live)
+    turn = np.zeros(L)
+    speed = np.zeros(L)
+    for t in range(T):
+        if not active.any():
+            break
+        obs = world.observe(names)
+        for beh, ctrl, sel, pol in groups:
+            _decide(s, c, k, t, active, obs, beh, ctrl, sel, pol, turn, speed)
+        noise = c.rng.normal(0.0, s.cfg.target_turn_sd, s.g)[s.slot]
+        ev = world.step(active, turn, speed, noise)
+        s.steps[:, k] += active
+        s.tracked[:, k] += ev.tracking
+        s.collided[:, k] |= ev.collided
+        s.docked[:, k] |= ev.docked
+        s.dry[:, k] |= ev.dry
+        if c.record is not None:
+            c.record.state(world, k, t + 1, active)
+        active &= ~(ev.collided | ev.docked | ev.dry)
+
+
+def _decide(s: _Lanes, c: _Controls, k: int, t: int, active: np.ndarray, obs: dict[str, np.ndarray], beh: Behaviour,
+            ctrl: Rules, sel: np.ndarray | None, pol: np.ndarray, turn: np.ndarray, speed: np.ndarray) -> None:
+    """One controller's decisions at step ``t`` on its lanes (``sel``; None: all); the learner's are logged."""
+    bins = ctrl.compiled.schema.discretise(obs)
+    if sel is not None:
+        bins = bins[sel]
+    rank, full = ctrl.compiled.decide(pol, bins, conflict=c.conflict, rng=c.rng)
+    act = ctrl.compiled.action_values(pol, rank)
+    where = slice(None) if sel is None else sel
+    turn[where] = _TURN[act[:, 0]]
+    speed[where] = _SPEED[act[:, 1]]
+    if c.record is None and c.learner != beh:
+        return
+    lanes = np.arange(s.L) if sel is None else sel
+    mine = active[lanes]
+    lanes, rule = lanes[mine], ctrl.compiled.rule_index(pol[mine], rank[mine])
+    if c.record is not None:
+        c.record.fired(k, t, lanes, rule)
+    if c.learner == beh:
+        tr = s.trace
+        tr.bins[k, t, lanes], tr.rule[k, t, lanes], tr.full[k, t, lanes] = bins[mine], rule, full[mine]
+        s.fired[lanes, k] |= _ONE << rule.astype(np.uint64)
+
+
+def _pay_episode(s: _Lanes, k: int, lk: np.ndarray) -> None:
+    """Episode payoffs of the agent in control (report Appendix A §6.1)."""
+    T = s.T
+    lane_task = s.task[:, k].astype(np.int64)
+    track_pay = np.where(s.collided[lk, k], 0.0, s.tracked[lk, k] / T)
+    ratio = np.minimum(1.0, s.min_steps[lk] / np.maximum(s.steps[lk, k], 1))
+    dock_pay = np.where(s.docked[lk, k], 0.5 + 0.5 * ratio, 0.0)
+    s.payoff[lk, k] = np.where(lane_task[lk] == TASK_DOCK, dock_pay, track_pay)
+
+
+def _close_epochs(s: _Lanes, k: int, lk: np.ndarray, restart_epochs: bool) -> None:
+    """Record the epochs that end with episode ``k`` (a collision, running dry, the epoch's last episode or
+    the lane's); with ``restart_epochs`` their lanes start a new epoch, else they retire."""
+    cfg, world = s.cfg, s.world
+    s.ep_tracked[lk] += s.tracked[lk, k]
+    s.ep_count[lk] += 1
+    ends = s.collided[lk, k] | s.dry[lk, k] | (s.ep_count[lk] >= cfg.epoch_episodes)
+    last = k == s.K - 1
+    closing = lk[ends | last]
+    ids = s.ep_id[closing]
+    s.e_lane[ids] = closing
+    s.e_tr[ids] = s.ep_tracked[closing]
+    s.e_pen[ids] = np.where(s.dry[closing, k], cfg.towing_penalty, 0)
+    s.e_eps[ids] = s.ep_count[closing]
+    s.e_cmp[ids] = ends[ends | last]
+    ended = lk[ends]
+    world.place_at_dock(lk[s.docked[lk, k] & ~ends])
+    if restart_epochs and not last:
+        s.epoch_no[ended] += 1
+        world.reset(ended, starts=s.starts[s.slot[ended], s.epoch_no[ended]])
+        s.ep_tracked[ended] = 0
+        s.ep_count[ended] = 0
+        s.ep_id[ended] = s.n_epochs + np.arange(ended.size)
+        s.n_epochs += ended.size
+    else:
+        s.alive[ended] = False
