@@ -1,6 +1,7 @@
 """The tasks: worlds whose behaviours the GA learns (the interface is :mod:`coevo.tasks.base`).
 
 * ``fuel``: tracking under fuel constraints (report Appendix A): Tracking, Docking, Executive;
+* ``door``: door traversal with seven sonars that may fail (report Appendix B): one behaviour, door;
 * ``corridor``: a one-cell-wide corridor to walk to its end, small enough for tests to learn
   in a second; it shows that the GA, worker, broker, replay and check name no task.
 
