@@ -172,14 +172,15 @@ def _reasons(counts: dict[str, int]) -> str:
     return ", ".join(f"{r} {n}" for r, n in sorted(counts.items())) or "0"
 
 
-_OWN = {"quality_tracking": "QT", "docking_from_random": "docks", "dock_choice": "picks-D",
-        "docking_success_rate": "docked"}
 _STATE_STYLE = {"alive": "green", "done": "blue", "stalled": "yellow", "dead": "bold red", "up": "green", "down": "bold red"}
 
 
 def _own(measures: dict[str, float]) -> str:
     """A worker's own measures, short, one word each: 'QT=62%', 'docks=71%', 'picks-D=23% docked=40%'."""
-    return " ".join(f"{_OWN.get(k, k)}={v:.0f}%" for k, v in measures.items()) or "-"
+    from coevo.tasks import measure_labels
+
+    labels = measure_labels()
+    return " ".join(f"{labels.get(k, k)}={v:.0f}%" for k, v in measures.items()) or "-"
 
 
 def _status_rows(board: Any) -> list[tuple[str, ...]]:

@@ -16,7 +16,7 @@ from coevo.tasks.corridor import CorridorTask
 from coevo.tasks.door import DoorTask
 from coevo.tasks.fuel import FuelTask
 
-__all__ = ["Task", "Evaluator", "Evaluation", "Partners", "TASKS", "get_task", "task_of", "DEFAULT_TASK"]
+__all__ = ["Task", "Evaluator", "Evaluation", "Partners", "TASKS", "get_task", "task_of", "measure_labels", "DEFAULT_TASK"]
 
 TASKS: dict[str, Task] = {t.name: t for t in (FuelTask(), CorridorTask(), DoorTask())}
 DEFAULT_TASK = "fuel"
@@ -28,6 +28,11 @@ def get_task(name: str) -> Task:
         return TASKS[name]
     except KeyError:
         raise ConfigError(f"unknown task {name!r} (use {' or '.join(TASKS)})") from None
+
+
+def measure_labels() -> dict[str, str]:
+    """Every task's short names of its status measures."""
+    return {k: v for t in TASKS.values() for k, v in t.measure_labels.items()}
 
 
 def task_of(behaviour: str) -> Task:

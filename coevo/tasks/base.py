@@ -75,6 +75,8 @@ class Task(ABC):
     behaviours: ClassVar[tuple[str, ...]]
     regimes: ClassVar[tuple[str, ...]] = ("independent",)
     world_settings: ClassVar[type[BaseModel]]
+    #: Short names of its status measures for narrow displays (e.g. quality_tracking -> QT).
+    measure_labels: ClassVar[dict[str, str]] = {}
 
     def schema(self, behaviour: str) -> Schema:
         self.check_behaviour(behaviour)

@@ -56,6 +56,8 @@ class FuelTask(Task):
     behaviours = tuple(b.value for b in Behaviour)
     regimes = ("mutual", "independent")
     world_settings = WorldConfig
+    measure_labels = {"quality_tracking": "QT", "docking_from_random": "docks", "dock_choice": "picks-D",
+                      "docking_success_rate": "docked"}
 
     def default_rules(self, behaviour: str) -> RuleSet | None:
         return default_ruleset(self.check_behaviour(behaviour))
