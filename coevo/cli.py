@@ -60,11 +60,24 @@ def cmd_learn(args: argparse.Namespace) -> int:
     task = task_of(args.behaviour)
     if args.task is not None and args.task != task.name:
         raise ConfigError(f"--behaviour {args.behaviour} belongs to task {task.name!r}, not {args.task!r}")
-    world_values = pairs(args.world, "world")
-    if args.fail is not None:
-        world_values["failed"] = args.fail
-    world = build(task.world_settings, world_values)
-    ga = ga_settings(args)
+    if args.settings:  # a run's settings (coevo compare's offline Executive): world, GA and seed from there
+        from coevo.runs.settings import RunSettings
+
+        given = [f"--{n.replace('_', '-')}" for n in ("generations", "population", "episodes", "world", "ga", "fail")
+                 if getattr(args, n) is not None] + (["--seed"] if args.seed is not None else [])
+        if given:
+            raise ConfigError(f"--settings gives the world, GA and seed; drop {', '.join(given)}")
+        settings = RunSettings.load(Path(args.settings))
+        if settings.task != task.name:
+            raise ConfigError(f"--settings {args.settings!r} are for task {settings.task!r}, not {task.name!r}")
+        world, ga, args.seed = settings.world_config(), settings.ga, settings.worker_seed(args.behaviour)
+    else:
+        world_values = pairs(args.world, "world")
+        if args.fail is not None:
+            world_values["failed"] = args.fail
+        world = build(task.world_settings, world_values)
+        ga = ga_settings(args)
+        args.seed = 0 if args.seed is None else args.seed
     partners = {b: _read_rules(f, b) for b, f in (("tracking", args.tracking), ("docking", args.docking)) if f}
     out = Path(args.out) if args.out else default_out(args.behaviour, args.seed)
 
@@ -264,10 +277,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("learn", help="one behaviour learns offline (no network)")
     p.add_argument("--behaviour", choices=behaviours, help="the behaviour to learn (optional for a task with one)")
+    p.add_argument("--settings", metavar="RUN_JSON",
+                   help="take the world, GA settings and the behaviour's seed from a run's settings (a run.json)")
     p.add_argument("--task", choices=list(TASKS), help="the task (default: the behaviour's; door: --behaviour door)")
     p.add_argument("--fail", metavar="SONARS",
                    help="door task: sonars that fail, e.g. front,front-right,right (the same as --world failed=...)")
-    p.add_argument("--seed", type=seed_arg, default=0)
+    p.add_argument("--seed", type=seed_arg, help="default 0")
     p.add_argument("--out", help="run directory to create (default runs/learn-BEHAVIOUR-seedN-TIME)")
     p.add_argument("--tracking", help="Tracking rule file (for --behaviour executive)")
     p.add_argument("--docking", help="Docking rule file (for --behaviour executive)")

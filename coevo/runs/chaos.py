@@ -31,12 +31,12 @@ from typing import Any
 import numpy as np
 
 from coevo.bus.session import open_session, sigterm_as_exit
-from coevo.runs.check import check_run
-from coevo.errors import ConfigError, RunDirError
-from coevo.runs.local import LocalRun, end_processes, fetch_latest, wait_until
-from coevo.runs.layout import write_json
-from coevo.runs.settings import RunSettings
 from coevo.bus.status import StatusBoard
+from coevo.errors import ConfigError, RunDirError
+from coevo.runs.check import check_run
+from coevo.runs.layout import write_json
+from coevo.runs.local import LocalRun, end_processes, fetch_latest, wait_until
+from coevo.runs.settings import RunSettings
 
 __all__ = ["FAULTS", "ChaosPlan", "run_chaos", "summary_lines"]
 

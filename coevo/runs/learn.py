@@ -17,18 +17,18 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from pydantic import BaseModel
+
 from coevo import __version__
 from coevo.agents.history import HistoryFeed
 from coevo.agents.models import PartnerModels
-from pydantic import BaseModel
-
 from coevo.config import GAConfig
 from coevo.errors import ConfigError
 from coevo.ga import GA, GenerationReport
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
-from coevo.tasks import task_of
 from coevo.runs.layout import LearnPaths, staged_dir, write_csv, write_json, write_text
+from coevo.tasks import task_of
 
 __all__ = ["learn", "LearnResult", "default_out"]
 

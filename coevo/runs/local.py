@@ -28,12 +28,12 @@ from pathlib import Path
 from typing import Any
 
 from coevo.bus import keys
-from coevo.bus.session import make_config, open_session, sigterm_as_exit
-from coevo.errors import ConfigError, RunDirError, ServiceError
 from coevo.bus.messages import Control, PolicyUpdate, decode, encode
+from coevo.bus.session import make_config, open_session, sigterm_as_exit
+from coevo.bus.status import StatusBoard
+from coevo.errors import ConfigError, RunDirError, ServiceError
 from coevo.runs.layout import RunPaths, read_jsonl, write_csv, write_json
 from coevo.runs.settings import RunSettings
-from coevo.bus.status import StatusBoard
 
 __all__ = ["default_run_id", "free_port", "wait_until", "end_processes", "LocalRun", "run_local", "fetch_latest"]
 

@@ -19,7 +19,7 @@ from coevo.agents.models import MODELS
 from coevo.agents.pacing import DEFAULT_MAX_LEAD
 from coevo.bus.keys import check_id
 from coevo.config import GAConfig, Settings, build
-from coevo.errors import ConfigError, CoevoError, RunDirError
+from coevo.errors import CoevoError, ConfigError, RunDirError
 from coevo.runs.layout import RunPaths, read_json, write_json
 from coevo.tasks import DEFAULT_TASK, Task, get_task
 

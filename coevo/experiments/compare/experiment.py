@@ -62,7 +62,6 @@ log = logging.getLogger(__name__)
 SEED_STRIDE = 1000  # replicate i runs with seed + i * SEED_STRIDE (workers take seed, seed+1, seed+2)
 OFFLINE = "independent-offline"  # the Executive learning on recorded Tracking/Docking histories, per rate
 DEFAULT_RATES = (0.25, 0.5, 1.0, 2.0, 4.0)  # (ours) partner generations per Executive generation: 16x apart
-EXECUTIVE_SEED = list(Behaviour).index(Behaviour.EXECUTIVE)  # the live Executive worker's seed offset
 
 
 class CompareSpec(BaseModel):
@@ -250,29 +249,26 @@ def weight(rep: Replicate) -> int:
     return 1 if rep.offline else 2
 
 
-def _settings_args(spec: CompareSpec) -> list[str]:
-    args = []
-    for k, v in spec.world.model_dump(exclude_defaults=True).items():
-        args += ["--world", f"{k}={json.dumps(v)}"]
-    for k, v in spec.ga.model_dump(exclude_defaults=True).items():
-        args += ["--ga", f"{k}={json.dumps(v)}"]
-    return args
-
-
-def _run_command(out: Path, spec: CompareSpec, rep: Replicate) -> list[str]:
-    d = run_dir(out, rep)
-    if rep.offline:
-        return [sys.executable, "-m", "coevo", "learn", "--quiet", "--behaviour", "executive",
-                "--history", str(run_dir(out, rep.depends_on)), "--rate", repr(rep.rate),
-                "--seed", str(rep.seed + EXECUTIVE_SEED), "--out", str(d), "--measure-epochs", str(spec.measure_epochs),
-                *_settings_args(spec)]
-    if RunPaths(d).run_json.exists():  # interrupted: continue it from the workers' checkpoints
-        return [sys.executable, "-m", "coevo", "run", "--quiet", "--resume", str(d), "--measure-epochs", str(spec.measure_epochs)]
-    settings = RunSettings.make(run=rep.run_id, regime=rep.regime, seed=rep.seed, model=spec.model, max_lead=spec.max_lead,
+def _settings_file(out: Path, spec: CompareSpec, rep: Replicate) -> Path:
+    """The replicate's settings, written once for the process that runs it (its run.json-to-be)."""
+    regime = "independent" if rep.offline else rep.regime
+    settings = RunSettings.make(run=rep.run_id, regime=regime, seed=rep.seed, model=spec.model, max_lead=spec.max_lead,
                                 world=spec.world.model_dump(mode="json"), ga=spec.ga)
     f = Path(out) / "settings" / f"{rep.run_id}.json"
     f.parent.mkdir(parents=True, exist_ok=True)
     settings.save(f)
+    return f
+
+
+def _run_command(out: Path, spec: CompareSpec, rep: Replicate) -> list[str]:
+    d = run_dir(out, rep)
+    if rep.offline:  # the Executive learns with the seed it has in a live run (seed + its index)
+        return [sys.executable, "-m", "coevo", "learn", "--quiet", "--behaviour", "executive",
+                "--settings", str(_settings_file(out, spec, rep)), "--history", str(run_dir(out, rep.depends_on)),
+                "--rate", repr(rep.rate), "--out", str(d), "--measure-epochs", str(spec.measure_epochs)]
+    if RunPaths(d).run_json.exists():  # interrupted: continue it from the workers' checkpoints
+        return [sys.executable, "-m", "coevo", "run", "--quiet", "--resume", str(d), "--measure-epochs", str(spec.measure_epochs)]
+    f = _settings_file(out, spec, rep)
     cmd = [sys.executable, "-m", "coevo", "run", "--quiet", "--settings", str(f), "--root", str(Path(out) / "runs"),
            "--measure-epochs", str(spec.measure_epochs)]
     return cmd
