@@ -38,7 +38,7 @@ def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def _start_broker(tmp_path: Path, flags: list[str], member: Security, scheme: str) -> Iterator[tuple[str, Path, Security]]:
     port = free_port()
     data = tmp_path / "data"
-    p = coevo_proc("broker", "--listen", f"{scheme}/127.0.0.1:{port}", "--data-dir", str(data), *flags,
+    p = coevo_proc("broker", "--listen", f"{scheme}/127.0.0.1:{port}", "--data-dir", str(data), "--open", *flags,
                    log=tmp_path / "broker.log")
     endpoint = f"{scheme}/{'localhost' if scheme == 'tls' else '127.0.0.1'}:{port}"
     try:
@@ -198,7 +198,7 @@ def test_the_shipped_deploy_configs_protect_a_broker(kind: str, certs: Path, tmp
     bad = {"/etc/coevo/certs/ca.pem": str(certs / "ca" / "ca.pem"), "/etc/coevo/certs/": f"{certs / 'other'}/",
            "change-me": "wrong"}
     broker = coevo_proc("broker", "--zenoh-config", _deploy_config(tmp_path, f"broker-{kind}", port, good),
-                        "--data-dir", str(tmp_path / "data"), log=tmp_path / "broker.log")
+                        "--data-dir", str(tmp_path / "data"), "--open", log=tmp_path / "broker.log")
     try:
         def status(subst: dict[str, str]) -> subprocess.CompletedProcess:
             return subprocess.run([sys.executable, "-m", "coevo", "status", "--run", "x", "--duration", "1.5", "--json", "--connect-timeout", "5",
