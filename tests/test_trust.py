@@ -27,7 +27,7 @@ from procs import SMALL, coevo_proc, poll, stop
 
 from coevo.bus import keys
 from coevo.bus.auth import RunKey, mac, seal
-from coevo.bus.messages import REASONS, Control, PolicyUpdate, decode, encode
+from coevo.bus.messages import REASONS, PolicyUpdate, decode, encode
 from coevo.bus.trust import Gate
 from coevo.errors import ConfigError, MessageError
 from coevo.policy import random_ruleset
@@ -304,4 +304,3 @@ def test_a_worker_refuses_a_foreign_key_and_a_roster_it_is_not_on(tmp_path: Path
     RunKey.create("r").save(run_dir / "secret.key")
     r = subprocess.run(base + ["--worker-id", "someone"], capture_output=True, text=True, timeout=60, env=env)
     assert r.returncode == 2 and "roster names 'tracking-0'" in r.stderr, r.stderr
-    assert Control(run="r", command="stop", sent_at=0.0).kind == "control"
