@@ -48,7 +48,7 @@ def main() -> None:
     ap.add_argument("--messages", type=int, default=300)
     args = ap.parse_args()
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    broker = subprocess.Popen([sys.executable, "-m", "coevo", "broker", "--listen", endpoint, "--data-dir", "/tmp/coevo-lat-store"],
+    broker = subprocess.Popen([sys.executable, "-m", "coevo", "broker", "--listen", endpoint, "--data-dir", "/tmp/coevo-lat-store", "--open"],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         time.sleep(1.0)

@@ -212,7 +212,7 @@ def run_phases(args: argparse.Namespace, tmp: Path, broker_log: Any, worker_log:
     broker = worker = None
     phases: list[dict[str, Any]] = []
     try:
-        broker = subprocess.Popen([sys.executable, "-m", "coevo", "broker", "--listen", endpoint, "--data-dir", str(tmp / "data")],
+        broker = subprocess.Popen([sys.executable, "-m", "coevo", "broker", "--listen", endpoint, "--data-dir", str(tmp / "data"), "--open"],
                                   stdout=broker_log, stderr=subprocess.STDOUT)
         with open_session(make_config(mode="client", connect=[endpoint], connect_timeout=20)) as s:
             deadline = time.monotonic() + 30

@@ -64,7 +64,7 @@ def case(lease: float, cut: float, tmp: Path) -> dict:
         lab.host("pub", b="10.77.2.10")
         coevo = [sys.executable, "-m", "coevo"]
         lease_flag = ["--lease", str(lease)]
-        lab.popen("broker", coevo + ["broker", "--listen", "tcp/10.77.1.1:7447", "--data-dir", str(tmp / "data"), *lease_flag],
+        lab.popen("broker", coevo + ["broker", "--listen", "tcp/10.77.1.1:7447", "--data-dir", str(tmp / "data"), "--open", *lease_flag],
                   log=tmp / "broker.log")
         lab.popen("router2", coevo + ["router", "--listen", "tcp/10.77.2.1:7447", "--connect", "tcp/10.77.1.1:7447", *lease_flag],
                   log=tmp / "router2.log")

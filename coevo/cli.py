@@ -126,7 +126,17 @@ def cmd_router(args: argparse.Namespace) -> int:
 def cmd_broker(args: argparse.Namespace) -> int:
     from coevo.broker.server import serve_broker
 
-    return serve_broker(args, data_dir=Path(args.data_dir), inbox_bytes=int(args.inbox_mb * (1 << 20)))
+    return serve_broker(args, data_dir=Path(args.data_dir), inbox_bytes=int(args.inbox_mb * (1 << 20)), open_runs=args.open)
+
+
+def _run_key(flag: str | None, settings: Any, base: Path | None) -> Any:
+    """The run's key: ``--key-file``, else ``$COEVO_RUN_KEY_FILE``, else the key file run.json names; None: open."""
+    import os
+
+    from coevo.bus.auth import KEY_ENV, RunKey
+
+    path = flag or os.environ.get(KEY_ENV) or (settings.key_path(base) if base is not None else None)
+    return None if path is None else RunKey.load(Path(path), run=settings.run)
 
 
 def cmd_worker(args: argparse.Namespace) -> int:
@@ -140,7 +150,9 @@ def cmd_worker(args: argparse.Namespace) -> int:
         if given:
             raise ConfigError(f"--settings gives every run setting; drop {', '.join(given)}")
         settings = RunSettings.load(Path(args.settings))
+        base: Path | None = Path(args.settings).parent
     else:
+        base = None
         if args.run is None or args.regime is None:
             raise ConfigError("give --settings RUN/run.json (a run's settings), or --run and --regime")
         task = args.task or "fuel"
@@ -149,7 +161,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
                                     world=world_settings(args, task), ga=ga_settings(args))
     return run_worker(settings, behaviour=args.behaviour, seed=args.seed, worker_id=args.worker_id,
                       out=Path(args.out) if args.out else None, conf=config_from_args(args), resume=args.resume,
-                      final_sync=args.final_sync)
+                      final_sync=args.final_sync, run_key=_run_key(args.key_file, settings, base))
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -179,9 +191,9 @@ def cmd_run(args: argparse.Namespace) -> int:
                                         seed=args.seed or 0, model=args.model or "best",
                                         max_lead=1 if args.max_lead is None else args.max_lead,
                                         world=world_settings(args, task), ga=ga_settings(args))
-        lr = LocalRun(settings, root=Path(args.root), log_level=args.log_level)
+        lr = LocalRun(settings, root=Path(args.root), log_level=args.log_level, open_run=args.open)
         lr.create()
-    title = f"run {lr.run} ({lr.settings.regime})"
+    title = f"run {lr.run} ({lr.settings.regime})" + (" OPEN: messages unauthenticated" if lr.open else "")
     with StatusDisplay(title, quiet=args.quiet) as display:
         summary = run_local(lr, resume=bool(args.resume), measure_epochs=args.measure_epochs, on_status=display.show)
     print(f"run directory: {lr.dir} ({summary['seconds']:.1f} s)")
@@ -190,19 +202,37 @@ def cmd_run(args: argparse.Namespace) -> int:
         print("final policies together: " + ", ".join(f"{k} {v:.1f}" for k, v in m.items()
                                                      if isinstance(v, float) and k not in ("tracking_payoff", "docking_payoff")))
     if summary["interrupted"]:
-        print(f"the run stopped early; continue it with coevo run --resume {lr.dir}", file=sys.stderr)
-        return 130
+        early = ", ".join(f"{b} after {g}" for b, g in summary.get("stopped_early", {}).items())
+        print(f"the run stopped early{' (' + early + ' generations)' if early else ''}; continue it with "
+              f"coevo run --resume {lr.dir}", file=sys.stderr)
+        return 130 if summary.get("stopped_here") else 1
     return 0
 
 
 def cmd_status(args: argparse.Namespace) -> int:
     from coevo.bus import keys
+    from coevo.bus.auth import RunKey
     from coevo.bus.session import config_from_args
     from coevo.bus.status import StatusDisplay, follow
+    from coevo.bus.trust import Gate
 
     keys.check_id("run id", args.run)
-    with StatusDisplay(f"run {args.run} at {{time}}", json_lines=args.json) as display:
-        follow(config_from_args(args), args.run, display.show, every=args.every, stall=args.stall, duration=args.duration)
+    gate = None
+    if args.key_file:
+        gate = Gate(key=RunKey.load(Path(args.key_file), run=args.run))
+    title = f"run {args.run} at {{time}}" + ("" if gate else " (unverified: no --key-file)")
+    with StatusDisplay(title, json_lines=args.json) as display:
+        follow(config_from_args(args), args.run, display.show, every=args.every, stall=args.stall, duration=args.duration,
+               gate=gate)
+    return 0
+
+
+def cmd_keygen(args: argparse.Namespace) -> int:
+    from coevo.bus import keys
+    from coevo.bus.auth import RunKey
+
+    RunKey.create(keys.check_id("run id", args.run)).save(Path(args.out))
+    print(f"run {args.run}'s key written to {args.out} (mode 0600); copy it to each host of the run, see deploy/README.md")
     return 0
 
 
@@ -312,6 +342,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--data-dir", default="runs", help="where the store keeps each run's policies (default runs/)")
     p.add_argument("--inbox-mb", type=positive_float_arg(maximum=65536), default=64.0,
                    help="policy messages waiting to be stored at most (default 64 MB); a flood beyond is dropped and counted")
+    p.add_argument("--open", action="store_true",
+                   help="also store runs it holds no key for (DATA_DIR/RUN/secret.key), unauthenticated; "
+                        "default: refuse them and count 'unauthenticated'")
     p.set_defaults(func=cmd_broker)
 
     p = sub.add_parser("router", help="a plain Zenoh router, no store: another site's meeting point (--connect to the broker)")
@@ -329,6 +362,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="continue from the checkpoint in --out (or start afresh if there is none yet)")
     p.add_argument("--final-sync", type=positive_float_arg(allow_zero=True, maximum=86400), default=30.0, metavar="SECONDS",
                    help="at the end, wait this long for the broker's store to hold every published version (default 30)")
+    p.add_argument("--key-file", metavar="FILE",
+                   help="the run's secret key (default: $COEVO_RUN_KEY_FILE, else the key_file run.json names); "
+                        "without one the worker is open: it sends and accepts unauthenticated messages")
     _add_run_settings(p, defaults_note=False)
     add_connection_args(p)
     p.set_defaults(func=cmd_worker)
@@ -341,8 +377,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--settings", metavar="RUN_JSON", help="start a run with these settings (a run.json, e.g. one coevo compare wrote)")
     p.add_argument("--measure-epochs", type=count_arg(1, 1_000_000), default=100)
     p.add_argument("--quiet", action="store_true")
+    p.add_argument("--open", action="store_true",
+                   help="make no key: the run's messages are unauthenticated (local experiments only)")
     _add_run_settings(p)
     p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("keygen", help="make a run's secret key file (mode 0600), for a run spread over hosts by hand")
+    p.add_argument("--run", required=True, help="the run id the key is for")
+    p.add_argument("--out", required=True, metavar="FILE", help="the key file to create (never overwritten)")
+    p.set_defaults(func=cmd_keygen)
 
     from coevo.experiments.compare.command import add_parser as add_compare
     from coevo.experiments.earl.command import add_parser as add_earl
@@ -390,6 +433,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--every", type=positive_float_arg(maximum=3600), default=0.5,
                    help="refresh period in seconds (default 0.5; changes show at once)")
     p.add_argument("--duration", type=positive_float_arg(), help="stop after this many seconds (default: until Ctrl-C)")
+    p.add_argument("--key-file", metavar="FILE", help="the run's key: show only authenticated heartbeats (default: unverified)")
     add_connection_args(p)
     p.set_defaults(func=cmd_status)
     return parser

@@ -35,7 +35,7 @@ def broker(tmp_path: Path) -> Iterator[tuple[str, Path]]:
     """A ``coevo broker`` process on a free loopback port: (endpoint, data directory)."""
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     data = tmp_path / "data"
-    p = coevo_proc("broker", "--listen", endpoint, "--data-dir", str(data), log=tmp_path / "broker.log")
+    p = coevo_proc("broker", "--listen", endpoint, "--data-dir", str(data), "--open", log=tmp_path / "broker.log")
     with open_session(make_config(mode="client", connect=[endpoint], connect_timeout=20)) as s:
         poll(lambda: any(r.ok is not None for r in s.liveliness().get(keys.BROKER, timeout=1.0)), 20, "the broker token")
     yield endpoint, data

@@ -84,7 +84,7 @@ def test_two_sites_in_namespaces_match_loopback_and_survive_a_cut_link(lab: Lab,
     logs = tmp_path / "logs"
     logs.mkdir()
     root, run = tmp_path / "runs", "multi"
-    broker = lab.popen("broker", _coevo("broker", "--listen", "tcp/10.77.1.1:7447", "--data-dir", str(root), *LEASE),
+    broker = lab.popen("broker", _coevo("broker", "--listen", "tcp/10.77.1.1:7447", "--data-dir", str(root), "--open", *LEASE),
                        log=logs / "broker.log")
     poll(lambda: "listening" in (logs / "broker.log").read_text() or broker.poll() is not None, 30, "the broker")
     router2 = lab.popen("router2", _coevo("router", "--listen", "tcp/10.77.2.1:7447", "--connect", "tcp/10.77.1.1:7447", *LEASE),
@@ -168,7 +168,7 @@ def test_store_runs_as_a_client_of_a_plain_router(tmp_path: Path) -> None:
     """
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     router = coevo_proc("router", "--listen", endpoint, log=tmp_path / "router.log")
-    broker = coevo_proc("broker", "--mode", "client", "--connect", endpoint, "--data-dir", str(tmp_path / "data"),
+    broker = coevo_proc("broker", "--mode", "client", "--connect", endpoint, "--data-dir", str(tmp_path / "data"), "--open",
                         log=tmp_path / "broker.log")
     try:
         w = subprocess.run(_coevo("worker", "--behaviour", "tracking", "--regime", "independent", "--run", "viarouter",

@@ -294,7 +294,7 @@ def test_a_broker_flooded_beyond_its_inbox_drops_and_counts_and_still_stores(tmp
     from coevo.runs.local import free_port
 
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    b = coevo_proc("broker", "--listen", endpoint, "--data-dir", str(tmp_path / "data"), "--inbox-mb", "1",
+    b = coevo_proc("broker", "--listen", endpoint, "--data-dir", str(tmp_path / "data"), "--open", "--inbox-mb", "1",
                    log=tmp_path / "broker.log")
     try:
         with open_session(make_config(mode="client", connect=[endpoint], connect_timeout=20)) as s:

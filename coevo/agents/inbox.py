@@ -6,10 +6,17 @@ arriving message, so a flood cannot slow the GA); between generations the
 partner, hands it to the partner models and logs the adoption (what ``coevo
 replay`` needs).  A late, restarted or flooded worker also asks the broker's store
 for its partners' latest.
+
+Every message passes the run's :class:`~coevo.bus.trust.Gate` (key, roster, version
+bounds); on top, a partner's versions must follow its own sequence: a version
+``v`` at generation ``g`` after the held ``v0`` at ``g0`` needs ``v - v0 <= g - g0``
+(one version per generation at most), so no message can claim a version its
+publisher cannot have reached yet, and none can freeze a partner model.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import threading
@@ -20,24 +27,32 @@ from typing import IO, Any
 from coevo.agents.models import PartnerModels
 from coevo.agents.outbox import BrokerWatch
 from coevo.bus import keys
-from coevo.bus.messages import Control, PolicyUpdate, decode
+from coevo.bus.messages import Control, PolicyUpdate
 from coevo.bus.session import drain, drain_messages, query, ring_subscriber
+from coevo.bus.trust import OPEN, Gate
 from coevo.errors import MessageError, ServiceError
 from coevo.policy.rules import RuleSet
 
-__all__ = ["Inbox", "INBOX"]
+__all__ = ["Inbox", "INBOX", "rules_digest"]
 
 log = logging.getLogger(__name__)
 
 INBOX = 32  # newest partner messages kept per key between two generations
 
 
+def rules_digest(rules: dict[str, Any]) -> str:
+    """sha256 of a rule set's canonical JSON (sorted keys, no spaces): what ``coevo check`` compares."""
+    return hashlib.sha256(json.dumps(rules, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
 class Inbox:
     """A worker's subscriptions: partner policies (adopted between generations) and control (stop)."""
 
     def __init__(self, session: Any, broker: BrokerWatch, *, run: str, models: PartnerModels, adoptions: IO[str],
-                 reject: Callable[[MessageError, str], None], store_timeout: float = 2.0) -> None:
+                 reject: Callable[[MessageError, str], None], store_timeout: float = 2.0, gate: Gate = OPEN) -> None:
         self._session, self.broker = session, broker
+        self.gate = gate
+        self._held: dict[str, tuple[int, int]] = {}  # partner -> (version, generation) of the policy adopted last
         self.run, self.models, self._adoptions, self._reject = run, models, adoptions, reject
         self.store_timeout = store_timeout
         self.stop = threading.Event()
@@ -79,11 +94,20 @@ class Inbox:
             return  # current policies are not stored; the next generation's arrives within a generation
         for b in self.models.needed:
             try:
-                for payload in query(self._session, keys.store_latest(self.run, b), timeout=self.store_timeout,
-                                     what=f"the store's latest {b}"):
-                    self._fetched.append((keys.policy(self.run, b), payload))
+                # Kept with the key they were answered on: the store seals its replies for that key.
+                self._fetched += query(self._session, keys.store_latest(self.run, b), timeout=self.store_timeout,
+                                       what=f"the store's latest {b}")
             except ServiceError as exc:  # the broker went away meanwhile: the subscription will catch up
                 log.info("%s", exc)
+
+    def _in_sequence(self, msg: PolicyUpdate) -> None:
+        """A version beyond what its publisher can have reached since the one held is ``bad_version``."""
+        held = self._held.get(msg.behaviour)
+        if held is None or msg.version <= held[0] or self.models.kind == "current":
+            return  # "current" versions are generations, checked by the gate
+        if msg.version - held[0] > msg.generation - held[1]:
+            raise MessageError("bad_version", f"{msg.behaviour} v{msg.version} at generation {msg.generation} after "
+                                              f"v{held[0]} at generation {held[1]}: more versions than generations")
 
     def adopt(self, generation: int) -> None:
         """Take the newest valid version of each partner that arrived; log each adoption."""
@@ -99,9 +123,10 @@ class Inbox:
             if self._accepted.get(key) == payload:
                 continue  # the partner's every-generation repeat of what this worker already checked and holds
             try:
-                msg = decode(payload, key=key)
-                if not isinstance(msg, PolicyUpdate):
-                    raise MessageError("wrong_key", f"{msg.kind} on {key!r}")
+                msg = self.gate.decode(key, payload)
+                if not isinstance(msg, PolicyUpdate) or msg.behaviour not in self.models.needed:
+                    raise MessageError("wrong_key", f"{msg.kind} of {getattr(msg, 'behaviour', '?')} on {key!r}")
+                self._in_sequence(msg)
                 rules = msg.ruleset()
             except MessageError as err:
                 self._reject(err, key)
@@ -112,10 +137,12 @@ class Inbox:
                 newest[msg.behaviour] = (msg, rules)
         for beh, (msg, rules) in newest.items():
             if self.models.adopt(beh, msg.version, rules):
+                self._held[beh] = (msg.version, msg.generation)
                 entry = {
                     "generation": generation, "partner": beh, "version": msg.version,
                     "from_worker": msg.worker, "fitness": msg.fitness, "received_at": time.time(),
                     "rules": msg.rules,  # so a replay needs nothing but this log
+                    "rules_digest": rules_digest(msg.rules),  # what coevo check compares with the partner's published.jsonl
                 }
                 self._adoptions.write(json.dumps(entry) + "\n")
                 self._adoptions.flush()

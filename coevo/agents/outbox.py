@@ -23,8 +23,10 @@ from typing import IO, Any
 import msgpack
 
 from coevo.bus import keys
-from coevo.bus.messages import PolicyUpdate, encode
+from coevo.bus.messages import PolicyUpdate
 from coevo.bus.session import is_put, query
+from coevo.bus.trust import OPEN, Gate
+from coevo.errors import MessageError
 
 __all__ = ["BrokerWatch", "Outbox"]
 
@@ -72,8 +74,9 @@ class Outbox:
     """A worker's publications: the log of every version, the puts, and the store sync."""
 
     def __init__(self, session: Any, broker: BrokerWatch, *, run: str, behaviour: str, worker_id: str, log_path: Path,
-                 store_timeout: float = 2.0, confirm_every: float = 2.0) -> None:
+                 store_timeout: float = 2.0, confirm_every: float = 2.0, gate: Gate = OPEN) -> None:
         self._session, self.broker = session, broker
+        self.gate = gate  # seals what this worker publishes; checks the store's answers
         self.run, self.behaviour, self.worker_id = run, behaviour, worker_id
         self.log_path = Path(log_path)
         self.store_timeout, self.confirm_every = store_timeout, confirm_every
@@ -85,9 +88,10 @@ class Outbox:
         self._log: IO[str] | None = None
         self._pub: Any = None
         self._current: Any = None
+        self._policy_key = keys.policy(run, behaviour)
         for line in self.log_path.read_text(encoding="utf-8").splitlines():
             msg = PolicyUpdate.model_validate(json.loads(line))
-            self.published[msg.version] = encode(msg)
+            self.published[msg.version] = self.gate.seal(msg, self._policy_key)
 
     def __enter__(self) -> Outbox:
         self._log = open(self.log_path, "a", encoding="utf-8")
@@ -127,11 +131,11 @@ class Outbox:
         self._log.write(json.dumps(msg.model_dump(mode="json")) + "\n")
         self._log.flush()
         os.fsync(self._log.fileno())
-        self.published[msg.version] = encode(msg)
+        self.published[msg.version] = self.gate.seal(msg, self._policy_key)
 
     def put_current(self, msg: PolicyUpdate) -> None:
         """The current generation's best, on its own key (the ``current`` partner model); not stored."""
-        self._current.put(encode(msg))
+        self._current.put(self.gate.seal(msg, keys.current(self.run, self.behaviour)))
 
     def put_latest(self) -> None:
         """The newest version; every generation, not only on improvement: partners that missed a put catch up."""
@@ -182,11 +186,14 @@ class Outbox:
 
     def _store_versions(self) -> set[int] | None:
         """The versions of this worker's policies the store holds; None if it did not answer."""
-        for payload in query(self._session, keys.store_versions(self.run, self.behaviour), timeout=self.store_timeout,
-                             what="store versions"):
+        for key, payload in query(self._session, keys.store_versions(self.run, self.behaviour), timeout=self.store_timeout,
+                                  what="store versions"):
             try:
-                data = msgpack.unpackb(payload, raw=False)
+                data = msgpack.unpackb(self.gate.unseal(payload, key), raw=False)
                 return {int(v) for v in data.get("workers", {}).get(self.worker_id, [])}
+            except MessageError as err:  # not the broker's answer: it confirms nothing
+                if self.gate.reject is not None:
+                    self.gate.reject(err, key)
             except (ValueError, TypeError, AttributeError, msgpack.UnpackException) as exc:
                 log.warning("%s: the store's versions reply is unreadable: %s", self.worker_id, exc)
         return None

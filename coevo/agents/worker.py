@@ -40,9 +40,11 @@ from coevo.agents.models import PartnerModels
 from coevo.agents.outbox import BrokerWatch, Outbox
 from coevo.agents.pacing import Pacer
 from coevo.bus import keys
-from coevo.bus.messages import PolicyUpdate, Status, encode
+from coevo.bus.auth import RunKey
+from coevo.bus.messages import PolicyUpdate, Status
 from coevo.bus.rejections import Rejections
 from coevo.bus.session import open_session, sigterm_as_exit
+from coevo.bus.trust import Gate
 from coevo.errors import ConfigError, MessageError, RunDirError
 from coevo.ga import GA, GenerationReport
 from coevo.policy.text import format_ruleset
@@ -75,9 +77,12 @@ class Worker:
         confirm_every: float = 2.0,
         heartbeat_every: float = 1.0,
         resume: bool = False,
+        run_key: RunKey | None = None,
     ) -> None:
         """One behaviour's worker of the run ``settings`` describe; ``seed`` defaults to the
-        behaviour's seed in the run, ``worker_id`` to BEHAVIOUR-SEED."""
+        behaviour's seed in the run, ``worker_id`` to BEHAVIOUR-SEED.  With ``run_key`` it seals
+        everything it sends and accepts only what carries the run's authenticator; without, the
+        worker is open (and says so in its log and heartbeats)."""
         self.settings = settings
         self.task = settings.the_task
         self.behaviour = self.task.check_behaviour(behaviour)
@@ -98,6 +103,13 @@ class Worker:
         self.max_lead = settings.max_lead
         self.resume = resume
         self.rejected = Rejections(self.worker_id, log)
+        if settings.roster is not None and settings.roster.get(self.behaviour) != self.worker_id:
+            raise ConfigError(f"the run's roster names {settings.roster.get(self.behaviour)!r} as the {self.behaviour} "
+                              f"worker, not {self.worker_id!r}: drop --seed/--worker-id or fix the roster in run.json")
+        if run_key is not None and run_key.run != self.run_id:
+            raise ConfigError(f"the key is run {run_key.run!r}'s, not run {self.run_id!r}'s")
+        self.gate = Gate(key=run_key, roster=settings.roster,
+                         generations=self.ga_cfg.generations if settings.roster is not None else None, reject=self._reject)
         self.net_seconds = 0.0
         self.checkpoint_seconds = 0.0
         self._completed = 0
@@ -197,15 +209,18 @@ class Worker:
         paced = self._restore(ga, state)
         curve: list[GenerationReport] = []
         p = self.paths
-        with open_session(self.conf, what=f"{self.behaviour} worker session") as s, \
+        if self.gate.open:
+            log.warning("%s: run %s is OPEN: no key, so its messages are not authenticated and anyone who reaches the "
+                        "bus can steer it (give --key-file, or let coevo run make the run)", self.worker_id, self.run_id)
+        with open_session(self.conf, what=f"{self.behaviour} worker session", gate=self.gate) as s, \
                 open(p.adoptions, "a", encoding="utf-8") as adopt_log, \
                 open(p.curve, "a", encoding="utf-8") as curve_log, \
                 BrokerWatch(s) as broker, \
                 Inbox(s, broker, run=self.run_id, models=self.models, adoptions=adopt_log, reject=self._reject,
-                      store_timeout=self.store_timeout) as inbox, \
+                      store_timeout=self.store_timeout, gate=self.gate) as inbox, \
                 Outbox(s, broker, run=self.run_id, behaviour=self.behaviour, worker_id=self.worker_id,
                        log_path=p.published, store_timeout=self.store_timeout,
-                       confirm_every=self.confirm_every) as outbox, \
+                       confirm_every=self.confirm_every, gate=self.gate) as outbox, \
                 Pacer(s, self.run_id, self.models.needed, max_lead=self.max_lead) as pacer:
             self._inbox, self._outbox = inbox, outbox
             token = s.liveliness().declare_token(keys.alive(self.run_id, self.behaviour, self.worker_id))
@@ -267,7 +282,7 @@ class Worker:
             "versions_published": len(outbox.published), "unconfirmed": outbox.unconfirmed,
             "republished": outbox.republished, "rejected": self.rejected.as_dict(),
             "net_seconds": self.net_seconds, "gen_seconds": sum(r["seconds"] for r in rows),
-            "checkpoint_seconds": self.checkpoint_seconds, "pace_seconds": pacer.waited,
+            "checkpoint_seconds": self.checkpoint_seconds, "pace_seconds": pacer.waited, "open": self.gate.open,
         })
         return curve
 
@@ -285,12 +300,13 @@ class Worker:
             best_fitness=self._best if self._best > -1e300 else 0.0,
             partner_versions=dict(self.models.versions),
             rejected=self.rejected.as_dict(), buffered=len(outbox.unconfirmed) if outbox else 0, done=done,
-            measures=self._measures, sent_at=time.time(),
+            open=self.gate.open, measures=self._measures, sent_at=time.time(),
         )
 
     def _heartbeat(self, *, done: bool) -> None:
         if self._status_pub is not None:
-            self._status_pub.put(encode(self._status(done=done)))
+            self._status_pub.put(self.gate.seal(self._status(done=done), keys.status(self.run_id, self.behaviour,
+                                                                                      self.worker_id)))
         self._last_beat = time.monotonic()
 
     def _tick(self) -> None:
@@ -309,12 +325,12 @@ class Worker:
 
 
 def run_worker(settings: RunSettings, *, behaviour: str, seed: int | None, worker_id: str | None, out: Path | None,
-               conf: Any, resume: bool, final_sync: float) -> int:
+               conf: Any, resume: bool, final_sync: float, run_key: RunKey | None = None) -> int:
     """``coevo worker``: run one worker to its end (exit status 0), or until SIGINT/SIGTERM (130)."""
     out = out if out is not None else settings.paths(Path("runs")).worker(behaviour).dir
     sigterm_as_exit()
     w = Worker(settings, behaviour=behaviour, seed=seed, worker_id=worker_id, out_dir=out, conf=conf, resume=resume,
-               final_sync=final_sync)
+               final_sync=final_sync, run_key=run_key)
     try:
         curve = w.run()
     except KeyboardInterrupt:

@@ -10,6 +10,16 @@ among it.  Queryables on ``coevo/*/store/{latest,history,versions}/*`` answer fr
 memory.  Every ``status_every`` seconds the broker publishes, for each run it has
 heard of, a :class:`~coevo.bus.messages.BrokerStatus` (policies stored, messages
 rejected by reason) on ``coevo/RUN/broker``.
+
+Trust (:class:`Keyring`): the broker learns a run's key from its own data
+directory, ``DATA_DIR/RUN/secret.key`` (``coevo run`` writes it there; on other
+hosts copy it there, see deploy/README.md), and the run's roster and generations
+from ``DATA_DIR/RUN/run.json`` when that is there too.  A run it holds a key for is
+verified like a worker verifies it, and everything the broker says about it (store
+replies, versions, its status) is sealed with that key.  A run it holds no key for
+is refused: nothing of it is stored, every policy counts as ``unauthenticated`` —
+unless the broker runs with ``--open``, which stores such runs unverified and marks
+them ``open`` in its status.
 """
 
 from __future__ import annotations
@@ -27,21 +37,90 @@ import zenoh
 
 from coevo.broker.store import PolicyStore
 from coevo.bus import keys
-from coevo.bus.messages import MAX_BYTES, BrokerStatus, PolicyUpdate, decode, encode
+from coevo.bus.auth import RunKey
+from coevo.bus.messages import MAX_BYTES, BrokerStatus, PolicyUpdate
 from coevo.bus.session import config_from_args, open_session, sigterm_as_exit
-from coevo.errors import MessageError
+from coevo.bus.trust import OPEN, Gate
+from coevo.errors import CoevoError, MessageError
+from coevo.runs.layout import RunPaths
 
-__all__ = ["Broker", "serve_broker", "serve_router"]
+__all__ = ["Broker", "Keyring", "serve_broker", "serve_router"]
 
 log = logging.getLogger(__name__)
+
+
+class Keyring:
+    """The gates of the runs a broker serves, from the run keys in its data directory.
+
+    A run's key is looked for when the run is first heard of and, while it is missing, again
+    at most every ``retry`` seconds (so a key copied in later is picked up without a restart).
+    """
+
+    def __init__(self, data_dir: Path, *, open_runs: bool = False, retry: float = 2.0) -> None:
+        self.data_dir = Path(data_dir)
+        self.open_runs = open_runs
+        self.retry = retry
+        self._gates: dict[str, Gate] = {}
+        self._missing: dict[str, float] = {}  # run -> monotonic time its key was last looked for
+        self._lock = threading.Lock()
+
+    def gate(self, run: str) -> Gate | None:
+        """The run's gate; None when the broker holds no key for it and is not ``--open`` (refuse it)."""
+        with self._lock:
+            gate = self._gates.get(run)
+            if gate is not None:
+                return gate
+            last = self._missing.get(run)
+            if last is not None and time.monotonic() - last < self.retry:
+                return OPEN if self.open_runs else None
+            gate = self._load(run)
+            if gate is None:
+                if last is None:
+                    if self.open_runs:
+                        log.warning("run %s is OPEN on this broker: no key in %s, its policies are stored "
+                                    "unauthenticated", run, RunPaths.of(self.data_dir, run).key_file)
+                    else:
+                        log.warning("run %s: no key at %s; nothing of it is stored (copy the run's key there, or "
+                                    "start the broker with --open)", run, RunPaths.of(self.data_dir, run).key_file)
+                self._missing[run] = time.monotonic()
+                return OPEN if self.open_runs else None
+            self._missing.pop(run, None)
+            self._gates[run] = gate
+            return gate
+
+    def _load(self, run: str) -> Gate | None:
+        if not keys.valid_id(run):
+            return None
+        paths = RunPaths.of(self.data_dir, run)
+        if not paths.key_file.exists():
+            return None
+        try:
+            key = RunKey.load(paths.key_file, run=run)
+        except CoevoError as exc:
+            log.error("run %s: %s; its messages are refused", run, exc)
+            return None
+        roster, generations = None, None
+        if paths.run_json.exists():
+            try:
+                from coevo.runs.settings import RunSettings
+
+                settings = RunSettings.load(paths.run_json)
+                roster = settings.roster
+                generations = settings.ga.generations if roster is not None else None
+            except CoevoError as exc:
+                log.warning("run %s: %s; checking its key only, not its roster", run, exc)
+        log.info("run %s: key loaded%s", run, ", roster " + str(roster) if roster else "")
+        return Gate(key=key, roster=roster, generations=generations)
 
 
 class Broker:
     """Router + store; use as a context manager, or call :meth:`serve_forever`."""
 
-    def __init__(self, conf: Any, data_dir: Path, *, inbox_bytes: int = 64 << 20, status_every: float = 2.0) -> None:
+    def __init__(self, conf: Any, data_dir: Path, *, inbox_bytes: int = 64 << 20, status_every: float = 2.0,
+                 open_runs: bool = False) -> None:
         self.conf = conf
         self.store = PolicyStore(Path(data_dir))
+        self.keyring = Keyring(Path(data_dir), open_runs=open_runs)
         self.inbox_bytes = inbox_bytes
         self.status_every = status_every
         self._inbox: queue.Queue[tuple[str, bytes] | None] = queue.Queue()
@@ -115,7 +194,11 @@ class Broker:
             with self._qlock:
                 self._queued -= len(payload)
             try:
-                msg = decode(payload, key=key)
+                run = keys.parse(key).get("run", "?")
+                gate = self.keyring.gate(run)
+                if gate is None:
+                    raise MessageError("unauthenticated", f"this broker holds no key for run {run!r}")
+                msg = gate.decode(key, payload)
                 if not isinstance(msg, PolicyUpdate):
                     raise MessageError("wrong_key", f"{msg.kind} message on {key!r}")
             except MessageError as err:
@@ -128,9 +211,11 @@ class Broker:
         """Publish each known run's BrokerStatus every ``status_every`` s."""
         while not self._stop.wait(self.status_every):
             for run, (stored, rejected, dropped) in self.store.accounts().items():
+                gate = self.keyring.gate(run) or OPEN
                 try:
-                    self.session.put(keys.broker_status(run), encode(BrokerStatus(
-                        run=run, stored=stored, rejected=rejected, dropped=dropped, sent_at=time.time())))
+                    self.session.put(keys.broker_status(run), gate.seal(BrokerStatus(
+                        run=run, stored=stored, rejected=rejected, dropped=dropped, open=gate.open, sent_at=time.time()),
+                        keys.broker_status(run)))
                 except zenoh.ZError as exc:  # the session is closing
                     log.debug("broker status not sent: %s", exc)
                     return
@@ -139,16 +224,20 @@ class Broker:
         parts = keys.parse(str(query.key_expr))
         topic = parts.get("topic", "")
         for run, beh in self.store.matching(parts.get("run", "*"), parts.get("behaviour", "*")):
+            gate = self.keyring.gate(run)
+            if gate is None:
+                continue  # a run this broker holds no key for (stored before its key went): it says nothing of it
             if topic == "store/versions":
-                query.reply(keys.store_versions(run, beh), msgpack.packb(
-                    {"run": run, "behaviour": beh, "workers": self.store.versions(run, beh)}))
+                key = keys.store_versions(run, beh)
+                query.reply(key, gate.seal_bytes(msgpack.packb(
+                    {"run": run, "behaviour": beh, "workers": self.store.versions(run, beh)}), key))
                 continue
             latest = topic == "store/latest"
             key = PolicyStore.key_of(run, beh, latest)
             msgs = [self.store.latest(run, beh)] if latest else self.store.history(run, beh)
             for m in msgs:
                 if m is not None:
-                    query.reply(key, encode(m))
+                    query.reply(key, gate.seal(m, key))
 
 
 def _listen(args: argparse.Namespace) -> list[str]:
@@ -160,13 +249,15 @@ def _listen(args: argparse.Namespace) -> list[str]:
     return args.listen or ["(from " + args.config + ")"]
 
 
-def serve_broker(args: argparse.Namespace, *, data_dir: Path, inbox_bytes: int) -> int:
+def serve_broker(args: argparse.Namespace, *, data_dir: Path, inbox_bytes: int, open_runs: bool = False) -> int:
     """``coevo broker``: serve until SIGINT/SIGTERM (a clean stop at any moment, even while the store loads)."""
     listen = _listen(args)
     conf = config_from_args(args)
     sigterm_as_exit()
+    if open_runs:
+        log.warning("broker started with --open: runs it holds no key for are stored unauthenticated")
     try:
-        with Broker(conf, data_dir, inbox_bytes=inbox_bytes) as broker:
+        with Broker(conf, data_dir, inbox_bytes=inbox_bytes, open_runs=open_runs) as broker:
             log.info("broker listening on %s, store in %s", listen, data_dir)
             print(f"coevo broker listening on {', '.join(listen)}; store in {data_dir}", flush=True)
             broker.serve_forever()

@@ -3,11 +3,15 @@
 Every message is a msgpack map with ``kind`` and ``schema_version`` first-class
 fields.  :func:`encode` and :func:`decode` are the only way in and out; a bad
 payload becomes a :class:`MessageError` whose ``reason`` (a counter name, see
-:data:`REASONS`) says what was wrong — never a crash.
+:data:`REASONS`) says what was wrong — never a crash.  In a run with a key the
+message travels in an envelope with its authenticator (:mod:`coevo.bus.auth`):
+``encode(..., key=..., secret=...)`` seals it, and ``decode`` given the secret
+checks the envelope before it parses anything inside.
 """
 
 from __future__ import annotations
 
+import hmac
 import math
 from typing import Annotated, Any, Literal, Union
 
@@ -22,13 +26,13 @@ from pydantic import (
     field_validator,
 )
 
-from coevo.bus import keys
+from coevo.bus import auth, keys
 from coevo.errors import MessageError, RuleSetError
 from coevo.policy.rules import RuleSet
 from coevo.policy.schema import registered
 
 __all__ = ["SCHEMA_VERSION", "MAX_BYTES", "REASONS", "PolicyUpdate", "Status", "BrokerStatus", "Control", "Message", "encode",
-           "decode"]
+           "decode", "unseal"]
 
 SCHEMA_VERSION = 1
 MAX_BYTES = 1 << 20  # a 64-rule policy is ~5 KB; anything near a megabyte is not ours
@@ -46,6 +50,11 @@ REASONS = {
     "wrong_behaviour": "a message naming another behaviour (or worker) than its key",
     "wrong_key": "a message of a kind that does not belong on its key",
     "flood": "dropped unread: more arrived than a receiver keeps between two reads",
+    "unauthenticated": "in a run with a key: no envelope, a wrong authenticator (forged, altered, or replayed onto "
+                       "another key), or a run the broker holds no key for",
+    "not_roster": "a policy or status from a worker id that is not the behaviour's publisher in the run's roster",
+    "bad_version": "a policy version its publisher cannot have reached: above its generation, past the run's "
+                   "generations, or more versions than generations since the one held",
 }
 
 
@@ -117,6 +126,7 @@ class Status(_Msg):
     rejected: dict[str, int] = Field(default_factory=dict)
     buffered: int = Field(default=0, ge=0)  # published versions the broker's store has not confirmed yet
     done: bool = False
+    open: bool = False  # the worker runs without a key: it accepts unauthenticated messages
     # The latest generation's best on the behaviour's own measures, in % (its task's status_measures; the
     # fuel task's: Tracking quality_tracking, Docking docking_from_random, the Executive dock_choice and
     # docking_success_rate).
@@ -127,6 +137,7 @@ class BrokerStatus(_Msg):
     """The broker's account of one run, every few seconds: what it stored and what it rejected."""
 
     kind: Literal["broker"] = "broker"
+    open: bool = False  # the broker holds no key for this run and stores it unauthenticated (coevo broker --open)
     stored: dict[str, int] = Field(default_factory=dict)  # behaviour -> policies held
     rejected: dict[str, int] = Field(default_factory=dict)  # reason -> count, for messages on this run's keys
     dropped: int = Field(default=0, ge=0)  # of those, dropped unread because the broker's inbox was full
@@ -143,20 +154,64 @@ Message = Annotated[Union[PolicyUpdate, Status, BrokerStatus, Control], Field(di
 _ADAPTER: TypeAdapter[Any] = TypeAdapter(Message)
 
 
-def encode(msg: PolicyUpdate | Status | BrokerStatus | Control) -> bytes:
-    return msgpack.packb(msg.model_dump(mode="json"), use_bin_type=True)
+def encode(msg: PolicyUpdate | Status | BrokerStatus | Control, *, key: str | None = None,
+           secret: bytes | None = None) -> bytes:
+    """Message -> bytes; with ``secret``, sealed in an envelope authenticated for the key expression ``key``."""
+    body = msgpack.packb(msg.model_dump(mode="json"), use_bin_type=True)
+    if secret is None:
+        return body
+    if key is None:
+        raise TypeError("sealing needs the key expression the message is put on")
+    return auth.seal(body, key, secret)
 
 
-def decode(payload: bytes, *, key: str | None = None) -> PolicyUpdate | Status | BrokerStatus | Control:
-    """Bytes -> message, checking it against the key it arrived on (if given)."""
-    if len(payload) > MAX_BYTES:
-        raise MessageError("oversize", f"{len(payload)} bytes > {MAX_BYTES}")
+def _unpack(payload: bytes) -> Any:
     try:
-        data = msgpack.unpackb(payload, raw=False, strict_map_key=True)
+        return msgpack.unpackb(payload, raw=False, strict_map_key=True)
     except (msgpack.UnpackException, ValueError, TypeError, OverflowError, RecursionError) as exc:
         # msgpack's own errors, and ValueError/TypeError for bad UTF-8, unhashable or non-string map keys
         reason = "truncated" if "incomplete" in str(exc) else "not_msgpack"
         raise MessageError(reason, f"{type(exc).__name__}: {exc}") from None
+
+
+def _envelope(data: Any, key: str | None, secret: bytes | None) -> bytes | None:
+    """The message bytes inside an envelope (checked when ``secret`` is given); None if ``data`` is no envelope."""
+    if not (isinstance(data, dict) and "mac" in data):
+        if secret is not None:
+            raise MessageError("unauthenticated", f"no authenticator on {key!r} (this run's messages are sealed)")
+        return None
+    tag, body = data.get("mac"), data.get("msg")
+    if set(data) != {"mac", "msg"} or not isinstance(tag, bytes) or not isinstance(body, bytes):
+        raise MessageError("unauthenticated" if secret is not None else "invalid", "a malformed envelope")
+    if secret is not None:
+        if key is None:
+            raise TypeError("checking an authenticator needs the key expression the message arrived on")
+        if not hmac.compare_digest(tag, auth.mac(secret, key, body)):
+            raise MessageError("unauthenticated", f"wrong authenticator for {key!r} (forged, altered or replayed)")
+    return body
+
+
+def unseal(payload: bytes, *, key: str, secret: bytes | None) -> bytes:
+    """The bytes inside an envelope for ``key`` (any payload that is not one, when ``secret`` is None)."""
+    if len(payload) > MAX_BYTES:
+        raise MessageError("oversize", f"{len(payload)} bytes > {MAX_BYTES}")
+    body = _envelope(_unpack(payload), key, secret)
+    return payload if body is None else body
+
+
+def decode(payload: bytes, *, key: str | None = None,
+           secret: bytes | None = None) -> PolicyUpdate | Status | BrokerStatus | Control:
+    """Bytes -> message, checking it against the key it arrived on (if given).
+
+    With ``secret`` (a run with a key) the payload must be an envelope whose authenticator
+    matches ``key``; without, an envelope is opened unverified (an open run).
+    """
+    if len(payload) > MAX_BYTES:
+        raise MessageError("oversize", f"{len(payload)} bytes > {MAX_BYTES}")
+    data = _unpack(payload)
+    body = _envelope(data, key, secret)
+    if body is not None:
+        data = _unpack(body)
     if not isinstance(data, dict):
         raise MessageError("invalid", f"expected a map, got {type(data).__name__}")
     version = data.get("schema_version")
@@ -187,7 +242,7 @@ def _check_key(msg: PolicyUpdate | Status | BrokerStatus | Control, key: str) ->
         raise MessageError("wrong_key", f"{key!r} is not a coevo key")
     if k["run"] != msg.run:
         raise MessageError("wrong_run", f"message for run {msg.run!r} on {key!r}")
-    topics = {"policy": ("policy", "current"), "status": ("status",), "broker": ("broker",), "control": ("control",)}[msg.kind]
+    topics = {"policy": ("policy", "current", "store/latest", "store/history"), "status": ("status",), "broker": ("broker",), "control": ("control",)}[msg.kind]
     if k["topic"] not in topics:
         raise MessageError("wrong_key", f"{msg.kind} message on {key!r}")
     beh = getattr(msg, "behaviour", None)

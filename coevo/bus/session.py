@@ -29,11 +29,13 @@ from typing import Any
 
 import zenoh
 
-from coevo.bus.messages import Message, decode
+from coevo.bus.messages import Message
+from coevo.bus.trust import OPEN, Gate
 from coevo.errors import ConfigError, MessageError, ServiceError
 
 __all__ = ["DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
-           "drain", "drain_messages", "is_put", "make_config", "open_session", "ring_subscriber", "sigterm_as_exit"]
+           "drain", "drain_messages", "is_put", "make_config", "open_session", "query", "ring_subscriber", "sigterm_as_exit",
+           "GatedSession", "Ring"]
 
 log = logging.getLogger(__name__)
 
@@ -288,40 +290,68 @@ def config_from_args(args: argparse.Namespace) -> zenoh.Config:
                        security=Security.from_args(args))
 
 
+class GatedSession:
+    """A zenoh session that knows its run's :class:`~coevo.bus.trust.Gate` (everything else is the session's)."""
+
+    def __init__(self, session: Any, gate: Gate) -> None:
+        self._session = session
+        self.gate = gate
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._session, name)
+
+
 @contextmanager
-def open_session(conf: zenoh.Config, *, what: str = "session") -> Iterator[Any]:
-    """A zenoh session closed on exit; a router that cannot be reached (or refuses us) becomes a ServiceError."""
+def open_session(conf: zenoh.Config, *, what: str = "session", gate: Gate | None = None) -> Iterator[Any]:
+    """A zenoh session closed on exit; a router that cannot be reached (or refuses us) becomes a ServiceError.
+
+    With ``gate``, the session's ring subscribers decode through it (see :func:`drain_messages`).
+    """
     try:
         session = zenoh.open(conf)
     except zenoh.ZError as exc:
         raise ServiceError(f"cannot open the zenoh {what}: {exc} (is 'coevo broker' running and reachable, "
                            "and does it accept this process's certificate or password?)") from exc
     try:
-        yield session
+        yield session if gate is None else GatedSession(session, gate)
     finally:
         session.close()
 
 
-def query(session: Any, key: str, *, timeout: float, what: str) -> list[bytes]:
-    """The payloads of the successful replies to a get on ``key`` (a store queryable), waiting up to ``timeout`` s.
+def query(session: Any, key: str, *, timeout: float, what: str) -> list[tuple[str, bytes]]:
+    """(reply key, payload) of the successful replies to a get on ``key`` (a store queryable), waiting up to ``timeout`` s.
 
     A session closing or a router going away meanwhile becomes a ServiceError naming ``what``;
     no reply at all within the timeout is an empty list (the caller knows whether that is news).
     """
     try:
-        return [bytes(r.ok.payload.to_bytes()) for r in session.get(key, timeout=timeout) if r.ok is not None]
+        return [(str(r.ok.key_expr), bytes(r.ok.payload.to_bytes())) for r in session.get(key, timeout=timeout)
+                if r.ok is not None]
     except zenoh.ZError as exc:
         raise ServiceError(f"query for {what} on {key!r} failed: {exc}") from exc
 
 
-def ring_subscriber(session: Any, key: str, capacity: int) -> Any:
+class Ring:
+    """A ring subscriber and the gate its messages pass (the session's)."""
+
+    def __init__(self, subscriber: Any, gate: Gate) -> None:
+        self.subscriber, self.gate = subscriber, gate
+
+    def try_recv(self) -> Any:
+        return self.subscriber.try_recv()
+
+    def undeclare(self) -> None:
+        self.subscriber.undeclare()
+
+
+def ring_subscriber(session: Any, key: str, capacity: int) -> Ring:
     """A subscriber whose samples wait in a ring of the newest ``capacity``, drained with :func:`drain`.
 
     Nothing runs in Python per arriving sample: a flood on the key costs the
     receiving process no GIL time and cannot stall its connection (a callback that
     falls behind does, see ZENOH-NOTES); beyond ``capacity`` the oldest are dropped.
     """
-    return session.declare_subscriber(key, zenoh.handlers.RingChannel(capacity))
+    return Ring(session.declare_subscriber(key, zenoh.handlers.RingChannel(capacity)), getattr(session, "gate", OPEN))
 
 
 def drain(subscriber: Any, limit: int) -> list[tuple[str, bytes]]:
@@ -337,11 +367,14 @@ def drain(subscriber: Any, limit: int) -> list[tuple[str, bytes]]:
 
 def drain_messages(subscriber: Any, limit: int,
                    reject: Callable[[MessageError, str], None] | None = None) -> list[tuple[str, Message]]:
-    """Like :func:`drain`, decoded and checked against their keys; bad ones go to ``reject`` (or are skipped)."""
+    """Like :func:`drain`, decoded through the ring's gate (key, roster, versions); bad ones go to ``reject``,
+    else to the gate's own ``reject`` (or are skipped)."""
+    gate = getattr(subscriber, "gate", OPEN)
+    reject = reject if reject is not None else gate.reject
     out: list[tuple[str, Message]] = []
     for key, payload in drain(subscriber, limit):
         try:
-            out.append((key, decode(payload, key=key)))
+            out.append((key, gate.decode(key, payload)))
         except MessageError as err:
             if reject is not None:
                 reject(err, key)

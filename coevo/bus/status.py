@@ -11,6 +11,10 @@ it stored and rejected for this run.
 
 Heartbeats wait in a ring inside Zenoh and are decoded when the board is read, so
 a flood on the status keys costs nothing until then and never stalls the session.
+They pass the session's gate (:mod:`coevo.bus.trust`): with the run's key and
+roster, a forged heartbeat or one from a worker id outside the roster is counted
+(``rejected``) and shown nowhere, and so is a liveliness token of a worker outside
+the roster.  Without a key the board is *open*: it shows what arrives, unverified.
 """
 
 from __future__ import annotations
@@ -49,6 +53,7 @@ class WorkerView:
     partner_versions: dict[str, int] = field(default_factory=dict)
     rejected: dict[str, int] = field(default_factory=dict)
     buffered: int = 0
+    open: bool = False
     token: bool = False
     done: bool = False
     last_heartbeat: float = 0.0
@@ -68,7 +73,8 @@ class WorkerView:
             "behaviour": self.behaviour, "worker": self.worker, "regime": self.regime,
             "generation": self.generation, "generations": self.generations, "best_fitness": self.best_fitness,
             "measures": dict(self.measures), "partner_versions": self.partner_versions, "rejected": sum(self.rejected.values()),
-            "rejected_by_reason": dict(self.rejected), "buffered": self.buffered, "state": self.state(now, stall),
+            "rejected_by_reason": dict(self.rejected), "buffered": self.buffered, "open": self.open,
+            "state": self.state(now, stall),
             "heartbeat_age": round(now - self.last_heartbeat, 3) if self.last_heartbeat else None,
         }
 
@@ -85,6 +91,9 @@ class StatusBoard:
         self.broker_up = False
         self.broker: BrokerStatus | None = None
         self.changed = threading.Event()
+        gate = getattr(session, "gate", None)
+        self.open = gate is None or gate.open  # unverified: anyone on the bus can show up here
+        self._roster = None if gate is None else gate.roster
         self._rings = [ring_subscriber(session, keys.status(run), 256), ring_subscriber(session, keys.broker_status(run), 16)]
         self._decls = [
             session.liveliness().declare_subscriber(keys.alive(run), self._on_token, history=True),
@@ -124,7 +133,7 @@ class StatusBoard:
             return  # an older heartbeat overtaken by a newer one
         v.regime, v.generation, v.generations = msg.regime, msg.generation, msg.generations
         v.best_fitness, v.partner_versions, v.measures = msg.best_fitness, msg.partner_versions, dict(msg.measures)
-        v.rejected, v.buffered, v.done = dict(msg.rejected), msg.buffered, msg.done
+        v.rejected, v.buffered, v.done, v.open = dict(msg.rejected), msg.buffered, msg.done, msg.open
         v.last_heartbeat = time.time()
         if v.died_at is None:
             v.token = True  # a heartbeat proves the process is there (its token may still be on its way)
@@ -134,6 +143,10 @@ class StatusBoard:
     def _on_token(self, sample: Any) -> None:
         parts = keys.parse(str(sample.key_expr))
         if "worker" not in parts:
+            return
+        if self._roster is not None and self._roster.get(parts.get("behaviour", "")) != parts["worker"]:
+            with self._lock:
+                self.rejected += 1  # a token of a worker outside the roster: a phantom
             return
         alive = is_put(sample)
         with self._lock:
@@ -157,13 +170,14 @@ class StatusBoard:
         self.poll()
         with self._lock:
             b = self.broker
-            return {"state": "up" if self.broker_up else "down",
+            return {"state": "up" if self.broker_up else "down", "open": b.open if b else False,
                     "stored": dict(b.stored) if b else {}, "rejected": dict(b.rejected) if b else {},
                     "dropped": b.dropped if b else 0}
 
     def json_line(self) -> str:
         workers = self.snapshot()
-        return json.dumps({"run": self.run, "time": time.time(), "workers": workers, "broker": self.broker_view()})
+        return json.dumps({"run": self.run, "time": time.time(), "open": self.open, "workers": workers,
+                           "broker": self.broker_view()})
 
 
 # ---------------------------------------------------------------- display
@@ -303,14 +317,14 @@ class StatusDisplay:
 
 
 def follow(conf: Any, run: str, show: Any, *, every: float, stall: float = DEFAULT_STALL,
-           duration: float | None = None) -> None:
+           duration: float | None = None, gate: Any = None) -> None:
     """``coevo status``: follow ``run``'s workers, calling ``show(board)`` when something changed (or every
     ``every`` s), for ``duration`` s or until SIGINT/SIGTERM."""
     from coevo.bus.session import open_session, sigterm_as_exit
 
     sigterm_as_exit()
     end = time.monotonic() + duration if duration else None
-    with open_session(conf, what="status session") as s:
+    with open_session(conf, what="status session", gate=gate) as s:
         board = StatusBoard(s, run, stall=stall)
         try:
             while end is None or time.monotonic() < end:

@@ -7,7 +7,12 @@ What it checks, per worker directory:
 * ``published.jsonl`` holds versions 1..n in order, and the broker's store
   (``store/BEHAVIOUR.jsonl``) holds every one of them, identical: nothing a worker
   published was lost, however often the broker or the worker died;
-* every adoption in ``adoptions.jsonl`` names a version its partner published;
+* every adoption in ``adoptions.jsonl`` names a version its partner published, from
+  the worker that published it (its worker id), with the rules it published under that
+  version (sha256 of the rules' canonical JSON, the ``rules_digest`` the adoption
+  recorded and the one of the rules it holds);
+* with a roster in ``run.json``, each worker is its behaviour's roster member and the
+  store holds no policy of any other worker id;
 * ``coevo replay`` reproduces the learning curve exactly from the logs (skipped
   with ``replay=False``).
 """
@@ -18,6 +23,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from coevo.agents.inbox import rules_digest
+from coevo.errors import CoevoError
 from coevo.runs.layout import RunPaths, read_json, read_jsonl, read_store
 
 __all__ = ["RunCheck", "check_run"]
@@ -38,15 +45,23 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
     run = RunPaths(Path(run_dir))
     check = RunCheck(run.dir)
     wdirs = run.workers()
+    roster = _roster(run, check)
     stored: dict[tuple[str, str, int], dict[str, Any]] = {}
     for f in run.store_files():
         for m in read_store(f, problems=check.problems):
             stored[(m.behaviour, m.worker, m.version)] = m.model_dump(mode="json")
-    published_all: set[tuple[str, int]] = set()
+    if roster is not None:
+        foreign = sorted({(b, w) for b, w, _ in stored if roster.get(b) != w})
+        for b, w in foreign:
+            check.problems.append(f"the store holds {b} policies from worker {w!r}, not the roster's {roster.get(b)!r}")
+    # (behaviour, version) -> (worker id, digest of its rules), from the workers' own published.jsonl
+    published_all: dict[tuple[str, int], tuple[str, str]] = {}
     adoptions: list[tuple[str, str, list[dict[str, Any]]]] = []  # (behaviour, partner model, adoptions)
     for w in wdirs:
         meta = w.meta()
         beh, worker, gens = meta["behaviour"], meta["worker"], int(meta["ga"].get("generations", 0))
+        if roster is not None and roster.get(beh) != worker:
+            check.problems.append(f"{beh}: worker {worker!r} is not the roster's {roster.get(beh)!r}")
         curve = read_jsonl(w.curve, problems=check.problems)
         got = [int(r["generation"]) for r in curve]
         if got != list(range(1, gens + 1)):
@@ -65,7 +80,7 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
                 lost.append(int(p["version"]))
             elif s["rules"] != p["rules"] or s["fitness"] != p["fitness"]:
                 check.problems.append(f"{beh}: the store's v{p['version']} differs from what the worker published")
-            published_all.add((beh, int(p["version"])))
+            published_all[(beh, int(p["version"]))] = (worker, rules_digest(p["rules"]))
         if lost:
             check.problems.append(f"{beh}: versions {lost} were published but are not in the store")
         adopted = read_jsonl(w.adoptions, problems=check.problems)
@@ -75,8 +90,7 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
                             "adoptions": len(adopted)}
     for beh, model, adopted in adoptions:
         for a in adopted:
-            if model != "current" and (a["partner"], int(a["version"])) not in published_all:
-                check.problems.append(f"{beh}: adopted {a['partner']} v{a['version']}, which no worker published")
+            _check_adoption(check, beh, model, a, published_all)
     if replay and not check.problems:
         from coevo.runs.replay import replay as replay_run
 
@@ -85,6 +99,39 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
                 check.problems.append(f"{r.behaviour}: replay differs at generation {r.first_mismatch}: {r.detail}")
         check.facts["replayed"] = True
     return check
+
+
+def _roster(run: RunPaths, check: RunCheck) -> dict[str, str] | None:
+    """The roster in run.json (None for runs without one: by hand, or made before rosters)."""
+    if not run.run_json.exists():
+        return None
+    try:
+        roster = read_json(run.run_json, what="run directory (its run.json)").get("roster")
+    except CoevoError as exc:
+        check.problems.append(str(exc))
+        return None
+    return roster if isinstance(roster, dict) else None
+
+
+def _check_adoption(check: RunCheck, beh: str, model: str, a: dict[str, Any],
+                    published: dict[tuple[str, int], tuple[str, str]]) -> None:
+    """An adopted version must be one its partner published: same worker, same rules (by digest)."""
+    partner, version = a.get("partner"), int(a.get("version", 0))
+    what = f"{beh}: adopted {partner} v{version}"
+    digest = rules_digest(a["rules"]) if isinstance(a.get("rules"), dict) else None
+    if a.get("rules_digest") is not None and a["rules_digest"] != digest:
+        check.problems.append(f"{what}: its recorded rules_digest does not match the rules it recorded")
+    if model == "current":
+        return  # current policies are not logged by their publisher: nothing to compare with
+    pub = published.get((str(partner), version))
+    if pub is None:
+        check.problems.append(f"{what}, which no worker published")
+        return
+    worker, pub_digest = pub
+    if a.get("from_worker") != worker:
+        check.problems.append(f"{what} from worker {a.get('from_worker')!r}, but {worker!r} published it")
+    if digest != pub_digest:
+        check.problems.append(f"{what} with rules other than {worker!r} published under that version")
 
 
 def _span(values: list[int]) -> str:

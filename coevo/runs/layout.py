@@ -1,6 +1,7 @@
 """The run directory: its layout (every path, in one place), its readers, and atomic writes.
 
     RUN/run.json                 the run's settings (coevo.runs.settings.RunSettings)
+    RUN/secret.key               the run's secret key, mode 0600 (coevo.bus.auth.RunKey; absent in an open run)
     RUN/store/BEHAVIOUR.jsonl    the broker's store: every PolicyUpdate of a behaviour, in arrival order
     RUN/workers/BEHAVIOUR/       one worker's directory (:class:`WorkerPaths`)
     RUN/logs/PROCESS.log         each process's output, appended over restarts
@@ -158,6 +159,13 @@ class RunPaths:
     @property
     def run_json(self) -> Path:
         return self.dir / "run.json"
+
+    #: The key file's name, as run.json's ``key_file`` names it (relative to the run directory).
+    KEY_FILE = "secret.key"
+
+    @property
+    def key_file(self) -> Path:
+        return self.dir / self.KEY_FILE
 
     @property
     def store_dir(self) -> Path:

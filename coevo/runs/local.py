@@ -10,6 +10,15 @@ workers to stop, then ends every child; nothing is left running.  ``coevo run
 disk; run.json records where it now listens) and every worker with ``--resume``
 (each continues from its last checkpoint).
 
+Trust: ``coevo run`` makes the run's secret key (``RUN/secret.key``, mode 0600;
+:class:`~coevo.bus.auth.RunKey`) and a roster (each behaviour's worker id) before
+anything starts; ``run.json`` names the key file, so every worker reads the key
+from the file and nothing secret is on a command line; the broker finds it in its
+data directory.  ``coevo run --open`` makes no key: the run accepts anyone's
+messages and says so (a warning, ``"open": true`` in summary.json).  A run ends
+*interrupted* (summary.json, exit status non-zero) whenever a worker stopped
+before its last generation, whoever asked it to.
+
 :class:`LocalRun` owns the processes of one run directory; ``coevo chaos`` uses it
 to kill and restart them.
 """
@@ -28,11 +37,13 @@ from pathlib import Path
 from typing import Any
 
 from coevo.bus import keys
-from coevo.bus.messages import Control, PolicyUpdate, decode, encode
-from coevo.bus.session import make_config, open_session, sigterm_as_exit
+from coevo.bus.auth import RunKey
+from coevo.bus.messages import Control, PolicyUpdate
+from coevo.bus.session import make_config, open_session, query, sigterm_as_exit
 from coevo.bus.status import StatusBoard
-from coevo.errors import ConfigError, RunDirError, ServiceError
-from coevo.runs.layout import RunPaths, read_jsonl, write_csv, write_json
+from coevo.bus.trust import OPEN, Gate
+from coevo.errors import ConfigError, MessageError, RunDirError, ServiceError
+from coevo.runs.layout import RunPaths, read_json, read_jsonl, write_csv, write_json
 from coevo.runs.settings import RunSettings
 
 __all__ = ["default_run_id", "free_port", "wait_until", "end_processes", "LocalRun", "run_local", "fetch_latest"]
@@ -62,12 +73,16 @@ def wait_until(check: Callable[[], Any], timeout: float, what: str | Callable[[]
     raise ServiceError(f"timed out after {timeout:.0f} s waiting for {what() if callable(what) else what}")
 
 
-def fetch_latest(session: Any, run: str, timeout: float = 5.0) -> dict[str, PolicyUpdate]:
+def fetch_latest(session: Any, run: str, timeout: float = 5.0, gate: Gate | None = None) -> dict[str, PolicyUpdate]:
+    """The store's latest policy of each behaviour of ``run`` that passes ``gate`` (default: the session's)."""
+    gate = gate if gate is not None else getattr(session, "gate", OPEN)
     out: dict[str, PolicyUpdate] = {}
-    for reply in session.get(keys.store_latest(run), timeout=timeout):
-        if reply.ok is None:
+    for key, payload in query(session, keys.store_latest(run), timeout=timeout, what="the store's latest policies"):
+        try:
+            msg = gate.decode(key, payload)
+        except MessageError as err:
+            log.warning("store reply on %s rejected: %s", key, err)
             continue
-        msg = decode(bytes(reply.ok.payload.to_bytes()))
         if isinstance(msg, PolicyUpdate) and msg.run == run:
             out[msg.behaviour] = msg
     return out
@@ -77,11 +92,15 @@ class LocalRun:
     """The broker and worker processes of one run directory on this machine."""
 
     def __init__(self, settings: RunSettings, *, root: Path, log_level: str = "WARNING",
-                 worker_env: dict[str, str] | None = None) -> None:
+                 worker_env: dict[str, str] | None = None, open_run: bool = False) -> None:
+        """``open_run``: make no key (the run accepts unauthenticated messages; for local experiments only)."""
         self.root = Path(root)
         self.paths = settings.paths(self.root)
         self.dir = self.paths.dir
+        settings = settings.with_roster()
         self.settings = settings.restarted(f"tcp/127.0.0.1:{free_port()}") if settings.endpoint is None else settings
+        self.open = open_run
+        self.key: RunKey | None = None
         self.task = settings.the_task
         self.log_level = log_level
         self.worker_env = worker_env or {}
@@ -107,8 +126,16 @@ class LocalRun:
         settings = RunSettings.load(paths.run_json)
         if settings.run != paths.name:
             raise RunDirError(f"{str(paths.run_json)!r} is for run {settings.run!r}, but the directory is named {paths.name!r}")
+        key_path = settings.key_path(paths.dir)
         lr = cls(settings.restarted(f"tcp/127.0.0.1:{free_port()}"), root=paths.dir.parent, log_level=log_level,
-                 worker_env=worker_env)
+                 worker_env=worker_env, open_run=key_path is None)
+        if key_path is not None:
+            try:
+                lr.key = RunKey.load(key_path, run=settings.run)
+            except ConfigError as exc:
+                raise RunDirError(f"cannot resume {str(paths.dir)!r}: {exc}") from None
+        else:
+            log.warning("run %s is OPEN (its run.json names no key): its messages are not authenticated", settings.run)
         lr.settings.save(paths.run_json)  # where its broker listens now: a stale endpoint would mislead status
         paths.summary.unlink(missing_ok=True)  # written again at the end
         return lr
@@ -124,6 +151,14 @@ class LocalRun:
             self.dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise RunDirError(f"cannot create the run directory {str(self.dir)!r}: {exc.strerror or exc}") from None
+        if self.open:
+            self.settings = self.settings.model_copy(update={"key_file": None})
+            log.warning("run %s is OPEN (--open): no key, its messages are not authenticated; anyone who reaches its "
+                        "bus can steer it", self.run)
+        else:
+            self.key = RunKey.create(self.run)
+            self.key.save(self.paths.key_file)  # mode 0600; run.json names it, the workers read it from there
+            self.settings = self.settings.model_copy(update={"key_file": RunPaths.KEY_FILE})
         self.settings.save(self.paths.run_json)
 
     def _spawn(self, name: str, args: list[str], env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
@@ -138,8 +173,14 @@ class LocalRun:
         self._all.append(p)
         return p
 
+    def gate(self) -> Gate:
+        """What this run's own processes accept: its key (none if open), its roster, its generations."""
+        return Gate(key=self.key, roster=self.settings.roster, generations=self.settings.ga.generations)
+
     def start_broker(self) -> subprocess.Popen[bytes]:
-        self.broker = self._spawn("broker", ["broker", "--listen", self.endpoint, "--data-dir", str(self.root)])
+        # The broker finds the run's key in its data directory (RUN/secret.key): nothing secret on its command line.
+        self.broker = self._spawn("broker", ["broker", "--listen", self.endpoint, "--data-dir", str(self.root),
+                                             *(["--open"] if self.open else [])])
         return self.broker
 
     def worker_dir(self, b: str) -> Path:
@@ -162,7 +203,18 @@ class LocalRun:
         return any(p.poll() is None for p in self.workers.values())
 
     def ask_stop(self, session: Any) -> None:
-        session.put(keys.control(self.run), encode(Control(run=self.run, command="stop", sent_at=time.time())))
+        key = keys.control(self.run)
+        session.put(key, self.gate().seal(Control(run=self.run, command="stop", sent_at=time.time()), key))
+
+    def unfinished(self) -> dict[str, int]:
+        """Workers that stopped before their last generation: behaviour -> generations done (from done.json)."""
+        out = {}
+        for b in self.task.behaviours:
+            w = self.paths.worker(b)
+            done = read_json(w.done, what="worker directory (its done.json)") if w.done.exists() else {}
+            if not done.get("finished"):
+                out[b] = int(done.get("generations", len(read_jsonl(w.curve, missing_ok=True))))
+        return out
 
     def end_all(self) -> None:
         """Terminate whatever still runs (SIGTERM, then SIGKILL after 10 s)."""
@@ -175,6 +227,7 @@ class LocalRun:
                measure_epochs: int, extra: dict[str, Any] | None = None) -> dict[str, Any]:
         """Measure the combined robot and write ``measures.json``, ``curves.csv`` and ``summary.json``."""
         summary: dict[str, Any] = {"run": self.run, "regime": self.settings.regime, "seconds": seconds, "interrupted": interrupted,
+                                   "open": self.open,
                                    "versions": {b: m.version for b, m in latest.items()},
                                    "best_fitness": {b: m.fitness for b, m in latest.items()}, **(extra or {})}
         m = self.task.run_measures({b: u.ruleset() for b, u in latest.items()}, world=self.settings.world_config(),
@@ -205,7 +258,7 @@ def run_local(
     previous = sigterm_as_exit()
     try:
         lr.start(resume=resume)
-        with open_session(lr.client_config(), what="status session") as s:
+        with open_session(lr.client_config(), what="status session", gate=lr.gate()) as s:
             board = StatusBoard(s, run)
             try:
                 while lr.workers_running():
@@ -230,8 +283,14 @@ def run_local(
     finally:
         signal.signal(signal.SIGTERM, previous)
         lr.end_all()
-    return lr.finish(latest, seconds=time.time() - t0, interrupted=interrupted, measure_epochs=measure_epochs,
-                     extra={"resumed": resume})
+    # Whoever stopped them (Ctrl-C here, or a stop message from elsewhere): a worker short of its
+    # last generation makes the run interrupted, never a finished one.
+    stopped_early = lr.unfinished()
+    if stopped_early and not interrupted:
+        log.warning("run %s: workers stopped before their last generation: %s", run, stopped_early)
+    return lr.finish(latest, seconds=time.time() - t0, interrupted=interrupted or bool(stopped_early),
+                     measure_epochs=measure_epochs,
+                     extra={"resumed": resume, "stopped_early": stopped_early, "stopped_here": interrupted})
 
 
 def end_processes(procs: list[subprocess.Popen[bytes]], timeout: float = 10.0) -> None:

@@ -40,6 +40,10 @@ class RunSettings(Settings):
     max_lead: int | None = Field(DEFAULT_MAX_LEAD, ge=0, description="pacing: generations a worker may lead (None: unpaced)")
     world: dict[str, Any] = Field(default_factory=dict, description="the task's world settings")
     ga: GAConfig = GAConfig()
+    roster: dict[str, str] | None = Field(None, description="behaviour -> the worker id that publishes it; a policy or "
+                                          "status from any other is rejected (None: any worker id, a run by hand)")
+    key_file: str | None = Field(None, description="the run's secret key file, relative to run.json's directory "
+                                 "(None: an open run, its messages unauthenticated)")
     endpoint: str | None = Field(None, description="where the run's broker listens (its latest start)")
     started: float | None = None
 
@@ -52,6 +56,11 @@ class RunSettings(Settings):
     def _task_fits(self) -> RunSettings:
         task = get_task(self.task)
         task.check_regime(self.regime)
+        if self.roster is not None:
+            if set(self.roster) != set(task.behaviours):
+                raise ValueError(f"roster names {sorted(self.roster)}; it must name each of {list(task.behaviours)}")
+            for b, w in self.roster.items():
+                check_id(f"roster worker id for {b}", w)
         full = build(task.world_settings, self.world).model_dump(mode="json")
         object.__setattr__(self, "world", full)  # stored in full: a later default change cannot alter the run
         return self
@@ -74,6 +83,18 @@ class RunSettings(Settings):
 
     def worker_seed(self, behaviour: str) -> int:
         return self.seed + self.the_task.behaviours.index(behaviour)
+
+    def default_roster(self) -> dict[str, str]:
+        """Each behaviour's worker named as workers name themselves: BEHAVIOUR-SEED."""
+        return {b: f"{b}-{self.worker_seed(b)}" for b in self.the_task.behaviours}
+
+    def with_roster(self) -> RunSettings:
+        """These settings with a roster (the default one if there is none yet)."""
+        return self if self.roster is not None else self.model_copy(update={"roster": self.default_roster()})
+
+    def key_path(self, base: Path) -> Path | None:
+        """The key file's path (``key_file`` relative to ``base``, run.json's directory); None in an open run."""
+        return None if self.key_file is None else Path(base) / self.key_file
 
     def paths(self, root: Path) -> RunPaths:
         return RunPaths.of(root, self.run)

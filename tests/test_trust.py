@@ -1,0 +1,306 @@
+"""Only the run's own processes can steer it (issue 15): keys, roster, versions, stops.
+
+The forgeries are built by a raw client: zenoh, msgpack, hmac and hashlib only, none of
+coevo's encoders, as an outsider (or a member gone astray) would write them.  The rule
+sets they carry come from coevo's rule generator (valid rules are not the point).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import json
+import os
+import stat
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import msgpack
+import numpy as np
+import pytest
+import zenoh
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from procs import SMALL, coevo_proc, poll, stop
+
+from coevo.bus import keys
+from coevo.bus.auth import RunKey, mac, seal
+from coevo.bus.messages import REASONS, PolicyUpdate, decode, encode
+from coevo.bus.trust import Gate
+from coevo.errors import ConfigError, MessageError
+from coevo.policy import random_ruleset
+from coevo.runs.check import check_run
+from coevo.runs.local import free_port
+
+BEHAVIOURS = ("tracking", "docking", "executive")
+
+
+# ---------------------------------------------------------------------------- a raw client's forgeries
+def _raw_policy(run: str, behaviour: str, worker: str, version: int, generation: int, seed: int = 0) -> bytes:
+    rules = random_ruleset(behaviour, 6, np.random.default_rng(seed)).to_dict()
+    return msgpack.packb({"kind": "policy", "schema_version": 1, "run": run, "behaviour": behaviour, "worker": worker,
+                          "version": version, "generation": generation, "fitness": 99.0, "episodes": 10,
+                          "rules": rules, "sent_at": time.time()}, use_bin_type=True)
+
+
+def _raw_status(run: str, behaviour: str, worker: str, *, done: bool, generation: int = 10**6) -> bytes:
+    return msgpack.packb({"kind": "status", "schema_version": 1, "run": run, "behaviour": behaviour, "worker": worker,
+                          "regime": "mutual", "generation": generation, "generations": generation, "best_fitness": 1.0,
+                          "done": done, "sent_at": time.time()}, use_bin_type=True)
+
+
+def _raw_stop(run: str) -> bytes:
+    return msgpack.packb({"kind": "control", "schema_version": 1, "run": run, "command": "stop", "sent_at": time.time()},
+                         use_bin_type=True)
+
+
+def _raw_seal(secret: bytes, key: str, body: bytes) -> bytes:
+    """The envelope as the README describes it, computed here without coevo."""
+    tag = hmac.new(secret, b"coevo-mac-1\x00" + key.encode() + b"\x00" + body, hashlib.sha256).digest()
+    return msgpack.packb({"mac": tag, "msg": body}, use_bin_type=True)
+
+
+def _raw_session(endpoint: str) -> zenoh.Session:
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"client"')
+    conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("connect/timeout_ms", "20000")  # wait for a router that is still starting
+    return zenoh.open(conf)
+
+
+# ---------------------------------------------------------------------------- the codec and the gate, in process
+def test_the_envelope_authenticates_the_exact_bytes_and_the_key() -> None:
+    key = RunKey.create("r1")
+    body = _raw_policy("r1", "tracking", "tracking-0", 1, 1)
+    k = keys.policy("r1", "tracking")
+    sealed = _raw_seal(key.secret, k, body)
+    assert sealed == seal(body, k, key.secret)  # the README's recipe is the codec's
+    msg = decode(sealed, key=k, secret=key.secret)
+    assert isinstance(msg, PolicyUpdate) and msg.worker == "tracking-0"
+    assert decode(encode(msg, key=k, secret=key.secret), key=k, secret=key.secret) == msg
+    forged = [
+        body,  # no envelope
+        _raw_seal(b"x" * 32, k, body),  # another key's MAC
+        _raw_seal(key.secret, keys.policy("r1", "docking"), body),  # sealed for another key expression
+        msgpack.packb({"mac": mac(key.secret, k, body)[:-1] + b"\0", "msg": body}),  # a bit flipped
+        msgpack.packb({"mac": mac(key.secret, k, body), "msg": body + b"\0"}),  # bytes appended
+        msgpack.packb({"mac": mac(key.secret, k, body), "msg": body, "more": 1}),
+        msgpack.packb({"mac": "text", "msg": body}),
+    ]
+    for payload in forged:
+        with pytest.raises(MessageError) as err:
+            decode(payload, key=k, secret=key.secret)
+        assert err.value.reason == "unauthenticated", payload[:40]
+    # A valid message replayed onto the docking key fails before its content is looked at.
+    with pytest.raises(MessageError, match="unauthenticated"):
+        decode(sealed, key=keys.policy("r1", "docking"), secret=key.secret)
+    # An open receiver takes both forms, unverified.
+    assert decode(body, key=k) == decode(sealed, key=k) == msg
+    assert {"unauthenticated", "not_roster", "bad_version"} <= set(REASONS)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.one_of(st.binary(max_size=200),
+                 st.builds(lambda m, b: msgpack.packb({"mac": m, "msg": b}), st.binary(max_size=40), st.binary(max_size=80)),
+                 st.builds(lambda m, b: msgpack.packb({"mac": m, "msg": b}), st.binary(min_size=32, max_size=32),
+                           st.sampled_from([b"", b"\xc1", msgpack.packb([1]), msgpack.packb({"kind": "policy"})]))))
+def test_decode_never_raises_anything_but_a_message_error(payload: bytes) -> None:
+    for secret in (None, b"k" * 32):
+        try:
+            decode(payload, key="coevo/r/policy/tracking", secret=secret)
+        except MessageError:
+            pass
+
+
+def test_the_gate_applies_roster_and_version_rules() -> None:
+    key = RunKey.create("r")
+    gate = Gate(key=key, roster={"tracking": "tracking-0", "docking": "docking-1", "executive": "executive-2"},
+                generations=10)
+    k, cur = keys.policy("r", "tracking"), keys.current("r", "tracking")
+
+    def reason(payload_key: str, body: bytes) -> str | None:
+        try:
+            gate.decode(payload_key, _raw_seal(key.secret, payload_key, body))
+        except MessageError as err:
+            return err.reason
+        return None
+
+    assert reason(k, _raw_policy("r", "tracking", "tracking-0", 2, 3)) is None
+    assert reason(k, _raw_policy("r", "tracking", "x", 1, 1)) == "not_roster"
+    assert reason(k, _raw_policy("r", "tracking", "tracking-0", 4, 3)) == "bad_version"  # more versions than generations
+    assert reason(k, _raw_policy("r", "tracking", "tracking-0", 2**64 - 1, 2**64 - 1)) == "bad_version"  # past the run
+    assert reason(cur, _raw_policy("r", "tracking", "tracking-0", 2, 3)) == "bad_version"  # current: version = generation
+    st_key = keys.status("r", "docking", "impostor")
+    assert reason(st_key, _raw_status("r", "docking", "impostor", done=True)) == "not_roster"
+    assert reason(keys.control("r"), _raw_stop("r")) is None
+
+
+def test_key_files_are_private_named_and_never_overwritten(tmp_path: Path) -> None:
+    path = tmp_path / "secret.key"
+    key = RunKey.create("exp1")
+    key.save(path)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600
+    assert RunKey.load(path, run="exp1") == key and key.secret.hex() not in repr(key)
+    with pytest.raises(ConfigError, match="never overwritten"):
+        RunKey.create("exp1").save(path)
+    with pytest.raises(ConfigError, match="run 'exp1', not of run 'other'"):
+        RunKey.load(path, run="other")
+    path.chmod(0o644)
+    with pytest.raises(ConfigError, match="readable by others"):
+        RunKey.load(path)
+    path.chmod(0o600)
+    path.write_text("{}")
+    with pytest.raises(ConfigError, match="not a coevo run key"):
+        RunKey.load(path)
+    with pytest.raises(ConfigError, match="does not exist"):
+        RunKey.load(tmp_path / "none.key")
+
+
+# ---------------------------------------------------------------------------- a broker and its keys
+def test_a_broker_stores_only_runs_it_holds_a_key_for_and_seals_its_answers(tmp_path: Path) -> None:
+    data = tmp_path / "data"
+    (data / "keyed").mkdir(parents=True)
+    key = RunKey.create("keyed")
+    key.save(data / "keyed" / "secret.key")
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    p = coevo_proc("broker", "--listen", endpoint, "--data-dir", str(data), log=tmp_path / "broker.log")
+    try:
+        with _raw_session(endpoint) as s:
+            poll(lambda: any(r.ok is not None for r in s.liveliness().get(keys.BROKER, timeout=1.0)), 20, "the broker")
+            kk, kn = keys.policy("keyed", "tracking"), keys.policy("nokey", "tracking")
+            s.put(kk, _raw_policy("keyed", "tracking", "t", 1, 1))  # no envelope
+            s.put(kk, _raw_seal(b"y" * 32, kk, _raw_policy("keyed", "tracking", "t", 2, 2)))  # wrong key
+            s.put(kn, _raw_policy("nokey", "tracking", "t", 1, 1))  # a run the broker has no key for
+            good = _raw_policy("keyed", "tracking", "t", 3, 3)
+            s.put(kk, _raw_seal(key.secret, kk, good))
+            latest = keys.store_latest("keyed", "tracking")
+            got = poll(lambda: [r.ok for r in s.get(latest, timeout=2.0) if r.ok is not None], 10, "the stored policy")
+            # The store's answer is sealed for the key it answers on and carries the policy that was sent.
+            env = msgpack.unpackb(got[0].payload.to_bytes())
+            assert _raw_seal(key.secret, str(got[0].key_expr), env["msg"]) == got[0].payload.to_bytes()
+            assert msgpack.unpackb(env["msg"]) == msgpack.unpackb(good)
+            assert not [r for r in s.get(keys.store_latest("nokey"), timeout=1.0) if r.ok is not None]
+            versions = [r.ok.payload.to_bytes() for r in s.get(keys.store_versions("keyed", "tracking"), timeout=2.0)
+                        if r.ok is not None]
+            assert msgpack.unpackb(msgpack.unpackb(versions[0])["msg"])["workers"] == {"t": [3]}
+        assert not (data / "nokey").exists()
+        lines = (data / "keyed" / "store" / "tracking.jsonl").read_text().splitlines()
+        assert [json.loads(x)["version"] for x in lines] == [3]
+    finally:
+        stop(p)
+    log = (tmp_path / "broker.log").read_text()
+    assert log.count("rejected unauthenticated") == 3, log
+    assert "no key at" in log and "nothing of it is stored" in log
+
+
+# ---------------------------------------------------------------------------- whole runs under forgery
+def _run(tmp_path: Path, run: str, *extra: str, generations: int = 10) -> subprocess.Popen:
+    log = open(tmp_path / f"{run}.out", "wb")
+    return subprocess.Popen([sys.executable, "-m", "coevo", "run", "--regime", "mutual", "--run", run, "--root",
+                             str(tmp_path), "--generations", str(generations), *SMALL, "--measure-epochs", "2", "--quiet",
+                             *extra], stdout=log, stderr=subprocess.STDOUT)
+
+
+def _curve_len(run_dir: Path, b: str) -> int:
+    f = run_dir / "workers" / b / "curve.jsonl"
+    return len(f.read_text().splitlines()) if f.exists() else 0
+
+
+@pytest.mark.slow
+def test_forgeries_against_a_keyed_run_are_rejected_counted_and_change_nothing(tmp_path: Path) -> None:
+    run, generations = "forged", 8
+    proc = _run(tmp_path, run, generations=generations)
+    run_dir = tmp_path / run
+    try:
+        poll(lambda: (run_dir / "run.json").exists() and json.loads((run_dir / "run.json").read_text()).get("endpoint"),
+             30, "run.json")
+        endpoint = json.loads((run_dir / "run.json").read_text())["endpoint"]
+        secret = bytes.fromhex(json.loads((run_dir / "secret.key").read_text())["key"])  # a member gone astray has it
+        poll(lambda: min(_curve_len(run_dir, b) for b in BEHAVIOURS) >= 2, 90, "every worker's second generation")
+        with _raw_session(endpoint) as s:
+            kt, kd = keys.policy(run, "tracking"), keys.policy(run, "docking")
+            forged = [
+                (kt, _raw_seal(b"z" * 32, kt, _raw_policy(run, "tracking", "tracking-0", 3, 3))),  # wrong MAC
+                (kt, _raw_policy(run, "tracking", "tracking-0", 3, 3)),  # no MAC
+                (kd, _raw_seal(secret, kt, _raw_policy(run, "tracking", "tracking-0", 3, 3))),  # replayed on another key
+                (kt, _raw_seal(secret, kt, _raw_policy(run, "tracking", "x", 1, 1))),  # not the roster's worker
+                (kt, _raw_seal(secret, kt, _raw_policy(run, "tracking", "tracking-0", 2**64 - 1, 2**64 - 1))),  # jump
+                (kt, _raw_policy(run, "tracking", "tracking-0", 2**64 - 1, 2**64 - 1)),  # the same jump without a key
+                (keys.control(run), _raw_stop(run)),  # a forged stop
+                (keys.control(run), _raw_seal(b"z" * 32, keys.control(run), _raw_stop(run))),
+                (keys.status(run, "tracking", "tracking-0"), _raw_status(run, "tracking", "tracking-0", done=True)),
+                (keys.status(run, "docking", "docking-x"),
+                 _raw_seal(secret, keys.status(run, "docking", "docking-x"), _raw_status(run, "docking", "docking-x",
+                                                                                          done=True))),
+            ]
+            for _ in range(3):  # a few times: a put lost in a ring between two reads is counted as flood otherwise
+                for k, payload in forged:
+                    s.put(k, payload)
+                time.sleep(0.3)  # spread over generations: each round lands in a different read of the workers' rings
+        assert proc.wait(240) == 0, (tmp_path / f"{run}.out").read_text()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["interrupted"] is False and summary["open"] is False and summary["stopped_early"] == {}
+    rejected: dict[str, int] = {}
+    for b in BEHAVIOURS:
+        done = json.loads((run_dir / "workers" / b / "done.json").read_text())
+        assert done["finished"] and done["generations"] == generations and not done["open"]
+        for r, n in done["rejected"].items():
+            rejected[r] = rejected.get(r, 0) + n
+        for a in map(json.loads, (run_dir / "workers" / b / "adoptions.jsonl").read_text().splitlines()):
+            assert a["from_worker"] == f"{a['partner']}-{BEHAVIOURS.index(a['partner'])}" and a["fitness"] != 99.0
+    assert rejected.get("unauthenticated", 0) >= 6 and rejected.get("not_roster", 0) >= 2 and rejected.get("bad_version", 0) >= 1, rejected
+    stored = [json.loads(x) for f in (run_dir / "store").glob("*.jsonl") for x in f.read_text().splitlines()]
+    assert stored and all(m["fitness"] != 99.0 and m["worker"] == f"{m['behaviour']}-{BEHAVIOURS.index(m['behaviour'])}"
+                          for m in stored)
+    broker_log = (run_dir / "logs" / "broker.log").read_text()
+    assert "rejected unauthenticated" in broker_log and "rejected not_roster" in broker_log
+    check = check_run(run_dir)
+    assert check.ok, check.problems
+
+
+@pytest.mark.slow
+def test_a_stop_from_outside_an_open_run_ends_it_interrupted_not_with_exit_0(tmp_path: Path) -> None:
+    run = "openstop"
+    proc = _run(tmp_path, run, "--open", generations=60)
+    run_dir = tmp_path / run
+    try:
+        poll(lambda: min(_curve_len(run_dir, b) for b in BEHAVIOURS) >= 2, 90, "every worker's second generation")
+        endpoint = json.loads((run_dir / "run.json").read_text())["endpoint"]
+        assert not (run_dir / "secret.key").exists()
+        with _raw_session(endpoint) as s:
+            s.put(keys.control(run), _raw_stop(run))  # anyone can, in an open run
+        rc = proc.wait(120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    out = (tmp_path / f"{run}.out").read_text()
+    assert rc == 1 and "stopped early" in out, out
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["interrupted"] is True and summary["open"] is True and summary["stopped_here"] is False
+    assert set(summary["stopped_early"]) == set(BEHAVIOURS) and max(summary["stopped_early"].values()) < 60
+    assert "OPEN" in (run_dir / "logs" / "worker-tracking.log").read_text()
+
+
+def test_a_worker_refuses_a_foreign_key_and_a_roster_it_is_not_on(tmp_path: Path) -> None:
+    from coevo.runs.settings import RunSettings
+
+    run_dir = tmp_path / "r"
+    run_dir.mkdir()
+    RunKey.create("other").save(run_dir / "secret.key")
+    s = RunSettings.make(run="r", regime="mutual", key_file="secret.key").with_roster()
+    s.save(run_dir / "run.json")
+    base = [sys.executable, "-m", "coevo", "worker", "--settings", str(run_dir / "run.json"), "--behaviour", "tracking",
+            "--connect", "tcp/127.0.0.1:9", "--connect-timeout", "1", "--out", str(tmp_path / "w")]
+    env = {k: v for k, v in os.environ.items() if k != "COEVO_RUN_KEY_FILE"}
+    r = subprocess.run(base, capture_output=True, text=True, timeout=60, env=env)
+    assert r.returncode == 2 and "key of run 'other', not of run 'r'" in r.stderr, r.stderr
+    (run_dir / "secret.key").unlink()
+    RunKey.create("r").save(run_dir / "secret.key")
+    r = subprocess.run(base + ["--worker-id", "someone"], capture_output=True, text=True, timeout=60, env=env)
+    assert r.returncode == 2 and "roster names 'tracking-0'" in r.stderr, r.stderr
