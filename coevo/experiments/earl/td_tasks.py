@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any, Protocol
 
 import numpy as np
@@ -46,11 +46,14 @@ from coevo.policy.schema import Schema, schema
 
 __all__ = [
     "Encoder", "ENCODERS", "HashedQ", "FuelEnv", "DoorEnv", "TASKS", "TDSpec", "Curve",
-    "CountingEvaluator", "run_td", "run_ga", "run_task", "measure_policy", "rules_policy",
+    "CountingEvaluator", "VARIANTS", "run_td", "run_ga", "run_task", "default_checkpoints", "measure_policy", "rules_policy",
 ]
 
 TASKS = ("tracking", "docking", "door")
 REWARDS = ("sparse", "shaped")
+PRIORS = ("none", "default")
+#: Extra TD runs beside the main one, by name: the settings each changes.
+VARIANTS: dict[str, dict[str, str]] = {"shaped": {"reward": "shaped"}, "default-rules": {"prior": "default"}}
 #: A policy for measurement: (sensor bins (m, S), lane ids (m,), rng) -> joint action indices (m,).
 Policy = Callable[[np.ndarray, np.ndarray, np.random.Generator], np.ndarray]
 Progress = Callable[[str, int, int], None]
@@ -195,14 +198,19 @@ class HashedQ:
                 out[i] = r
         return out
 
-    def act(self, rows: np.ndarray, rng: np.random.Generator, *, explore: bool = True) -> np.ndarray:
-        """Epsilon-greedy (or greedy) joint actions, ties broken at random; an unknown row (-1) acts at random.
+    def act(self, rows: np.ndarray, rng: np.random.Generator, *, explore: bool = True,
+            fallback: np.ndarray | None = None) -> np.ndarray:
+        """Epsilon-greedy (or greedy) joint actions, ties broken at random; an unknown row (-1) acts at random,
+        or, given ``fallback`` actions, rows with no preference yet (every action's value equal) take those.
 
         The same random numbers are drawn whatever the Q-values, so the stream does not depend on them.
         """
-        qo = np.where((rows >= 0)[:, None], self.q[np.maximum(rows, 0)], 0.0)
-        ties = qo == qo.max(axis=1, keepdims=True)
+        qo = np.where((rows >= 0)[:, None], self.q[np.maximum(rows, 0)], self.config.initial_q)
+        top = qo.max(axis=1, keepdims=True)
+        ties = qo == top
         greedy = np.argmax(np.where(ties, rng.random(qo.shape), -1.0), axis=1)
+        if fallback is not None:
+            greedy = np.where(ties.all(axis=1), fallback, greedy)
         if not explore:
             return greedy
         random = rng.integers(0, self.n_actions, size=len(rows))
@@ -490,12 +498,16 @@ class TDSpec:
     """GA generations (the report's 50); the TD budget is the GA's mean robot-steps over them."""
     population: int = 50
     episodes: int = 90
-    checkpoints: tuple[int, ...] = (1, 2, 5, 10, 20, 30, 40, 50)
-    """GA generations at which both learners are measured (TD at the GA's mean robot-steps there)."""
+    checkpoints: tuple[int, ...] | None = None
+    """GA generations at which both learners are measured (TD at the GA's mean robot-steps there);
+    None: :func:`default_checkpoints` (1, 2, 5, 10, 20, ... up to ``generations``)."""
     lanes: int = 256
     """(ours) robots feeding each TD run's table at once."""
     encoder: str = "reduced"
     reward: str = "sparse"
+    prior: str = "none"
+    """``default``: where the table has no preference yet, act as the task's shipped default rules (the GA's
+    starting point) instead of at random (ours)."""
     alpha: float = 0.1
     gamma: float = 1.0
     """1: the undiscounted episode payoff the GA maximises is the return."""
@@ -521,11 +533,17 @@ class TDSpec:
             raise ConfigError(f"encoder={self.encoder!r}: choose reduced or full")
         if self.reward not in REWARDS:
             raise ConfigError(f"reward={self.reward!r}: choose one of {', '.join(REWARDS)}")
+        if self.prior not in PRIORS:
+            raise ConfigError(f"prior={self.prior!r}: choose one of {', '.join(PRIORS)}")
         if self.reward == "shaped" and self.task != "tracking":
             raise ConfigError(f"reward='shaped' for task={self.task!r}: only Tracking has a natural shaped reward")
-        if not self.checkpoints or any(isinstance(g, bool) or not isinstance(g, int) or not 1 <= g <= self.generations
-                                       for g in self.checkpoints):
-            raise ConfigError(f"checkpoints={self.checkpoints!r}: give generations in 1..{self.generations}")
+        if self.checkpoints is None:
+            object.__setattr__(self, "checkpoints", default_checkpoints(int(self.generations)))
+        object.__setattr__(self, "checkpoints", tuple(self.checkpoints))
+        marks = self.checkpoints
+        if (not marks or list(marks) != sorted(set(marks))
+                or any(isinstance(g, bool) or not isinstance(g, int) or not 1 <= g <= self.generations for g in marks)):
+            raise ConfigError(f"checkpoints={self.checkpoints!r}: give increasing generations in 1..{self.generations}")
         QConfig(alpha=self.alpha, gamma=self.gamma, epsilon=self.epsilon)  # raises on a bad one
 
     @property
@@ -557,10 +575,27 @@ class Curve:
         return asdict(self)
 
 
-def _td_policy(learner: HashedQ, encoder: Encoder, trials: int) -> Policy:
+def _prior(task: str, prior: str) -> Policy | None:
+    """The default rules as a policy on any lanes (``prior='default'``), else None."""
+    if prior == "none":
+        return None
+    if task == "door":
+        from coevo.tasks.door import default_ruleset as door_default
+
+        rules = door_default()
+    else:
+        from coevo.tasks.fuel import default_ruleset
+
+        rules = default_ruleset(task)
+    one = rules_policy([rules], 1)
+    return lambda bins, lanes, rng: one(bins, np.zeros(len(bins), dtype=np.int64), rng)
+
+
+def _td_policy(learner: HashedQ, encoder: Encoder, trials: int, prior: Policy | None) -> Policy:
     def policy(bins: np.ndarray, lanes: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         rows = learner.rows(lanes // trials, encoder.code(bins), allocate=False)
-        return learner.act(rows, rng, explore=False)
+        fallback = None if prior is None else prior(bins, lanes, rng)
+        return learner.act(rows, rng, explore=False, fallback=fallback)
 
     return policy
 
@@ -573,7 +608,7 @@ class _Distinct:
         self.buffer: list[tuple[np.ndarray, np.ndarray]] = []
 
     def add(self, run: np.ndarray, codes: np.ndarray) -> None:
-        self.buffer.append((run, codes))
+        self.buffer.append((run.astype(np.int16), codes))
 
     def counts(self) -> list[int]:
         if self.buffer:
@@ -603,8 +638,10 @@ def run_td(spec: TDSpec, checkpoint_steps: list[int], *, progress: Progress = _q
     seen = _Distinct(R)  # what a table over every sensor at the schema's bins would have grown to
     bins = env.bins()
     rows = learner.rows(run_of_lane, enc.code(bins))
+    prior = _prior(spec.task, spec.prior)
+    lanes = np.arange(R * M)
     while todo:
-        act = learner.act(rows, rng)
+        act = learner.act(rows, rng, fallback=None if prior is None else prior(bins, lanes, rng))
         was = env.active.copy()
         seen.add(run_of_lane[was], full.code(bins[was]))
         reward, done = env.step(act, rng)
@@ -616,7 +653,7 @@ def run_td(spec: TDSpec, checkpoint_steps: list[int], *, progress: Progress = _q
         if steps.min() >= todo[0]:
             todo.pop(0)
             full_sizes = seen.counts()
-            got = measure_policy(spec.task, _td_policy(learner, enc, spec.measure_trials), groups=R,
+            got = measure_policy(spec.task, _td_policy(learner, enc, spec.measure_trials, prior), groups=R,
                                  trials=spec.measure_trials, rng=measure_rng)
             sizes = learner.table_sizes()
             for r, c in enumerate(curves):
@@ -695,8 +732,20 @@ def run_ga(spec: TDSpec, seed: int, *, progress: Progress = _quiet) -> Curve:
     return curve
 
 
-def run_task(spec: TDSpec, *, progress: Progress = _quiet) -> dict[str, Any]:
-    """The GA's runs, then the TD runs at the GA's mean robot-steps per checkpoint; results as plain data."""
+def default_checkpoints(generations: int) -> tuple[int, ...]:
+    """Generations 1, 2, 5, 10, 20, 30, ... up to and including ``generations``."""
+    marks = [g for g in (1, 2, 5) if g < generations] + list(range(10, generations, 10)) + [generations]
+    return tuple(sorted(set(marks)))
+
+
+def run_task(spec: TDSpec, *, variants: tuple[str, ...] = (), progress: Progress = _quiet) -> dict[str, Any]:
+    """The GA's runs, then the TD runs at the GA's mean robot-steps per checkpoint, then a TD run per
+    extra reward in ``variants`` (e.g. Tracking's ``shaped``); results as plain data."""
+    specs = {}
+    for v in variants:
+        if v not in VARIANTS:
+            raise ConfigError(f"variant {v!r}: choose from {', '.join(VARIANTS)}")
+        specs[v] = replace(spec, **VARIANTS[v])  # raises where the task has no such setting
     t0 = time.perf_counter()
     ga = [run_ga(spec, spec.seed + i, progress=progress) for i in range(spec.seeds)]
     t1 = time.perf_counter()
@@ -706,12 +755,14 @@ def run_task(spec: TDSpec, *, progress: Progress = _quiet) -> dict[str, Any]:
     marks_list = [max(1, int(round(m))) for m in marks]
     td = run_td(spec, marks_list, progress=progress)
     t2 = time.perf_counter()
+    extra = {v: [c.as_dict() for c in run_td(vs, marks_list, progress=progress)] for v, vs in specs.items()}
+    t3 = time.perf_counter()
     enc = ENCODERS[(spec.task, spec.encoder)]
     return {
         "task": spec.task, "measure": MEASURE_NAMES[spec.task], "spec": spec.as_dict(),
         "encoder": {"name": enc.name, "sensors": enc.describe(), "dense_observations": float(enc.n_states),
                     "actions": 56 if spec.task == "door" else 78},
         "checkpoint_steps": marks_list,
-        "ga": [c.as_dict() for c in ga], "td": [c.as_dict() for c in td],
-        "seconds": {"ga": t1 - t0, "td": t2 - t1},
+        "ga": [c.as_dict() for c in ga], "td": [c.as_dict() for c in td], "variants": extra,
+        "seconds": {"ga": t1 - t0, "td": t2 - t1, "variants": t3 - t2},
     }
