@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["write_report", "summarise", "claims"]
+__all__ = ["write_report", "read_results", "summarise", "claims"]
 
 LABEL = {"tracking": "Quality Tracking (%)", "docking": "docking from random starts (%)", "door": "door success (%)"}
 TITLE = {"tracking": "Tracking (always-Track Executive)", "docking": "Docking (fresh random starts)",
@@ -108,7 +108,9 @@ def _figure(path: Path, task: str, res: dict[str, Any]) -> None:
 
     fig, ax = plt.subplots(figsize=(7, 4.2))
     series = [("GA", res["ga"], "tab:blue"), ("TD (sparse)" if res.get("variants") else "TD", res["td"], "tab:red")]
-    series += [(f"TD ({name})", curves, "tab:orange") for name, curves in res.get("variants", {}).items()]
+    colours = ("tab:orange", "tab:green", "tab:purple", "tab:brown")
+    series += [(f"TD ({name})", curves, colours[i % len(colours)])
+               for i, (name, curves) in enumerate(res.get("variants", {}).items())]
     for label, curves, colour in series:
         for c in curves:
             ax.plot(c["robot_steps"], c["measure"], color=colour, alpha=0.25, lw=1)
@@ -205,3 +207,8 @@ def write_report(out: Path, results: dict[str, dict[str, Any]]) -> dict[str, Any
         _figure(out / f"fig-{task}.png", task, res)
     (out / "report.md").write_text(_markdown(results, cl), encoding="utf-8")
     return data
+
+
+def read_results(path: Path) -> dict[str, dict[str, Any]]:
+    """The per-task results a ``results.json`` holds (to rebuild or combine reports)."""
+    return json.loads(Path(path).read_text(encoding="utf-8"))["tasks"]
