@@ -169,3 +169,16 @@ def test_command_options_are_checked_before_anything_runs() -> None:
     assert [s.task for s, _ in specs] == ["tracking", "docking", "door"]
     assert [v for _, v in specs] == [("shaped", "default-rules"), ("default-rules",), ("default-rules",)]
     assert specs[0][0].checkpoints == default_checkpoints(12) == (1, 2, 5, 10, 12)
+
+
+def test_report_files_rebuild_from_results_json(tmp_path) -> None:
+    from coevo.experiments.earl.td_report import read_results, write_report
+
+    res = {"door": run_task(_small("door", seeds=1, generations=1), variants=("default-rules",))}
+    data = write_report(tmp_path, res)
+    assert {p.name for p in tmp_path.iterdir()} == {"results.json", "curves.csv", "fig-door.png", "report.md"}
+    assert [c["verdict"] for c in data["claims"]][-1] == "consistent, not isolated"
+    again = tmp_path / "again"
+    again.mkdir()
+    write_report(again, read_results(tmp_path / "results.json"))
+    assert (again / "report.md").read_text() == (tmp_path / "report.md").read_text()
