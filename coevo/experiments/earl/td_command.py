@@ -1,0 +1,90 @@
+"""The TD baseline for the command line (a future ``coevo earl --td`` or ``coevo td-baseline``).
+
+``add_td_arguments`` fills a parser and ``td_main`` runs it: for each task the GA's runs, the TD runs at
+the GA's robot-steps, the variants, then the report in ``--out``. Bad values raise
+:class:`~coevo.errors.ConfigError` naming them (a bad ``--out``: :class:`~coevo.errors.RunDirError`)
+before anything runs; the output directory is written under a temporary name and renamed when complete.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from coevo.console import ProgressBar, seed_arg
+from coevo.errors import ConfigError
+
+__all__ = ["add_td_arguments", "td_main", "specs_from_args"]
+
+
+def add_td_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of the TD baseline."""
+    from coevo.experiments.earl.td_tasks import ENCODERS, TASKS, VARIANTS
+
+    parser.add_argument("--out", required=True, help="output directory (must not exist, or be empty)")
+    parser.add_argument("--tasks", nargs="+", default=list(TASKS), metavar="TASK",
+                        help=f"tasks to compare on ({', '.join(TASKS)}; default all)")
+    parser.add_argument("--seeds", type=int, default=3, help="runs of each learner per task (default 3)")
+    parser.add_argument("--seed", type=seed_arg, default=0, help="first GA seed and the TD runs' seed (default 0)")
+    parser.add_argument("--generations", type=int, default=50, help="GA generations; sets the TD budget (default 50)")
+    parser.add_argument("--population", type=int, default=50, help="GA population (default 50)")
+    parser.add_argument("--episodes", type=int, default=90, help="GA evaluation episodes per individual (default 90)")
+    parser.add_argument("--lanes", type=int, default=256, help="robots feeding each TD table at once (default 256)")
+    parser.add_argument("--trials", type=int, default=100,
+                        help="fresh trials per measurement: epochs (Tracking) or x5 trials (default 100)")
+    parser.add_argument("--alpha", type=float, default=0.1, help="Q-learning rate (default 0.1)")
+    parser.add_argument("--gamma", type=float, default=1.0, help="discount (default 1: the payoff is the return)")
+    parser.add_argument("--epsilon", type=float, default=0.1, help="exploration rate (default 0.1)")
+    parser.add_argument("--encoder", default="reduced", choices=sorted({e for _, e in ENCODERS}),
+                        help="TD observation: the reduced sensors (default) or every sensor at the schema's bins")
+    parser.add_argument("--variants", nargs="*", default=["shaped", "default-rules"], metavar="VARIANT",
+                        help=f"extra TD runs ({', '.join(VARIANTS)}; each where the task has it; default both)")
+    parser.add_argument("--td-steps", type=int, default=None, help="TD robot-steps per run (default: the GA's)")
+    parser.add_argument("--quiet", action="store_true", help="no progress display")
+
+
+def specs_from_args(args: argparse.Namespace) -> list[tuple[object, tuple[str, ...]]]:
+    """(TDSpec, variants) per task from the parsed options; raises ConfigError naming a bad one."""
+    from coevo.experiments.earl.td_tasks import TASKS, VARIANTS, TDSpec
+
+    tasks = list(dict.fromkeys(args.tasks))
+    for t in tasks:
+        if t not in TASKS:
+            raise ConfigError(f"--tasks {t}: choose from {', '.join(TASKS)}")
+    for v in args.variants:
+        if v not in VARIANTS:
+            raise ConfigError(f"--variants {v}: choose from {', '.join(VARIANTS)}")
+    out = []
+    for t in tasks:
+        spec = TDSpec(task=t, seeds=args.seeds, seed=args.seed, generations=args.generations,
+                      population=args.population, episodes=args.episodes, lanes=args.lanes, trials=args.trials,
+                      alpha=args.alpha, gamma=args.gamma, epsilon=args.epsilon, encoder=args.encoder,
+                      td_steps=args.td_steps)  # its ConfigError names the option (seeds=0: ...)
+        variants = tuple(v for v in args.variants if t == "tracking" or v != "shaped")
+        out.append((spec, variants))
+    return out
+
+
+def td_main(args: argparse.Namespace) -> int:
+    """Run the TD baseline on the chosen tasks, write the report into ``args.out``, print the verdicts."""
+    from coevo.experiments.earl.td_report import summarise, write_report
+    from coevo.experiments.earl.td_tasks import run_task
+    from coevo.runs.layout import staged_dir
+
+    specs = specs_from_args(args)
+    out = Path(args.out)
+    results = {}
+    with staged_dir(out) as tmp, ProgressBar("td", quiet=args.quiet) as bar:
+        for spec, variants in specs:
+            results[spec.task] = run_task(spec, variants=variants, progress=bar.stage)  # type: ignore[attr-defined]
+        data = write_report(tmp, results)
+    for task, res in results.items():
+        last = summarise(res)["rows"][-1]
+        extra = "".join(f", TD {v} {last[f'td_{v}']['mean']:.1f}" for v in res.get("variants", {}))
+        print(f"{task}: at {last['robot_steps']:,} robot-steps GA {last['ga']['mean']:.1f} %, TD "
+              f"{last['td']['mean']:.1f} %{extra} ({last['verdict']}); GA {res['seconds']['ga']:.0f} s, "
+              f"TD {res['seconds']['td'] + res['seconds']['variants']:.0f} s")
+    for c in data["claims"]:
+        print(f"  {c['verdict']}: {c['claim']}")
+    print(f"report: {out / 'report.md'}")
+    return 0
