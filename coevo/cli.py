@@ -395,6 +395,11 @@ def build_parser() -> argparse.ArgumentParser:
     add_compare(sub)
     add_evolvability(sub)
     add_earl(sub)
+    from coevo.experiments.earl.td_command import add_td_arguments, td_main
+
+    p = sub.add_parser("td-baseline", help="Appendix C: Q-learning against the GA on the robot tasks, at equal experience")
+    add_td_arguments(p)
+    p.set_defaults(func=td_main)
     add_show(sub)
 
     p = sub.add_parser("replay", help="re-run a finished run in one process from its adoption log")
