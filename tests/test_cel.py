@@ -203,5 +203,6 @@ def test_a_short_lockstep_run_is_deterministic_and_detects_the_failure() -> None
 
 
 def test_recovery_counts_generations_back_over_a_threshold() -> None:
-    assert recovery([10, 90, 20, 40, 95, 96], 1, 90) == 3
-    assert recovery([10, 90, 20, 40], 1, 90) is None
+    assert recovery([10, 90, 20, 40, 95, 96], 2, 90) == 2
+    assert recovery([10, 90, 95, 40], 2, 90) == 0
+    assert recovery([10, 90, 20, 40], 2, 90) is None

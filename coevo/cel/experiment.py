@@ -42,11 +42,11 @@ __all__ = ["TRIALS_PER_GENERATION", "FIGURE3", "CYCLIC", "run_cel", "detection_d
            "zero_runs", "detection_decisions"]
 
 TRIALS_PER_GENERATION = 100  # K (ours): see the module docstring
-FAILED = ("front", "front_right", "right")  # report §7
+FAILED: tuple[str, ...] = ("front", "front_right", "right")  # report §7
 #: Figure 3: all sonars for 50 generations, then front, front-right and right fail; 50 more.
 FIGURE3: dict[str, Any] = {"generations": 100, "events": ((50, FAILED),)}
-#: The cyclic schedule (ours): failure, repair, the same failure again, 30 generations each.
-CYCLIC: dict[str, Any] = {"generations": 120, "events": ((30, FAILED), (60, ()), (90, FAILED))}
+#: The cyclic schedule (ours): all sonars, failure, repair, the same failure again, 25 generations each.
+CYCLIC: dict[str, Any] = {"generations": 100, "events": ((25, FAILED), (50, ()), (75, FAILED))}
 
 
 def _row(g: int, ex: ExecutionModule, st: Stretch, learner: LearningModule, sim: float | None) -> dict[str, Any]:
@@ -77,7 +77,9 @@ def run_cel(seed: int, *, generations: int, events: Sequence[tuple[int, Sequence
     ex = ExecutionModule(world, default_ruleset(), seed=seed + 1_000_003, schedule=schedule,
                          monitor=Monitor(zero_run=zero_run, repair_run=repair_run, capabilities=world.capabilities))
     event_gens = {g for g, _ in events}
-    rows, changes, at_event = [], [], {}
+    rows: list[dict[str, Any]] = []
+    changes: list[dict[str, Any]] = []
+    at_event: dict[str, str] = {}
     t_learn = t_exec = 0.0
     stretches: list[Stretch] = []
     for g in range(generations + 1):
@@ -89,8 +91,8 @@ def run_cel(seed: int, *, generations: int, events: Sequence[tuple[int, Sequence
             sim = step.report.measures.get("success")
             if step.new_best is not None:
                 ex.receive(step.new_best)
-        if g - 1 in event_gens:
-            at_event[g - 1] = format_ruleset(ex.rules)
+        if g in event_gens:
+            at_event[str(g)] = format_ruleset(ex.rules)  # the rules that meet the change
         t0 = time.perf_counter()
         st = ex.run(K)
         t_exec += time.perf_counter() - t0
@@ -103,7 +105,7 @@ def run_cel(seed: int, *, generations: int, events: Sequence[tuple[int, Sequence
     return {"seed": seed, "generations": generations, "trials_per_generation": K, "case_base": cases is not None,
             "events": [[g, list(f)] for g, f in events], "zero_run": zero_run, "repair_run": repair_run,
             "rows": rows, "changes": changes, "detections": detection_delays(schedule, stretches, changes, world),
-            "rules_at_event": at_event, "cases": len(cases) if cases is not None else 0,
+            "rules_at_event": at_event, "final_rules": format_ruleset(ex.rules), "cases": len(cases) if cases is not None else 0,
             "seconds": {"learning": t_learn, "execution": t_exec}}
 
 
@@ -129,10 +131,11 @@ def detection_delays(schedule: FailureSchedule, stretches: list[Stretch], change
 
 
 def recovery(external: Sequence[float], event_generation: int, threshold: float) -> int | None:
-    """Generations after ``event_generation`` until the external performance is back at ``threshold`` % or
-    more (1 = the first generation after the event), None if it never is."""
-    return next((g - event_generation for g in range(event_generation + 1, len(external))
-                 if external[g] >= threshold), None)
+    """Generations from a failure at ``event_generation`` until the external performance is back at
+    ``threshold`` % or more: 0 when the failure's own generation (the old rules blinded) is already there,
+    k when generation ``event_generation + k`` is the first; None if it never is."""
+    return next((g - event_generation for g in range(event_generation, len(external)) if external[g] >= threshold),
+                None)
 
 
 def summarise(runs: list[dict[str, Any]]) -> dict[str, Any]:
