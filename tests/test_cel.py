@@ -206,3 +206,32 @@ def test_recovery_counts_generations_back_over_a_threshold() -> None:
     assert recovery([10, 90, 20, 40, 95, 96], 2, 90) == 2
     assert recovery([10, 90, 95, 40], 2, 90) == 0
     assert recovery([10, 90, 20, 40], 2, 90) is None
+
+
+# ------------------------------------------------------------------ checkpoints (for a service's --resume)
+def test_modules_restored_from_their_state_go_on_exactly_as_the_originals() -> None:
+    import json
+
+    sched = FailureSchedule(((30, FAILED),))
+    lm = LearningModule(DoorConfig(), TINY_GA, seed=1)
+    ex = ExecutionModule(DoorConfig(), default_ruleset(), seed=2, schedule=sched)
+    for _ in range(2):
+        step = lm.generation()
+        if step.new_best is not None:
+            ex.receive(step.new_best)
+        for c in ex.run(20).changes:
+            lm.set_capabilities(c.capabilities)
+    assert lm.capabilities == without(*FAILED)
+    lm_state, ex_state = json.loads(json.dumps(lm.state_dict())), json.loads(json.dumps(ex.state_dict()))
+    lm2 = LearningModule(DoorConfig(), TINY_GA, seed=99)
+    ex2 = ExecutionModule(DoorConfig(), default_ruleset(), seed=99, schedule=sched)
+    lm2.load_state(lm_state)
+    ex2.load_state(ex_state)
+    for a, b in ((lm, ex), (lm2, ex2)):
+        b.receive(a.generation().new_best or b.rules)
+    st, st2 = ex.run(20), ex2.run(20)
+    assert lm2.capabilities == lm.capabilities and lm2.best_fitness == lm.best_fitness
+    assert st.outcome.tolist() == st2.outcome.tolist() and st.performance == st2.performance
+    assert ex2.monitor.state_dict() == ex.monitor.state_dict()
+    with pytest.raises(ConfigError, match="not a learning module state"):
+        lm2.load_state({"failed": ["rear"]})

@@ -18,9 +18,11 @@ sequence of calls.
 
 from __future__ import annotations
 
+import json
 from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -150,6 +152,26 @@ class ExecutionModule:
     def failed_now(self) -> tuple[str, ...]:
         """The world's failed sonars for the next trial (the experiment's truth; the monitor never reads it)."""
         return self.schedule.failed_at(self.trial, self.world.failed)
+
+    def state_dict(self) -> dict[str, Any]:
+        """Everything the next trials depend on besides the settings (world, schedule, window), as plain
+        data: a module built with the same settings and :meth:`load_state` plays on exactly as this one."""
+        return {"rules": self.rules.to_dict(), "version": self.version, "trial": self.trial,
+                "rng": json.dumps(self.rng.bit_generator.state), "recent": [bool(x) for x in self._recent],
+                "monitor": self.monitor.state_dict()}
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        try:
+            rules = RuleSet.from_dict(state["rules"])
+            version, trial, recent = int(state["version"]), int(state["trial"]), [bool(x) for x in state["recent"]]
+            self.rng.bit_generator.state = json.loads(state["rng"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ConfigError(f"not an execution module state: {exc!r}") from exc
+        self._set(rules)
+        self.version, self.trial = version, trial
+        self._recent.clear()
+        self._recent.extend(recent)
+        self.monitor.load_state(state["monitor"])
 
     def run(self, trials: int) -> Stretch:
         """Play the next ``trials`` trials with the current rules."""

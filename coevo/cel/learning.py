@@ -21,8 +21,10 @@ change, that individual (:attr:`GenerationStep.new_best`).
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from pydantic import BaseModel
@@ -117,6 +119,29 @@ class LearningModule:
             self.best, self.best_fitness = self.ga.current, rep.best_fitness
             new = self.best
         return GenerationStep(rep, self.capabilities, new)
+
+    def state_dict(self) -> dict[str, Any]:
+        """The GA's state, the model's failed sonars, the module's generator and its best since the last
+        change, as plain data (the case base is kept apart, in its own JSON lines)."""
+        return {"ga": self.ga.state_dict(), "failed": list(self.model.failed),
+                "rng": json.dumps(self.rng.bit_generator.state), "changes": self.changes,
+                "best": None if self.best is None else self.best.to_dict(),
+                "best_fitness": None if self.best is None else float(self.best_fitness)}
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Continue from :meth:`state_dict` of a module with the same settings."""
+        try:
+            model = DoorConfig.model_validate({**self.model.model_dump(), "failed": state["failed"]})
+            rng_state = json.loads(state["rng"])
+            best = None if state["best"] is None else RuleSet.from_dict(state["best"])
+            changes = int(state["changes"])
+        except (KeyError, TypeError, ValueError) as exc:  # pydantic's ValidationError is a ValueError
+            raise ConfigError(f"not a learning module state: {exc}") from exc
+        self.ga.load_state(state["ga"])
+        self.model, self.changes = model, changes
+        self.rng.bit_generator.state = rng_state
+        self.best = best
+        self.best_fitness = -np.inf if best is None else float(state["best_fitness"])
 
     def set_capabilities(self, capabilities: Sequence[str]) -> bool:
         """The monitor's new capability list: fail the other sonars in the model and restart.  Returns False

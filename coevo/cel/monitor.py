@@ -24,6 +24,7 @@ The counts run on across trials: the readings are one stream from one robot.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -71,6 +72,22 @@ class Monitor:
     def capabilities(self) -> tuple[str, ...]:
         """The capability list: the sonars the monitor believes work, left to right."""
         return tuple(s for s, w in zip(SONARS, self.working) if w)
+
+    def state_dict(self) -> dict[str, Any]:
+        """The counts and the verdicts, as plain data (a checkpoint); :meth:`load_state` restores them."""
+        return {"working": self.working.tolist(), "zeros": self._zeros.tolist(), "alive": self._alive.tolist(),
+                "decisions": self.decisions}
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        try:
+            working, zeros, alive = (np.asarray(state[k]) for k in ("working", "zeros", "alive"))
+            decisions = int(state["decisions"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ConfigError(f"not a monitor state: {exc!r}") from exc
+        if not working.shape == zeros.shape == alive.shape == (len(SONARS),):
+            raise ConfigError(f"a monitor state has {len(SONARS)} values per count, got {working.shape}")
+        self.working, self._zeros, self._alive = working.astype(bool), zeros.astype(np.int64), alive.astype(np.int64)
+        self.decisions = decisions
 
     def observe(self, readings: np.ndarray, forward: bool) -> tuple[str, ...] | None:
         """One decision: the seven readings (inches, far-left to far-right) and whether the robot moved
