@@ -1,7 +1,7 @@
 """Continuous and Embedded Learning (report Appendix B, Figure 3; issue 17 items 6-8), in process, lockstep.
 
     .venv/bin/python benchmarks/cel.py [--runs 10] [--cyclic-runs 5] [--jobs 1] [--out docs/cel]
-                                       [--skip-cyclic] [--skip-monitor]
+                                       [--skip-cyclic] [--skip-monitor] [--skip-figure3]
 
 1. Figure 3: ``--runs`` runs of :data:`coevo.cel.experiment.FIGURE3` (front, front-right and right fail at
    generation 50 of 100); the execution module plays 100 trials per generation; mean external
