@@ -199,3 +199,20 @@ def test_population_rule_counts_stay_capped(world_cfg) -> None:
         ga.generation({})
         assert all(1 <= len(p) <= 10 for p in ga.population)
         assert all(isinstance(p, RuleSet) for p in ga.population)
+
+
+def test_replace_puts_policies_in_place_and_refuses_bad_input() -> None:
+    from coevo.tasks.door import DOOR, DoorConfig, default_ruleset
+
+    ga = GA(get_task("door"), DOOR, world=DoorConfig(), ga=GAConfig(population=6, episodes=4, best_episodes=4), seed=0)
+    before = list(ga.population)
+    ga.replace([1, 4], [default_ruleset(), default_ruleset()])
+    assert ga.population[1] is default_ruleset() and ga.population[4] is default_ruleset()
+    assert [ga.population[i] for i in (0, 2, 3, 5)] == [before[i] for i in (0, 2, 3, 5)]
+    assert ga.genes.tolist() == [0] * 6
+    with pytest.raises(ConfigError, match="2 indices for 1 policies"):
+        ga.replace([0, 1], [default_ruleset()])
+    with pytest.raises(ConfigError, match="distinct"):
+        ga.replace([6], [default_ruleset()])
+    with pytest.raises(ConfigError, match="cannot join"):
+        ga.replace([0], [random_ruleset("tracking", 3, np.random.default_rng(0))])

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -131,6 +132,22 @@ class GA:
         self.best_fitness = float(state["best_fitness"])
         self.current = None if state["current"] is None else RuleSet.from_dict(state["current"])
         self.current_fitness = float(state["current_fitness"])
+
+    def replace(self, indices: Sequence[int], policies: Sequence[RuleSet]) -> None:
+        """Put ``policies[k]`` in place of individual ``indices[k]`` (e.g. a restart on a changed world,
+        :mod:`coevo.cel.learning`); each newcomer gets a fresh control gene (zero under FM and FH)."""
+        idx = [int(i) for i in indices]
+        n = len(self.population)
+        if len(idx) != len(policies):
+            raise ConfigError(f"replace: {len(idx)} indices for {len(policies)} policies")
+        if len(set(idx)) != len(idx) or any(not 0 <= i < n for i in idx):
+            raise ConfigError(f"replace: indices must be distinct and in [0, {n}), got {idx}")
+        for p in policies:
+            if p.behaviour != self.behaviour:
+                raise ConfigError(f"replace: a {p.behaviour} rule set cannot join a {self.behaviour} population")
+        for i, p in zip(idx, policies):
+            self.population[i] = trim(p, self.cfg.max_rules)
+        self.genes[idx] = self._random_genes(len(idx))
 
     def _seeded(self, seed_policy: RuleSet) -> list[RuleSet]:
         """The initial population from a seed policy: the policy itself, then mutated copies (each with

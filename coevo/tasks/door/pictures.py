@@ -4,7 +4,8 @@ A figure has two panels, like the report's: (a) the robot during the run, with i
 path so far and its seven sonar beams (a failed sonar drawn red at its reading of 0),
 and (b) the robot at the end of the trial with its whole path.  The trial shown is
 the first of ``candidates`` fresh trials that reached the goal *(ours)*, so the
-picture shows how the rules succeed; if none did, the first trial.
+picture shows how the rules succeed; if none did, or with ``prefer_success=False``
+(how rules fail, e.g. right after a sonar failure), the first trial.
 """
 
 from __future__ import annotations
@@ -24,13 +25,14 @@ __all__ = ["trial_path", "path_figure"]
 _OUTCOME = {1: "reached the goal", 2: "collided", 3: "ran out of time"}
 
 
-def trial_path(rules: RuleSet, cfg: DoorConfig, *, seed: int, candidates: int = 20) -> tuple[Trials, np.ndarray, int]:
+def trial_path(rules: RuleSet, cfg: DoorConfig, *, seed: int, candidates: int = 20, prefer_success: bool = True
+               ) -> tuple[Trials, np.ndarray, int]:
     """(the trial, its poses ``(k, 3)`` at every substep, its outcome) of the trial to show."""
     rng = np.random.default_rng(seed)
     trials = draw_trials(cfg, candidates, rng)
     out = play(cfg, CompiledPolicies([rules]), np.zeros(candidates, dtype=np.int64), trials, rng, record=True)
     won = np.flatnonzero(out.outcome == GOAL)
-    i = int(won[0]) if won.size else 0
+    i = int(won[0]) if won.size and prefer_success else 0
     steps = int(round(out.time[i] / cfg.decision_seconds * cfg.substeps))
     poses = np.stack([p[i] for p in out.world.path])[: steps + 1]  # type: ignore[union-attr]
     one = Trials(trials.x[i:i + 1], trials.heading[i:i + 1], trials.opening[i:i + 1])
@@ -75,14 +77,15 @@ def _robot(ax: object, cfg: DoorConfig, trial: Trials, pose: np.ndarray, *, beam
                 lw=2.5 if failed else 1, alpha=0.9, zorder=2)
 
 
-def path_figure(path: Path, rules: RuleSet, cfg: DoorConfig, *, seed: int, title: str, candidates: int = 20) -> int:
+def path_figure(path: Path, rules: RuleSet, cfg: DoorConfig, *, seed: int, title: str, candidates: int = 20,
+                prefer_success: bool = True) -> int:
     """Draw a trial of ``rules`` into ``path`` (PNG); returns the trial's outcome."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    trial, poses, outcome = trial_path(rules, cfg, seed=seed, candidates=candidates)
+    trial, poses, outcome = trial_path(rules, cfg, seed=seed, candidates=candidates, prefer_success=prefer_success)
     mid = len(poses) // 2
     fig, axes = plt.subplots(1, 2, figsize=(9, 5))
     for ax, upto, label in ((axes[0], mid, "a) during the run"), (axes[1], len(poses) - 1, f"b) {_OUTCOME[outcome]}")):

@@ -38,10 +38,12 @@ _SPEEDS = np.array(SPEED.values, dtype=np.float64)
 _TURNS = np.array(TURN.values, dtype=np.float64)
 
 
-def sense(world: DoorWorld, lanes: np.ndarray) -> np.ndarray:
-    """``(m, 9)`` uint8 sensor bins of ``lanes``, in the schema's order."""
+def sense(world: DoorWorld, lanes: np.ndarray, sonar: np.ndarray | None = None) -> np.ndarray:
+    """``(m, 9)`` uint8 sensor bins of ``lanes``, in the schema's order; ``sonar`` gives readings already
+    taken (``world.sonars(lanes)``: the execution module's monitor reads them too, and they are the dearest part)."""
     out = np.empty((SCHEMA.n_sensors, len(lanes)), dtype=np.uint8)
-    sonar = world.sonars(lanes)
+    if sonar is None:
+        sonar = world.sonars(lanes)
     sensors = SCHEMA.sensors
     for j in range(len(SONARS)):
         sensors[j].discretise(sonar[:, j], out[j])
