@@ -115,23 +115,6 @@ class Security:
                    tls_key=getattr(args, "tls_key", None), user=getattr(args, "user", None), password=password,
                    auth_file=getattr(args, "auth_file", None))
 
-    def cli_args(self, *, router: bool = False) -> list[str]:
-        """These settings as ``coevo`` flags, for a process spawned by another (``coevo run``).
-
-        The password is not among them (a flag shows in ``ps``): pass :meth:`env` to the child.
-        ``--auth-file`` is given only to routers.
-        """
-        out: list[str] = []
-        for flag, value in (("--tls-ca", self.tls_ca), ("--tls-cert", self.tls_cert), ("--tls-key", self.tls_key),
-                            ("--user", self.user), ("--auth-file", self.auth_file if router else None)):
-            if value is not None:
-                out += [flag, value]
-        return out
-
-    def env(self) -> dict[str, str]:
-        """Environment for a spawned process: the password, if there is one."""
-        return {PASSWORD_ENV: self.password} if self.password is not None else {}
-
     def apply(self, conf: zenoh.Config, mode: str) -> None:
         """Write these settings into ``conf`` (a router both listens and, to join other routers, connects)."""
         sets: dict[str, Any] = {}
