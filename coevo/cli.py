@@ -112,8 +112,10 @@ def cmd_router(args: argparse.Namespace) -> int:
 
 def cmd_broker(args: argparse.Namespace) -> int:
     from coevo.broker.server import serve_broker
+    from coevo.broker.store import Quota
 
-    return serve_broker(args, data_dir=Path(args.data_dir), inbox_bytes=int(args.inbox_mb * (1 << 20)))
+    quota = Quota(runs=args.quota_runs, policies=args.quota_policies, bytes=int(args.quota_mb * (1 << 20)))
+    return serve_broker(args, data_dir=Path(args.data_dir), inbox_bytes=int(args.inbox_mb * (1 << 20)), quota=quota)
 
 
 def cmd_worker(args: argparse.Namespace) -> int:
@@ -297,6 +299,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--data-dir", default="runs", help="where the store keeps each run's policies (default runs/)")
     p.add_argument("--inbox-mb", type=positive_float_arg(maximum=65536), default=64.0,
                    help="policy messages waiting to be stored at most (default 64 MB); a flood beyond is dropped and counted")
+    p.add_argument("--quota-runs", type=count_arg(1, 1_000_000), default=32,
+                   help="runs the store takes policies for since the broker started (default 32); beyond: refused, counted as quota")
+    p.add_argument("--quota-policies", type=count_arg(1, 10**9), default=10_000,
+                   help="policies stored per run at most (default 10000; the report's parameters publish at most 150)")
+    p.add_argument("--quota-mb", type=positive_float_arg(maximum=1 << 20), default=64.0,
+                   help="bytes on disk per run at most, in MB (default 64: 10000 of the largest policies)")
     p.set_defaults(func=cmd_broker)
 
     p = sub.add_parser("router", help="a plain Zenoh router, no store: another site's meeting point (--connect to the broker)")

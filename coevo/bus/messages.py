@@ -46,6 +46,7 @@ REASONS = {
     "wrong_behaviour": "a message naming another behaviour (or worker) than its key",
     "wrong_key": "a message of a kind that does not belong on its key",
     "flood": "dropped unread: more arrived than a receiver keeps between two reads",
+    "quota": "the broker's store is full for that run (policies, bytes) or for new runs",
 }
 
 
@@ -55,7 +56,13 @@ def _known_behaviour(name: str) -> str:
     return name
 
 
-_Id = Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]{1,64}$")]
+def _plain_id(value: str) -> str:
+    if not keys.valid_id(value):  # the pattern lets "." and ".." through: not a directory name
+        raise ValueError(f"{value!r} is not a plain name")
+    return value
+
+
+_Id = Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]{1,64}$"), AfterValidator(_plain_id)]
 #: A learning behaviour's name, of any task (messages name no task: behaviour names are unique).
 BehaviourName = Annotated[str, Field(pattern=r"^[a-z0-9_]{1,32}$"), AfterValidator(_known_behaviour)]
 
@@ -64,7 +71,7 @@ class _Msg(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     schema_version: Literal[1] = SCHEMA_VERSION
-    run: Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]{1,64}$")]
+    run: _Id
     sent_at: float = Field(ge=0)
 
 
@@ -73,7 +80,7 @@ class PolicyUpdate(_Msg):
 
     kind: Literal["policy"] = "policy"
     behaviour: BehaviourName
-    worker: Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]{1,64}$")]
+    worker: _Id
     version: int = Field(ge=1)
     generation: int = Field(ge=0)
     fitness: float
@@ -130,6 +137,7 @@ class BrokerStatus(_Msg):
     stored: dict[str, int] = Field(default_factory=dict)  # behaviour -> policies held
     rejected: dict[str, int] = Field(default_factory=dict)  # reason -> count, for messages on this run's keys
     dropped: int = Field(default=0, ge=0)  # of those, dropped unread because the broker's inbox was full
+    degraded: str = Field(default="", max_length=500)  # why the store cannot write ("" while it can)
 
 
 class Control(_Msg):

@@ -14,13 +14,11 @@ What it checks, per worker directory:
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from coevo.errors import RunDirError
-from coevo.runs.layout import RunPaths, WorkerPaths, read_json, read_jsonl, read_store
+from coevo.runs.layout import RunPaths, read_json, read_jsonl, read_store
 
 __all__ = ["RunCheck", "check_run"]
 

@@ -10,7 +10,6 @@ its learning curve bit for bit.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,9 +17,8 @@ from coevo.agents.models import PartnerModels
 from coevo.config import GAConfig, build
 from coevo.errors import RunDirError
 from coevo.ga import GA
-from coevo.bus.messages import PolicyUpdate
 from coevo.policy.rules import RuleSet
-from coevo.runs.layout import RunPaths, WorkerPaths, read_json, read_jsonl, read_store
+from coevo.runs.layout import RunPaths, WorkerPaths, read_jsonl, read_store
 from coevo.tasks import DEFAULT_TASK, get_task
 
 __all__ = ["WorkerReplay", "replay"]
