@@ -184,6 +184,38 @@ def test_a_killed_broker_loses_nothing_once_restarted(tmp_path: Path) -> None:
     assert "store reloaded" in (lr.dir / "logs" / "broker.log").read_text()
 
 
+def test_pacing_holds_while_the_broker_is_down(tmp_path: Path) -> None:
+    """The router carries every token: while it is down the partners are unknown, not gone, so a worker keeps to
+    --max-lead (here 1: a worker finishes at most 2 generations more than any partner) and the run goes on once
+    the broker is back."""
+    ga = GAConfig(generations=200, population=8, episodes=20, best_episodes=20, initial_rules=8)
+    lr = _local_run(tmp_path, "outage", ga=ga, seed=5)
+    assert lr.settings.max_lead == 1
+    lr.start(resume=False)
+    worst, down = 0, 8.0
+    try:
+        poll(lambda: min(_curve_len(lr, b) for b in Behaviour) >= 3, 120, "three generations each")
+        assert lr.broker is not None
+        lr.broker.send_signal(signal.SIGKILL)
+        lr.broker.wait()
+        at_kill = {b: _curve_len(lr, b) for b in Behaviour}
+        end = time.monotonic() + down
+        while time.monotonic() < end:
+            first = {b: _curve_len(lr, b) for b in Behaviour}
+            second = {b: _curve_len(lr, b) for b in Behaviour}  # read after: a lead is never overstated
+            worst = max(worst, max(first.values()) - min(second.values()))
+            time.sleep(0.05)
+        during = {b: _curve_len(lr, b) - at_kill[b] for b in Behaviour}
+        lr.start_broker()
+        again = {b: _curve_len(lr, b) for b in Behaviour}
+        poll(lambda: all(_curve_len(lr, b) >= again[b] + 3 for b in Behaviour), 120, "every worker going on after")
+    finally:
+        lr.end_all()
+    assert worst <= 2, f"a worker led by {worst} generations while the broker was down ({during} done meanwhile)"
+    log = (lr.dir / "logs" / "worker-executive.log").read_text()
+    assert "unknown, not gone" in log
+
+
 def test_a_whole_run_killed_at_once_continues_with_run_resume(tmp_path: Path) -> None:
     args = ["--regime", "independent", "--run", "crash", "--root", str(tmp_path), "--generations", "30", *SMALL,
             "--measure-epochs", "2", "--quiet"]

@@ -89,9 +89,11 @@ class Broker:
             except zenoh.ZError as exc:  # the session is closing
                 log.debug("broker token not changed: %s", exc)
                 return
-            self._token, self._token_key = token, want
-        log.log(logging.ERROR if want == keys.BROKER_DEGRADED else logging.WARNING,
-                "broker token now %s", want)
+            before, self._token, self._token_key = self._token_key, token, want
+        if want == keys.BROKER_DEGRADED:
+            log.error("store degraded: token %s instead of %s (workers stop counting on it)", want, keys.BROKER)
+        elif before:
+            log.warning("store writes again: token %s back", want)
 
     def __exit__(self, *exc: object) -> None:
         self.close()
