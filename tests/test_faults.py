@@ -111,6 +111,40 @@ def test_a_damaged_or_foreign_checkpoint_is_refused_by_name(tmp_path: Path) -> N
         load_checkpoint(path, ident)
 
 
+def test_a_damaged_or_removed_checkpoint_never_leads_to_a_fresh_start_that_reuses_versions(broker, tmp_path: Path) -> None:
+    endpoint, _ = broker
+    out = tmp_path / "w"
+    args = ["worker", "--behaviour", "executive", "--regime", "independent", "--run", "ck", "--connect", endpoint,
+            "--generations", "2", *SMALL, "--max-lead", "off", "--final-sync", "5", "--out", str(out)]
+    first = coevo_proc(*args, log=tmp_path / "w.log")
+    assert first.wait(120) == 0, (tmp_path / "w.log").read_text()
+    logs = {n: (out / n).read_bytes() for n in WorkerPaths.LOGS}
+    n = len(logs["published.jsonl"].splitlines())
+    assert n >= 1
+    ckpt = out / CHECKPOINT
+    good = ckpt.read_bytes()
+    damaged = bytearray(good)
+    damaged[-5] ^= 0xFF
+
+    def resume() -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-m", "coevo", *args, "--resume"], capture_output=True, text=True,
+                              timeout=120)
+
+    for harm, what in ((lambda: ckpt.write_bytes(bytes(damaged)), "damaged (CRC mismatch)"),
+                       (lambda: ckpt.unlink(), "holds logs but no checkpoint")):
+        harm()
+        r = resume()
+        assert r.returncode == 2 and what in r.stderr and "Traceback" not in r.stderr, r.stderr
+        err = r.stderr.strip()
+        assert "\n" not in err and err.startswith("RunDirError: ")
+        assert f"published versions 1..{n}" in err and "coevo run --settings" in err and "move it away" not in err
+        assert {k: (out / k).read_bytes() for k in WorkerPaths.LOGS} == logs  # nothing cut, nothing republished
+    ckpt.write_bytes(good)  # the advice: an intact checkpoint put back
+    r = resume()
+    assert r.returncode == 0, r.stderr
+    assert (out / "published.jsonl").read_bytes() == logs["published.jsonl"]
+
+
 def test_worker_directory_rules_fail_before_connecting(tmp_path: Path) -> None:
     base = [sys.executable, "-m", "coevo", "worker", "--behaviour", "tracking", "--regime", "mutual", "--run", "x",
             "--connect", "tcp/127.0.0.1:9", "--connect-timeout", "1", "--out", str(tmp_path / "w")]
