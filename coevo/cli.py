@@ -244,6 +244,14 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------- the parser
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a bad flag or value is one line ``ConfigError: ...`` naming it (status 2), like every other
+    bad input, instead of the usage followed by the error."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(EXIT_ERROR, f"ConfigError: {self.prog}: {message} (see {self.prog} --help)\n")
+
+
 def _add_run_settings(p: argparse.ArgumentParser, *, defaults_note: bool = True) -> None:
     from coevo.tasks import TASKS
 
@@ -257,7 +265,7 @@ def _add_run_settings(p: argparse.ArgumentParser, *, defaults_note: bool = True)
 def build_parser() -> argparse.ArgumentParser:
     from coevo.bus.session import add_connection_args
 
-    parser = argparse.ArgumentParser(prog="coevo", description="Co-evolve robot behaviours with SAMUEL-style rule GAs.")
+    parser = _Parser(prog="coevo", description="Co-evolve robot behaviours with SAMUEL-style rule GAs.")
     parser.add_argument("--log-level", default="WARNING", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     behaviours = list(registered())
@@ -275,7 +283,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--docking", help="Docking rule file (for --behaviour executive)")
     p.add_argument("--seed-policy", help="start the population from this rule file instead of the behaviour's default (or random) rules")
     p.add_argument("--history", metavar="RUN_DIR", help="executive: adopt the Tracking/Docking policies stored in a finished run, in step")
-    p.add_argument("--rate", type=positive_float_arg(), default=1.0,
+    p.add_argument("--rate", type=positive_float_arg(maximum=1e6), default=1.0,
                    help="with --history: partner generations per executive generation (default 1)")
     p.add_argument("--measure-epochs", type=count_arg(1, 1_000_000), default=100, help="fresh epochs for the final measures")
     p.add_argument("--quiet", action="store_true", help="no progress display")
@@ -382,7 +390,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="seconds without a heartbeat before a live worker counts as stalled (default 3; workers beat every second)")
     p.add_argument("--every", type=positive_float_arg(maximum=3600), default=0.5,
                    help="refresh period in seconds (default 0.5; changes show at once)")
-    p.add_argument("--duration", type=positive_float_arg(), help="stop after this many seconds (default: until Ctrl-C)")
+    p.add_argument("--duration", type=positive_float_arg(maximum=1e7), help="stop after this many seconds (default: until Ctrl-C)")
     add_connection_args(p)
     p.set_defaults(func=cmd_status)
     return parser
