@@ -61,8 +61,9 @@ def _curve_len(lr: LocalRun, b: Behaviour) -> int:
     return len(f.read_text().splitlines()) if f.exists() else 0
 
 
-def _local_run(tmp_path: Path, run: str, ga: GAConfig = MID, seed: int = 3) -> LocalRun:
-    lr = LocalRun(RunSettings.make(run=run, regime="mutual", ga=ga, seed=seed), root=tmp_path, log_level="INFO")
+def _local_run(tmp_path: Path, run: str, ga: GAConfig = MID, seed: int = 3, max_lead: int | None = 1) -> LocalRun:
+    lr = LocalRun(RunSettings.make(run=run, regime="mutual", ga=ga, seed=seed, max_lead=max_lead), root=tmp_path,
+                  log_level="INFO")
     lr.create()
     return lr
 
@@ -192,7 +193,9 @@ def test_a_killed_worker_shows_dead_within_a_second_the_others_go_on_and_it_resu
 # ---------------------------------------------------------------------------- broker death
 def test_a_killed_broker_loses_nothing_once_restarted(tmp_path: Path) -> None:
     ga = GAConfig(generations=40, population=8, episodes=20, best_episodes=20, initial_rules=8)
-    lr = _local_run(tmp_path, "nobroker", ga=ga, seed=8)
+    # Unpaced: with pacing, workers hold at --max-lead while the broker is down (the next test); here they must
+    # publish versions the dead broker never hears.
+    lr = _local_run(tmp_path, "nobroker", ga=ga, seed=8, max_lead=None)
     lr.start(resume=False)
     try:
         poll(lambda: min(_curve_len(lr, b) for b in Behaviour) >= 3, 120, "three generations each")
