@@ -125,8 +125,10 @@ def cmd_router(args: argparse.Namespace) -> int:
 
 def cmd_broker(args: argparse.Namespace) -> int:
     from coevo.broker.server import serve_broker
+    from coevo.broker.store import Quota
 
-    return serve_broker(args, data_dir=Path(args.data_dir), inbox_bytes=int(args.inbox_mb * (1 << 20)), open_runs=args.open)
+    return serve_broker(args, data_dir=Path(args.data_dir), inbox_bytes=int(args.inbox_mb * (1 << 20)), open_runs=args.open,
+                        quota=Quota(runs=args.quota_runs, policies=args.quota_policies, bytes=int(args.quota_mb * (1 << 20))))
 
 
 def _run_key(flag: str | None, settings: Any, base: Path | None) -> Any:
@@ -285,6 +287,14 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------- the parser
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a bad flag or value is one line ``ConfigError: ...`` naming it (status 2), like every other
+    bad input, instead of the usage followed by the error."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(EXIT_ERROR, f"ConfigError: {self.prog}: {message} (see {self.prog} --help)\n")
+
+
 def _add_run_settings(p: argparse.ArgumentParser, *, defaults_note: bool = True) -> None:
     from coevo.tasks import TASKS
 
@@ -298,7 +308,7 @@ def _add_run_settings(p: argparse.ArgumentParser, *, defaults_note: bool = True)
 def build_parser() -> argparse.ArgumentParser:
     from coevo.bus.session import add_connection_args
 
-    parser = argparse.ArgumentParser(prog="coevo", description="Co-evolve robot behaviours with SAMUEL-style rule GAs.")
+    parser = _Parser(prog="coevo", description="Co-evolve robot behaviours with SAMUEL-style rule GAs.")
     parser.add_argument("--log-level", default="WARNING", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     behaviours = list(registered())
@@ -318,7 +328,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--docking", help="Docking rule file (for --behaviour executive)")
     p.add_argument("--seed-policy", help="start the population from this rule file instead of the behaviour's default (or random) rules")
     p.add_argument("--history", metavar="RUN_DIR", help="executive: adopt the Tracking/Docking policies stored in a finished run, in step")
-    p.add_argument("--rate", type=positive_float_arg(), default=1.0,
+    p.add_argument("--rate", type=positive_float_arg(maximum=1e6), default=1.0,
                    help="with --history: partner generations per executive generation (default 1)")
     p.add_argument("--measure-epochs", type=count_arg(1, 1_000_000), default=100, help="fresh epochs for the final measures")
     p.add_argument("--quiet", action="store_true", help="no progress display")
@@ -345,6 +355,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--open", action="store_true",
                    help="also store runs it holds no key for (DATA_DIR/RUN/secret.key), unauthenticated; "
                         "default: refuse them and count 'unauthenticated'")
+    p.add_argument("--quota-runs", type=count_arg(1, 1_000_000), default=32,
+                   help="runs the store takes policies for since the broker started (default 32); beyond: refused, counted as quota")
+    p.add_argument("--quota-policies", type=count_arg(1, 10**9), default=10_000,
+                   help="policies stored per run at most (default 10000; the report's parameters publish at most 150)")
+    p.add_argument("--quota-mb", type=positive_float_arg(maximum=1 << 20), default=64.0,
+                   help="bytes on disk per run at most, in MB (default 64: 10000 of the largest policies)")
     p.set_defaults(func=cmd_broker)
 
     p = sub.add_parser("router", help="a plain Zenoh router, no store: another site's meeting point (--connect to the broker)")
@@ -437,7 +453,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="seconds without a heartbeat before a live worker counts as stalled (default 3; workers beat every second)")
     p.add_argument("--every", type=positive_float_arg(maximum=3600), default=0.5,
                    help="refresh period in seconds (default 0.5; changes show at once)")
-    p.add_argument("--duration", type=positive_float_arg(), help="stop after this many seconds (default: until Ctrl-C)")
+    p.add_argument("--duration", type=positive_float_arg(maximum=1e7), help="stop after this many seconds (default: until Ctrl-C)")
     p.add_argument("--key-file", metavar="FILE", help="the run's key: show only authenticated heartbeats (default: unverified)")
     add_connection_args(p)
     p.set_defaults(func=cmd_status)

@@ -61,8 +61,9 @@ def _curve_len(lr: LocalRun, b: Behaviour) -> int:
     return len(f.read_text().splitlines()) if f.exists() else 0
 
 
-def _local_run(tmp_path: Path, run: str, ga: GAConfig = MID, seed: int = 3) -> LocalRun:
-    lr = LocalRun(RunSettings.make(run=run, regime="mutual", ga=ga, seed=seed), root=tmp_path, log_level="INFO")
+def _local_run(tmp_path: Path, run: str, ga: GAConfig = MID, seed: int = 3, max_lead: int | None = 1) -> LocalRun:
+    lr = LocalRun(RunSettings.make(run=run, regime="mutual", ga=ga, seed=seed, max_lead=max_lead), root=tmp_path,
+                  log_level="INFO")
     lr.create()
     return lr
 
@@ -109,6 +110,40 @@ def test_a_damaged_or_foreign_checkpoint_is_refused_by_name(tmp_path: Path) -> N
     path.write_bytes(b"\x00garbage")
     with pytest.raises(RunDirError, match="cannot be read"):
         load_checkpoint(path, ident)
+
+
+def test_a_damaged_or_removed_checkpoint_never_leads_to_a_fresh_start_that_reuses_versions(broker, tmp_path: Path) -> None:
+    endpoint, _ = broker
+    out = tmp_path / "w"
+    args = ["worker", "--behaviour", "executive", "--regime", "independent", "--run", "ck", "--connect", endpoint,
+            "--generations", "2", *SMALL, "--max-lead", "off", "--final-sync", "5", "--out", str(out)]
+    first = coevo_proc(*args, log=tmp_path / "w.log")
+    assert first.wait(120) == 0, (tmp_path / "w.log").read_text()
+    logs = {n: (out / n).read_bytes() for n in WorkerPaths.LOGS}
+    n = len(logs["published.jsonl"].splitlines())
+    assert n >= 1
+    ckpt = out / CHECKPOINT
+    good = ckpt.read_bytes()
+    damaged = bytearray(good)
+    damaged[-5] ^= 0xFF
+
+    def resume() -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-m", "coevo", *args, "--resume"], capture_output=True, text=True,
+                              timeout=120)
+
+    for harm, what in ((lambda: ckpt.write_bytes(bytes(damaged)), "damaged (CRC mismatch)"),
+                       (lambda: ckpt.unlink(), "holds logs but no checkpoint")):
+        harm()
+        r = resume()
+        assert r.returncode == 2 and what in r.stderr and "Traceback" not in r.stderr, r.stderr
+        err = r.stderr.strip()
+        assert "\n" not in err and err.startswith("RunDirError: ")
+        assert f"published versions 1..{n}" in err and "coevo run --settings" in err and "move it away" not in err
+        assert {k: (out / k).read_bytes() for k in WorkerPaths.LOGS} == logs  # nothing cut, nothing republished
+    ckpt.write_bytes(good)  # the advice: an intact checkpoint put back
+    r = resume()
+    assert r.returncode == 0, r.stderr
+    assert (out / "published.jsonl").read_bytes() == logs["published.jsonl"]
 
 
 def test_worker_directory_rules_fail_before_connecting(tmp_path: Path) -> None:
@@ -158,7 +193,9 @@ def test_a_killed_worker_shows_dead_within_a_second_the_others_go_on_and_it_resu
 # ---------------------------------------------------------------------------- broker death
 def test_a_killed_broker_loses_nothing_once_restarted(tmp_path: Path) -> None:
     ga = GAConfig(generations=40, population=8, episodes=20, best_episodes=20, initial_rules=8)
-    lr = _local_run(tmp_path, "nobroker", ga=ga, seed=8)
+    # Unpaced: with pacing, workers hold at --max-lead while the broker is down (the next test); here they must
+    # publish versions the dead broker never hears.
+    lr = _local_run(tmp_path, "nobroker", ga=ga, seed=8, max_lead=None)
     lr.start(resume=False)
     try:
         poll(lambda: min(_curve_len(lr, b) for b in Behaviour) >= 3, 120, "three generations each")
@@ -182,6 +219,38 @@ def test_a_killed_broker_loses_nothing_once_restarted(tmp_path: Path) -> None:
     republished = sum(json.loads((lr.worker_dir(b) / "done.json").read_text())["republished"] for b in Behaviour)
     assert republished >= len(unheard)  # what the dead broker missed came again, and is in the store (check above)
     assert "store reloaded" in (lr.dir / "logs" / "broker.log").read_text()
+
+
+def test_pacing_holds_while_the_broker_is_down(tmp_path: Path) -> None:
+    """The router carries every token: while it is down the partners are unknown, not gone, so a worker keeps to
+    --max-lead (here 1: a worker finishes at most 2 generations more than any partner) and the run goes on once
+    the broker is back."""
+    ga = GAConfig(generations=200, population=8, episodes=20, best_episodes=20, initial_rules=8)
+    lr = _local_run(tmp_path, "outage", ga=ga, seed=5)
+    assert lr.settings.max_lead == 1
+    lr.start(resume=False)
+    worst, down = 0, 8.0
+    try:
+        poll(lambda: min(_curve_len(lr, b) for b in Behaviour) >= 3, 120, "three generations each")
+        assert lr.broker is not None
+        lr.broker.send_signal(signal.SIGKILL)
+        lr.broker.wait()
+        at_kill = {b: _curve_len(lr, b) for b in Behaviour}
+        end = time.monotonic() + down
+        while time.monotonic() < end:
+            first = {b: _curve_len(lr, b) for b in Behaviour}
+            second = {b: _curve_len(lr, b) for b in Behaviour}  # read after: a lead is never overstated
+            worst = max(worst, max(first.values()) - min(second.values()))
+            time.sleep(0.05)
+        during = {b: _curve_len(lr, b) - at_kill[b] for b in Behaviour}
+        lr.start_broker()
+        again = {b: _curve_len(lr, b) for b in Behaviour}
+        poll(lambda: all(_curve_len(lr, b) >= again[b] + 3 for b in Behaviour), 120, "every worker going on after")
+    finally:
+        lr.end_all()
+    assert worst <= 2, f"a worker led by {worst} generations while the broker was down ({during} done meanwhile)"
+    log = (lr.dir / "logs" / "worker-executive.log").read_text()
+    assert "unknown, not gone" in log
 
 
 def test_a_whole_run_killed_at_once_continues_with_run_resume(tmp_path: Path) -> None:

@@ -12,8 +12,18 @@ from coevo.errors import ConfigError
 from coevo.experiments.earl.qlearning import QConfig
 from coevo.experiments.earl.td_command import add_td_arguments, specs_from_args
 from coevo.experiments.earl.td_tasks import (
-    ENCODERS, Encoder, HashedQ, TDSpec, default_checkpoints, make_env, measure_policy, robot_steps_of, rules_policy,
-    run_ga, run_task, run_td,
+    ENCODERS,
+    Encoder,
+    HashedQ,
+    TDSpec,
+    default_checkpoints,
+    make_env,
+    measure_policy,
+    robot_steps_of,
+    rules_policy,
+    run_ga,
+    run_task,
+    run_td,
 )
 
 # --- encoders and the table ------------------------------------------------------------------

@@ -13,6 +13,13 @@ the logs agree with the restored state: a replay reproduces the whole run.
 The file is written atomically (:func:`coevo.runs.layout.write_bytes`) and carries a
 CRC-32 of its body, so a crash mid-write leaves the previous checkpoint intact and
 a damaged file is refused with its name rather than half-read.
+
+A worker writes its first checkpoint before its first generation, so a worker
+directory whose logs hold anything but which has no checkpoint lost it.  Neither
+that nor a damaged checkpoint is ever answered by starting afresh
+(:func:`resume_state`): a fresh start cuts the logs and publishes new rules under
+version numbers the partners and the store already hold.  The error says what
+keeps the logs instead.
 """
 
 from __future__ import annotations
@@ -24,9 +31,9 @@ from typing import Any
 import msgpack
 
 from coevo.errors import RunDirError
-from coevo.runs.layout import write_bytes
+from coevo.runs.layout import WorkerPaths, write_bytes
 
-__all__ = ["FORMAT", "save_checkpoint", "load_checkpoint", "truncate_log"]
+__all__ = ["FORMAT", "save_checkpoint", "load_checkpoint", "resume_state", "truncate_log"]
 
 FORMAT = "coevo-checkpoint/1"
 
@@ -38,8 +45,9 @@ def save_checkpoint(path: Path, ident: dict[str, Any], state: dict[str, Any]) ->
                                           use_bin_type=True))
 
 
-def load_checkpoint(path: Path, ident: dict[str, Any]) -> dict[str, Any] | None:
-    """The state saved at ``path`` (None if there is none); refuses a damaged or foreign file."""
+def load_checkpoint(path: Path, ident: dict[str, Any], *, advice: str = "") -> dict[str, Any] | None:
+    """The state saved at ``path`` (None if there is none); refuses a damaged or foreign file (a damaged one
+    with ``advice`` appended)."""
     path = Path(path)
     if not path.exists():
         return None
@@ -48,18 +56,44 @@ def load_checkpoint(path: Path, ident: dict[str, Any]) -> dict[str, Any] | None:
         body = outer["body"]
         fmt, saved, crc = outer["format"], outer["ident"], outer["crc32"]
     except (OSError, msgpack.UnpackException, ValueError, TypeError, KeyError) as exc:
-        raise RunDirError(f"checkpoint {str(path)!r} cannot be read ({type(exc).__name__}: {exc}); "
-                          "move it away to start this worker afresh") from None
+        raise RunDirError(f"checkpoint {str(path)!r} cannot be read ({type(exc).__name__}: {exc}){advice}") from None
     if fmt != FORMAT:
         raise RunDirError(f"checkpoint {str(path)!r} has format {fmt!r}; this coevo reads {FORMAT!r}")
     if zlib.crc32(body) != crc:
-        raise RunDirError(f"checkpoint {str(path)!r} is damaged (CRC mismatch); move it away to start this worker afresh")
+        raise RunDirError(f"checkpoint {str(path)!r} is damaged (CRC mismatch){advice}")
     if saved != ident:
         diff = ", ".join(f"{k} {saved.get(k)!r} (asked: {ident.get(k)!r})" for k in sorted(set(saved) | set(ident))
                          if saved.get(k) != ident.get(k))
         raise RunDirError(f"checkpoint {str(path)!r} belongs to another worker: {diff}")
     state: dict[str, Any] = msgpack.unpackb(body, raw=False, strict_map_key=False)
     return state
+
+
+def resume_state(paths: WorkerPaths, ident: dict[str, Any]) -> dict[str, Any] | None:
+    """The checkpoint to resume the worker in ``paths`` from; None for a fresh start, which only a directory
+    with empty logs gets.  A damaged, unreadable or missing checkpoint beside logs is a RunDirError saying
+    what to do that keeps them."""
+    state = load_checkpoint(paths.checkpoint, ident, advice=f". {_keep_advice(paths)}")
+    if state is None and any(f.exists() and f.stat().st_size for f in (paths.dir / n for n in WorkerPaths.LOGS)):
+        raise RunDirError(f"worker directory {str(paths.dir)!r} holds logs but no checkpoint ({paths.checkpoint.name}: "
+                          f"it was written before the first generation, so it was removed). {_keep_advice(paths)}")
+    return state
+
+
+def _keep_advice(paths: WorkerPaths) -> str:
+    """What to do about a worker that cannot be resumed, keeping its logs (never: start it afresh in place)."""
+    versions = 0
+    if paths.published.exists():
+        versions = sum(1 for line in paths.published.read_bytes().splitlines() if line.strip())
+    keep = (f"Not resumed, nothing changed. Do not start this worker afresh in {str(paths.dir)!r}: that cuts its logs")
+    if versions:
+        return (f"{keep}, and it has published versions 1..{versions} (published.jsonl) that its partners and the "
+                "store may hold: a fresh start would publish different rules under the same numbers. To go on, put "
+                f"back an intact {paths.checkpoint.name} (a backup) and --resume; otherwise keep this run as it is "
+                "(coevo check and coevo replay read its logs) and continue the experiment as a new run: "
+                "coevo run --settings RUN_DIR/run.json --run NEW_ID")
+    return (f"{keep}. It has published no version yet, so it can start afresh elsewhere: move the directory "
+            f"aside (its logs stay there) and --resume, or put back an intact {paths.checkpoint.name} and --resume")
 
 
 def truncate_log(path: Path, size: int) -> None:

@@ -10,12 +10,21 @@ with a lead of 1 generation)* restores the report's setting without making the
 run synchronous: each worker still runs at its own pace and adopts whatever
 arrived, but before starting generation ``g+1`` it waits until every partner it
 models has reported finishing generation ``g - max_lead`` (or finished its run,
-or is absent).  A partner is absent from the moment its liveliness token goes
-(it died, or the router between us did), when it has shown neither a token nor a
-heartbeat within ``grace`` seconds of this worker's start (it finished before this
-worker was restarted, or was never started), and after ``wait_limit`` seconds of
-waiting for one that stopped reporting: a dead partner must not stall the others.  It is waited for again once it is back (a resumed worker),
-so the run closes up again behind it.  Progress is read from the partners' status
+or is absent).  A partner is absent once its liveliness token has been gone for
+``settle`` seconds while the broker is up (it died), when it has shown neither a
+token nor a heartbeat within ``grace`` seconds of this worker's start (it finished
+before this worker was restarted, or was never started), and after ``wait_limit``
+seconds of waiting for one that stopped reporting: a dead partner must not stall
+the others.  It is waited for again once it is back (a resumed worker), so the run
+closes up again behind it.
+
+A broker outage is not a death: the broker is the router that carries every
+token, so when it goes, every partner's token goes with it at once.  While a
+broker was seen and none is present now (neither ``coevo/_broker`` nor
+``coevo/_broker/degraded``), partners whose tokens went are *unknown*, not gone:
+the worker keeps to ``max_lead`` and waits for them, up to ``wait_limit``, as for
+any partner that stopped reporting.  ``settle`` covers the moment between the
+partners' tokens and the broker's going, which arrive in either order.  Progress is read from the partners' status
 heartbeats, kept in rings inside Zenoh (no Python runs per heartbeat, so a flood
 on the status keys cannot slow the worker), so pacing needs nothing beyond what
 status already publishes.  While it waits, the worker
@@ -61,24 +70,39 @@ class Pacer:
     """Follows the partners' heartbeats and liveliness and holds a worker back when it is too far ahead."""
 
     def __init__(self, session: Any, run: str, partners: Iterable[str], *, max_lead: int | None,
-                 wait_limit: float = 120.0, grace: float = 10.0) -> None:
+                 wait_limit: float = 120.0, grace: float = 10.0, settle: float = 0.5) -> None:
         self.run = run
         self.partners = tuple(partners)
         self.max_lead = max_lead
         self.wait_limit = wait_limit
         self.grace = grace
+        self.settle = settle
         self.waited = 0.0
         self._t0 = time.monotonic()
         self._seen: set[str] = set()
         self._progress: dict[str, int] = {b: 0 for b in self.partners}
         self._finished: set[str] = set()
         self._absent: set[str] = set()  # stopped reporting (wait_limit passed): back with a heartbeat
-        self._gone: set[str] = set()  # its token went (dead, or cut off): back only with a token
+        self._gone: dict[str, float] = {}  # its token went (dead, or cut off) -> when: back only with a token
+        self._brokers: set[str] = set()  # the broker tokens present (up or degraded)
+        self._broker_seen = False
+        self._outage_noted = False
         self._live: dict[str, set[str]] = {b: set() for b in self.partners}
         self._lock = threading.Lock()
         on = max_lead is not None and bool(self.partners)
         self._subs = [ring_subscriber(session, keys.status(run, b), 64) for b in self.partners] if on else []
-        self._tokens = [session.liveliness().declare_subscriber(keys.alive(run), self._on_token, history=True)] if on else []
+        self._tokens = [session.liveliness().declare_subscriber(k, cb, history=True)
+                        for k, cb in ((keys.alive(run), self._on_token), (keys.BROKER, self._on_broker),
+                                      (keys.BROKER_DEGRADED, self._on_broker))] if on else []
+
+    def _on_broker(self, sample: Any) -> None:
+        key = str(sample.key_expr)
+        with self._lock:
+            if is_put(sample):
+                self._brokers.add(key)
+                self._broker_seen = True
+            else:
+                self._brokers.discard(key)
 
     def _on_token(self, sample: Any) -> None:
         parts = keys.parse(str(sample.key_expr))
@@ -88,13 +112,13 @@ class Pacer:
         with self._lock:
             if is_put(sample):
                 self._live[beh].add(parts.get("worker", ""))
-                self._gone.discard(beh)
+                self._gone.pop(beh, None)
                 self._absent.discard(beh)
                 self._seen.add(beh)
             else:
                 self._live[beh].discard(parts.get("worker", ""))
                 if not self._live[beh]:
-                    self._gone.add(beh)  # a heartbeat still in the ring must not bring it back
+                    self._gone[beh] = time.monotonic()  # a heartbeat still in the ring must not bring it back
 
     def _poll(self) -> None:
         for sub in self._subs:
@@ -109,12 +133,31 @@ class Pacer:
                     self._absent.discard(msg.behaviour)
                     self._seen.add(msg.behaviour)
 
-    def _behind(self, need: int) -> list[str]:
-        late = time.monotonic() - self._t0 > self.grace
+    @property
+    def outage(self) -> bool:
+        """A broker was seen and none is present: partners' tokens say nothing now."""
         with self._lock:
-            return [b for b in self.partners
-                    if b not in self._finished and b not in self._absent and b not in self._gone and self._progress[b] < need
-                    and not (late and b not in self._seen)]
+            return self._broker_seen and not self._brokers
+
+    def _dead(self, b: str, now: float, outage: bool) -> bool:
+        went = self._gone.get(b)
+        return went is not None and not outage and now - went >= self.settle
+
+    def _behind(self, need: int) -> list[str]:
+        now = time.monotonic()
+        late = now - self._t0 > self.grace
+        outage = self.outage
+        with self._lock:
+            behind = [b for b in self.partners
+                      if b not in self._finished and b not in self._absent and not self._dead(b, now, outage)
+                      and self._progress[b] < need and not (late and b not in self._seen)]
+        if outage and behind and not self._outage_noted:
+            log.warning("pacing: the broker is down; partners %s unknown, not gone: waiting for them (up to %.0f s)",
+                        behind, self.wait_limit)
+            self._outage_noted = True
+        elif not outage:
+            self._outage_noted = False  # once per outage
+        return behind
 
     def wait(self, completed: int, stop: threading.Event, tick: Callable[[], None] | None = None,
              tick_every: float = 1.0) -> float:

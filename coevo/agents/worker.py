@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from coevo import __version__
-from coevo.agents.checkpoint import load_checkpoint, save_checkpoint, truncate_log
+from coevo.agents.checkpoint import resume_state, save_checkpoint, truncate_log
 from coevo.agents.inbox import INBOX, Inbox
 from coevo.agents.models import PartnerModels
 from coevo.agents.outbox import BrokerWatch, Outbox
@@ -163,7 +163,7 @@ class Worker:
                 raise ConfigError(f"--resume of {str(p.dir)!r} with other settings: {'; '.join(diff)}")
         else:
             write_json(p.worker_json, meta)
-        state = load_checkpoint(p.checkpoint, self._ident())
+        state = resume_state(p, self._ident())
         sizes = state["worker"]["log_sizes"] if state else {n: 0 for n in WorkerPaths.LOGS}
         for f in logs:
             truncate_log(f, int(sizes[f.name]))
@@ -207,6 +207,8 @@ class Worker:
         state = self._prepare()
         ga = GA(self.task, self.behaviour, world=self.world, ga=self.ga_cfg, seed=self.seed)
         paced = self._restore(ga, state)
+        if state is None:  # generation 0: from now on, logs without a checkpoint mean it was removed
+            self._checkpoint(ga, paced)
         curve: list[GenerationReport] = []
         p = self.paths
         if self.gate.open:

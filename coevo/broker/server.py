@@ -7,9 +7,15 @@ queues, so a slow disk never stalls the connection).  The inbox holds at most
 ``inbox_bytes`` bytes: a flood beyond that is dropped unread and counted
 (``flood``), and the workers' store sync republishes any real policy that was
 among it.  Queryables on ``coevo/*/store/{latest,history,versions}/*`` answer from
-memory.  Every ``status_every`` seconds the broker publishes, for each run it has
-heard of, a :class:`~coevo.bus.messages.BrokerStatus` (policies stored, messages
-rejected by reason) on ``coevo/RUN/broker``.
+memory, which holds only what was fsynced (:mod:`coevo.broker.store`).  Every
+``status_every`` seconds the broker publishes, for each run it has heard of, a
+:class:`~coevo.bus.messages.BrokerStatus` (policies stored, messages rejected by
+reason, and whether the store is degraded) on ``coevo/RUN/broker``.
+
+The broker holds one liveliness token: ``coevo/_broker`` while its store writes,
+``coevo/_broker/degraded`` while a write error stands.  Workers follow the first
+only, so they stop asking a degraded store for confirmations (and keep their
+versions for later) until it writes again; ``coevo status`` shows *degraded*.
 
 Trust (:class:`Keyring`): the broker learns a run's key from its own data
 directory, ``DATA_DIR/RUN/secret.key`` (``coevo run`` writes it there; on other
@@ -35,7 +41,7 @@ from typing import Any
 import msgpack
 import zenoh
 
-from coevo.broker.store import PolicyStore
+from coevo.broker.store import PolicyStore, Quota
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.messages import MAX_BYTES, BrokerStatus, PolicyUpdate
@@ -117,9 +123,9 @@ class Broker:
     """Router + store; use as a context manager, or call :meth:`serve_forever`."""
 
     def __init__(self, conf: Any, data_dir: Path, *, inbox_bytes: int = 64 << 20, status_every: float = 2.0,
-                 open_runs: bool = False) -> None:
+                 open_runs: bool = False, quota: Quota | None = None) -> None:
         self.conf = conf
-        self.store = PolicyStore(Path(data_dir))
+        self.store = PolicyStore(Path(data_dir), quota=quota)
         self.keyring = Keyring(Path(data_dir), open_runs=open_runs)
         self.inbox_bytes = inbox_bytes
         self.status_every = status_every
@@ -130,6 +136,9 @@ class Broker:
         self._session_cm: Any = None
         self._decls: list[Any] = []
         self._threads: list[threading.Thread] = []
+        self._token: Any = None
+        self._token_key = ""
+        self._token_lock = threading.Lock()
 
     def __enter__(self) -> Broker:
         self._session_cm = open_session(self.conf, what="router")
@@ -142,8 +151,27 @@ class Broker:
         self._decls.append(s.declare_subscriber(f"{keys.ROOT}/*/policy/*", self._on_policy))
         for topic in ("latest", "history", "versions"):
             self._decls.append(s.declare_queryable(f"{keys.ROOT}/*/store/{topic}/*", self._on_query))
-        self._decls.append(s.liveliness().declare_token(keys.BROKER))  # last: the store is ready
+        self._sync_token()  # last: the store is ready
         return self
+
+    def _sync_token(self) -> None:
+        """Hold ``coevo/_broker`` while the store writes, ``coevo/_broker/degraded`` while it cannot."""
+        want = keys.BROKER_DEGRADED if self.store.degraded else keys.BROKER
+        with self._token_lock:
+            if want == self._token_key or self._session_cm is None:
+                return
+            try:
+                token = self.session.liveliness().declare_token(want)
+                if self._token is not None:
+                    self._token.undeclare()
+            except zenoh.ZError as exc:  # the session is closing
+                log.debug("broker token not changed: %s", exc)
+                return
+            before, self._token, self._token_key = self._token_key, token, want
+        if want == keys.BROKER_DEGRADED:
+            log.error("store degraded: token %s instead of %s (workers stop counting on it)", want, keys.BROKER)
+        elif before:
+            log.warning("store writes again: token %s back", want)
 
     def __exit__(self, *exc: object) -> None:
         self.close()
@@ -151,6 +179,10 @@ class Broker:
     def close(self) -> None:
         if self._session_cm is None:
             return
+        with self._token_lock:
+            if self._token is not None:
+                self._decls.append(self._token)
+                self._token, self._token_key = None, ""
         for d in self._decls:
             try:
                 d.undeclare()
@@ -201,21 +233,24 @@ class Broker:
                 msg = gate.decode(key, payload)
                 if not isinstance(msg, PolicyUpdate):
                     raise MessageError("wrong_key", f"{msg.kind} message on {key!r}")
+                stored = self.store.add(msg)
             except MessageError as err:
                 self.store.reject(err, key)
                 continue
-            if self.store.add(msg):
+            if stored:
                 log.info("stored %s v%d of %s (fitness %.3f)", msg.behaviour, msg.version, msg.run, msg.fitness)
+            self._sync_token()
 
     def _report(self) -> None:
         """Publish each known run's BrokerStatus every ``status_every`` s."""
         while not self._stop.wait(self.status_every):
+            degraded = self.store.degraded
             for run, (stored, rejected, dropped) in self.store.accounts().items():
                 gate = self.keyring.gate(run) or OPEN
                 try:
                     self.session.put(keys.broker_status(run), gate.seal(BrokerStatus(
-                        run=run, stored=stored, rejected=rejected, dropped=dropped, open=gate.open, sent_at=time.time()),
-                        keys.broker_status(run)))
+                        run=run, stored=stored, rejected=rejected, dropped=dropped, open=gate.open, degraded=degraded[:500],
+                        sent_at=time.time()), keys.broker_status(run)))
                 except zenoh.ZError as exc:  # the session is closing
                     log.debug("broker status not sent: %s", exc)
                     return
@@ -249,7 +284,8 @@ def _listen(args: argparse.Namespace) -> list[str]:
     return args.listen or ["(from " + args.config + ")"]
 
 
-def serve_broker(args: argparse.Namespace, *, data_dir: Path, inbox_bytes: int, open_runs: bool = False) -> int:
+def serve_broker(args: argparse.Namespace, *, data_dir: Path, inbox_bytes: int, open_runs: bool = False,
+                 quota: Quota | None = None) -> int:
     """``coevo broker``: serve until SIGINT/SIGTERM (a clean stop at any moment, even while the store loads)."""
     listen = _listen(args)
     conf = config_from_args(args)
@@ -257,7 +293,7 @@ def serve_broker(args: argparse.Namespace, *, data_dir: Path, inbox_bytes: int, 
     if open_runs:
         log.warning("broker started with --open: runs it holds no key for are stored unauthenticated")
     try:
-        with Broker(conf, data_dir, inbox_bytes=inbox_bytes, open_runs=open_runs) as broker:
+        with Broker(conf, data_dir, inbox_bytes=inbox_bytes, open_runs=open_runs, quota=quota) as broker:
             log.info("broker listening on %s, store in %s", listen, data_dir)
             print(f"coevo broker listening on {', '.join(listen)}; store in {data_dir}", flush=True)
             broker.serve_forever()

@@ -1,58 +1,123 @@
 """The policy store: latest and full history of every published policy, per run and behaviour.
 
-It keeps everything in memory for queries and appends each accepted update to
-``<data_dir>/<run>/store/<behaviour>.jsonl`` (flushed and fsynced before it counts
-as stored), so a broker that restarts reloads what it had.  A broker killed
-mid-write leaves at most a torn last line; the reload cuts it off (that update was
-never confirmed to its worker, which publishes it again).  An update whose
-(worker, version) is already stored is a duplicate (a worker republishing) and is
-ignored.  Rejected messages are counted per run, by reason.
+It appends each accepted update to ``<data_dir>/<run>/store/<behaviour>.jsonl``,
+flushed and fsynced, and only then keeps it in memory for queries: what the
+store reports holding (``latest``, ``history``, ``versions``) is what is on disk,
+never a write that failed.  A broker that restarts reloads what it had.  A broker
+killed mid-write leaves at most a torn last line; the reload cuts it off (that
+update was never confirmed to its worker, which publishes it again).  An update
+whose (worker, version) is already stored is a duplicate (a worker republishing)
+and is ignored.  Rejected messages are counted per run, by reason.
+
+**Write errors** (a full disk, a store directory that became a file, an I/O
+error): the update is not kept, the file is cut back to its last whole line, and
+the store is *degraded* (:attr:`PolicyStore.degraded` names the file and the
+error) until a write to that file succeeds again.  It retries by itself: every
+update that arrives for that file is a new attempt (workers put their newest
+version every generation, and republish whatever the store lacks once it is up
+again), so freeing the disk heals it without a restart.
+
+**Quotas** (:class:`Quota`): run ids are plain directory names (checked before
+any path is built); a broker stores policies of at most ``runs`` runs since it
+started, each at most ``policies`` policies and ``bytes`` bytes on disk.  An
+update beyond a quota is refused and counted (``quota``), not stored.
 """
 
 from __future__ import annotations
 
+import errno
 import json
 import logging
 import os
 import threading
 from collections import Counter
+from dataclasses import dataclass
 from pathlib import Path
 
 from coevo.bus import keys
 from coevo.bus.messages import PolicyUpdate
 from coevo.bus.rejections import Rejections
-from coevo.errors import MessageError
+from coevo.errors import ConfigError, MessageError
 from coevo.runs.layout import RunPaths, read_store
 
-__all__ = ["PolicyStore"]
+__all__ = ["PolicyStore", "Quota"]
 
 log = logging.getLogger(__name__)
 
 
+@dataclass(frozen=True, kw_only=True)
+class Quota:
+    """What one broker stores at most (see the module docstring; the README's *Faults* says why these numbers).
+
+    * ``runs``: runs it stores policies for since it started (32: a broker serves a few runs at a time;
+      ``coevo run`` and ``coevo compare`` start one broker per run);
+    * ``policies``: policies per run (10,000: a run publishes at most one version per worker and
+      generation, 150 at the report's parameters);
+    * ``bytes``: bytes per run on disk (64 MB: 10,000 of the largest policies, ~5.2 KB each, fit).
+
+    So a broker's disk use is bounded by ``runs x bytes`` (2 GB) plus the runs it reloaded.
+    """
+
+    runs: int = 32
+    policies: int = 10_000
+    bytes: int = 64 << 20
+
+    def __post_init__(self) -> None:
+        for name in ("runs", "policies", "bytes"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or v < 1:
+                raise ConfigError(f"store quota {name}={v!r}: give a whole number >= 1")
+
+
 class PolicyStore:
-    def __init__(self, data_dir: Path) -> None:
+    def __init__(self, data_dir: Path, *, quota: Quota | None = None) -> None:
         self.data_dir = Path(data_dir)
+        self.quota = quota or Quota()
         self._lock = threading.Lock()
         self._history: dict[tuple[str, str], list[PolicyUpdate]] = {}
         self._seen: set[tuple[str, str, str, int]] = set()
-        self._rejected: dict[str, Rejections] = {}  # per run (the key's run chunk)
+        self._sizes: dict[tuple[str, str], int] = {}  # bytes of each store file known whole and fsynced
+        self._rejected: dict[str, Rejections] = {}  # per run (the key's run chunk), for runs reported
+        self._others = Rejections("broker (runs beyond the quota)", log)  # rejections of runs not reported
         self._dropped: Counter[str] = Counter()  # per run: dropped unread (flood)
-        self._active: set[str] = set()  # runs heard of since this broker started
+        self._active: set[str] = set()  # runs heard of since this broker started (reported every few seconds)
+        self._storing: set[str] = set()  # runs this broker stored a policy for since it started (the runs quota)
+        self._failing: dict[tuple[str, str], str] = {}  # store files whose last write failed -> the error
+        self._check_dir()
         self._load()
+
+    def _check_dir(self) -> None:
+        """Refuse a data directory that cannot hold a store, before anything listens."""
+        d = self.data_dir
+        if d.exists() and not d.is_dir():
+            raise ConfigError(f"--data-dir {str(d)!r} is a file, not a directory: give a directory for the store")
+        try:
+            d.mkdir(parents=True, exist_ok=True)
+            probe = d / f".coevo-write-test-{os.getpid()}"
+            probe.write_bytes(b"")
+            probe.unlink()
+        except OSError as exc:
+            raise ConfigError(f"--data-dir {str(d)!r} cannot hold the store: {exc.strerror or exc}") from None
 
     def _file(self, run: str, behaviour: str) -> Path:
         return RunPaths.of(self.data_dir, run).store_file(behaviour)
 
     def _load(self) -> None:
-        if not self.data_dir.exists():
-            return
         for f in sorted(self.data_dir.glob("*/store/*.jsonl")):
-            _cut_torn_tail(f)
-            damaged: list[str] = []
-            for msg in read_store(f, problems=damaged):  # damaged in the middle: keep the rest
+            if not keys.valid_id(f.parent.parent.name):
+                continue
+            try:
+                _cut_torn_tail(f)
+                damaged: list[str] = []
+                msgs = read_store(f, problems=damaged)  # damaged in the middle: keep the rest
+            except (OSError, UnicodeDecodeError) as exc:
+                log.error("store: %s cannot be read (%s); skipped", f, exc)
+                continue
+            for msg in msgs:
                 self._remember(msg)
             for problem in damaged:
                 log.warning("store: %s; skipped", problem)
+            self._sizes[(f.parent.parent.name, f.stem)] = f.stat().st_size
         if self._seen:
             log.info("store reloaded %d policies from %s", len(self._seen), self.data_dir)
 
@@ -64,29 +129,104 @@ class PolicyStore:
         self._history.setdefault((msg.run, msg.behaviour), []).append(msg)
         return True
 
-    def add(self, msg: PolicyUpdate) -> bool:
-        """Store and persist an update; False if it was a duplicate."""
+    @property
+    def degraded(self) -> str:
+        """Why the store cannot write ('' while every file's last write succeeded)."""
         with self._lock:
-            self._active.add(msg.run)
-            if not self._remember(msg):
+            return next(iter(self._failing.values()), "")
+
+    def degraded_for(self, run: str) -> str:
+        with self._lock:
+            return next((e for (r, _), e in self._failing.items() if r == run), "")
+
+    def add(self, msg: PolicyUpdate) -> bool:
+        """Persist and then keep an update; False if it was a duplicate or could not be written.
+
+        A run id that is not a plain directory name, or an update beyond a quota, is a
+        MessageError (``invalid``, ``quota``) for the caller to count.
+        """
+        if not keys.valid_id(msg.run):  # the models check it too; this guards the path below
+            raise MessageError("invalid", f"run id {msg.run!r} is not a plain directory name")
+        line = (json.dumps(msg.model_dump(mode="json"), sort_keys=True) + "\n").encode("utf-8")
+        pair = (msg.run, msg.behaviour)
+        with self._lock:
+            if (msg.run, msg.behaviour, msg.worker, msg.version) in self._seen:
+                self._active.add(msg.run)
                 return False
-            f = self._file(msg.run, msg.behaviour)
-            f.parent.mkdir(parents=True, exist_ok=True)
-            with open(f, "a", encoding="utf-8") as fh:
-                fh.write(json.dumps(msg.model_dump(mode="json"), sort_keys=True) + "\n")
-                fh.flush()
-                os.fsync(fh.fileno())
+            self._admit(msg.run, len(line))
+            self._active.add(msg.run)
+            try:
+                self._sizes[pair] = self._append(self._file(*pair), line, self._sizes.get(pair, 0))
+            except OSError as exc:
+                first = pair not in self._failing
+                self._failing[pair] = f"cannot write {self._file(*pair)}: {exc.strerror or exc}"
+                if first:
+                    log.error("store DEGRADED: %s; %s v%d not stored (retried with every update that arrives "
+                              "for it; the workers republish what the store lacks)", self._failing[pair],
+                              msg.behaviour, msg.version)
+                return False
+            if self._failing.pop(pair, None) is not None:
+                log.warning("store writes to %s work again", self._file(*pair))
+            self._storing.add(msg.run)
+            self._remember(msg)
             return True
+
+    def _admit(self, run: str, size: int) -> None:
+        """Refuse an update beyond a quota (called with the lock held)."""
+        q = self.quota
+        if run not in self._storing and len(self._storing) >= q.runs:
+            raise MessageError("quota", f"run {run!r} refused: this broker already stores {len(self._storing)} runs "
+                                        f"(quota {q.runs}; coevo broker --quota-runs)")
+        held = sum(len(h) for (r, _), h in self._history.items() if r == run)
+        if held >= q.policies:
+            raise MessageError("quota", f"run {run!r} holds {held} policies (quota {q.policies}; --quota-policies)")
+        used = sum(n for (r, _), n in self._sizes.items() if r == run)
+        if used + size > q.bytes:
+            raise MessageError("quota", f"run {run!r} holds {used} bytes, +{size} > quota {q.bytes} (--quota-mb)")
+
+    @staticmethod
+    def _append(f: Path, line: bytes, size: int) -> int:
+        """Append ``line`` to ``f`` after its first ``size`` bytes (a failed earlier write is cut off), fsynced;
+        the new size."""
+        f.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(f, os.O_WRONLY | os.O_CREAT, 0o666)
+        try:
+            have = os.fstat(fd).st_size
+            if have > size:  # a torn line of a write that failed: cut it
+                os.ftruncate(fd, size)
+            elif have < size:  # shortened behind our back: append after what is there
+                log.warning("store %s is shorter (%d bytes) than written (%d)", f, have, size)
+                size = have
+            os.lseek(fd, size, os.SEEK_SET)
+            view = memoryview(line)
+            while view:
+                n = os.write(fd, view)
+                if n <= 0:
+                    raise OSError(errno.EIO, "short write")
+                view = view[n:]
+            os.fsync(fd)
+        except OSError:
+            try:
+                os.ftruncate(fd, size)  # best effort: leave no torn line behind
+            except OSError:
+                pass  # the next append cuts it (it starts from the size known whole)
+            raise
+        finally:
+            os.close(fd)
+        return size + len(line)
 
     def reject(self, err: MessageError, key: str, *, dropped: bool = False) -> None:
         run = keys.parse(key).get("run", "?")
         with self._lock:
-            if run not in self._rejected:
+            known = run in self._rejected
+            if not known and keys.valid_id(run) and len(self._rejected) < 2 * self.quota.runs:
                 self._rejected[run] = Rejections(f"broker (run {run})", log)
-            self._active.add(run)
-            if dropped:
-                self._dropped[run] += 1
-            counter = self._rejected[run]
+                known = True
+            if known:
+                self._active.add(run)
+                if dropped:
+                    self._dropped[run] += 1
+            counter = self._rejected[run] if known else self._others
         counter.note(err, key)
 
     def rejected(self, run: str) -> dict[str, int]:
@@ -96,7 +236,7 @@ class PolicyStore:
 
     def flush_log(self) -> None:
         with self._lock:
-            counters = list(self._rejected.values())
+            counters = [*self._rejected.values(), self._others]
         for c in counters:
             c.flush()
 
@@ -109,7 +249,7 @@ class PolicyStore:
         return {r: (stored[r], self.rejected(r), dropped[r]) for r in runs}
 
     def versions(self, run: str, behaviour: str) -> dict[str, list[int]]:
-        """The versions held of each worker's policies for (run, behaviour)."""
+        """The versions held (on disk) of each worker's policies for (run, behaviour)."""
         out: dict[str, list[int]] = {}
         for m in self.history(run, behaviour):
             out.setdefault(m.worker, []).append(m.version)

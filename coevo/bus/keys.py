@@ -11,6 +11,7 @@
     coevo/<run>/store/versions/<behaviour>      broker queryable: the versions it holds, per worker
     coevo/<run>/broker                          BrokerStatus: what the broker stored and rejected
     coevo/_broker                               liveliness token of a broker with its store up
+    coevo/_broker/degraded                      liveliness token of a broker whose store cannot write
 
 Run ids and worker ids are single key chunks: letters, digits, ``_``, ``-``, ``.``.
 """
@@ -22,11 +23,12 @@ import re
 from coevo.errors import ConfigError
 from coevo.policy.schema import registered
 
-__all__ = ["ROOT", "BROKER", "check_id", "valid_id", "policy", "current", "status", "control", "alive", "store_latest", "store_history",
+__all__ = ["ROOT", "BROKER", "BROKER_DEGRADED", "check_id", "valid_id", "policy", "current", "status", "control", "alive", "store_latest", "store_history",
            "store_versions", "broker_status", "parse"]
 
 ROOT = "coevo"
 BROKER = f"{ROOT}/_broker"
+BROKER_DEGRADED = f"{BROKER}/degraded"
 _ID = re.compile(r"^[A-Za-z0-9_.-]{1,64}$")
 
 

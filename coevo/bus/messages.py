@@ -55,6 +55,7 @@ REASONS = {
     "not_roster": "a policy or status from a worker id that is not the behaviour's publisher in the run's roster",
     "bad_version": "a policy version its publisher cannot have reached: above its generation, past the run's "
                    "generations, or more versions than generations since the one held",
+    "quota": "the broker's store is full for that run (policies, bytes) or for new runs",
 }
 
 
@@ -64,7 +65,13 @@ def _known_behaviour(name: str) -> str:
     return name
 
 
-_Id = Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]{1,64}$")]
+def _plain_id(value: str) -> str:
+    if not keys.valid_id(value):  # the pattern lets "." and ".." through: not a directory name
+        raise ValueError(f"{value!r} is not a plain name")
+    return value
+
+
+_Id = Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]{1,64}$"), AfterValidator(_plain_id)]
 #: A learning behaviour's name, of any task (messages name no task: behaviour names are unique).
 BehaviourName = Annotated[str, Field(pattern=r"^[a-z0-9_]{1,32}$"), AfterValidator(_known_behaviour)]
 
@@ -73,7 +80,7 @@ class _Msg(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     schema_version: Literal[1] = SCHEMA_VERSION
-    run: Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]{1,64}$")]
+    run: _Id
     sent_at: float = Field(ge=0)
 
 
@@ -82,7 +89,7 @@ class PolicyUpdate(_Msg):
 
     kind: Literal["policy"] = "policy"
     behaviour: BehaviourName
-    worker: Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]{1,64}$")]
+    worker: _Id
     version: int = Field(ge=1)
     generation: int = Field(ge=0)
     fitness: float
@@ -141,6 +148,7 @@ class BrokerStatus(_Msg):
     stored: dict[str, int] = Field(default_factory=dict)  # behaviour -> policies held
     rejected: dict[str, int] = Field(default_factory=dict)  # reason -> count, for messages on this run's keys
     dropped: int = Field(default=0, ge=0)  # of those, dropped unread because the broker's inbox was full
+    degraded: str = Field(default="", max_length=500)  # why the store cannot write ("" while it can)
 
 
 class Control(_Msg):

@@ -7,7 +7,8 @@ heartbeats about every second, even in the middle of a generation), *dead* when
 its token is gone (its process died: seen within milliseconds on a LAN, or its
 link stayed silent for a lease), and *done* when it said so.  The broker is *up*
 while its token exists; its last :class:`~coevo.bus.messages.BrokerStatus` says what
-it stored and rejected for this run.
+it stored and rejected for this run; it is *degraded* while its store cannot write
+(it then holds ``coevo/_broker/degraded`` instead, and its status says why).
 
 Heartbeats wait in a ring inside Zenoh and are decoded when the board is read, so
 a flood on the status keys costs nothing until then and never stalls the session.
@@ -89,6 +90,7 @@ class StatusBoard:
         self.workers: dict[str, WorkerView] = {}
         self.rejected = 0  # bad messages on the status keys themselves
         self.broker_up = False
+        self.broker_degraded = False  # its degraded token is up: the store cannot write
         self.broker: BrokerStatus | None = None
         self.changed = threading.Event()
         gate = getattr(session, "gate", None)
@@ -98,6 +100,7 @@ class StatusBoard:
         self._decls = [
             session.liveliness().declare_subscriber(keys.alive(run), self._on_token, history=True),
             session.liveliness().declare_subscriber(keys.BROKER, self._on_broker, history=True),
+            session.liveliness().declare_subscriber(keys.BROKER_DEGRADED, self._on_degraded, history=True),
         ]
 
     def close(self) -> None:
@@ -160,6 +163,11 @@ class StatusBoard:
             self.broker_up = is_put(sample)
         self.changed.set()
 
+    def _on_degraded(self, sample: Any) -> None:
+        with self._lock:
+            self.broker_degraded = is_put(sample)
+        self.changed.set()
+
     def snapshot(self) -> list[dict[str, Any]]:
         self.poll()
         now = time.time()
@@ -170,9 +178,10 @@ class StatusBoard:
         self.poll()
         with self._lock:
             b = self.broker
-            return {"state": "up" if self.broker_up else "down", "open": b.open if b else False,
+            state = "up" if self.broker_up else "degraded" if self.broker_degraded else "down"
+            return {"state": state, "open": b.open if b else False,
                     "stored": dict(b.stored) if b else {}, "rejected": dict(b.rejected) if b else {},
-                    "dropped": b.dropped if b else 0}
+                    "dropped": b.dropped if b else 0, "degraded": b.degraded if b and state != "up" else ""}
 
     def json_line(self) -> str:
         workers = self.snapshot()
@@ -186,7 +195,8 @@ def _reasons(counts: dict[str, int]) -> str:
     return ", ".join(f"{r} {n}" for r, n in sorted(counts.items())) or "0"
 
 
-_STATE_STYLE = {"alive": "green", "done": "blue", "stalled": "yellow", "dead": "bold red", "up": "green", "down": "bold red"}
+_STATE_STYLE = {"alive": "green", "done": "blue", "stalled": "yellow", "dead": "bold red", "up": "green", "down": "bold red",
+                "degraded": "bold yellow"}
 
 
 def _own(measures: dict[str, float]) -> str:
@@ -207,7 +217,8 @@ def _status_rows(board: Any) -> list[tuple[str, ...]]:
                      partners, str(w["buffered"]), _reasons(w["rejected_by_reason"]), w["state"]))
     b = board.broker_view()
     stored = " ".join(f"{k[0].upper()}:{v}" for k, v in sorted(b["stored"].items())) or "-"
-    rows.append(("broker", "", "", "", f"stored {stored}", "", _reasons(b["rejected"]), b["state"]))
+    why = f" ({b['degraded']})" if b.get("degraded") else ""  # a degraded store says why: the file and the error
+    rows.append(("broker", "", "", "", f"stored {stored}{why}", "", _reasons(b["rejected"]), b["state"]))
     return rows
 
 

@@ -24,6 +24,7 @@ from coevo.policy.schema import Schema, schema
 __all__ = ["RuleSet", "MAX_RULES", "random_ruleset", "interval_width"]
 
 MAX_RULES = 64  # matching packs one rule per bit of a uint64
+_FIELDS = ("behaviour", "lo", "hi", "action", "strength")  # a rule set's whole dict form
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,6 +141,12 @@ class RuleSet:
 
     @staticmethod
     def from_dict(d: dict[str, object]) -> RuleSet:
+        if not isinstance(d, dict):
+            raise RuleSetError(f"not a rule set: expected a map, got {type(d).__name__}")
+        extra = sorted(str(k) for k in d if k not in _FIELDS)
+        if extra:  # nothing rides along inside a policy (a store would keep it, fsynced)
+            raise RuleSetError(f"rule set has unknown fields {', '.join(repr(k) for k in extra[:5])}; "
+                               f"only {', '.join(_FIELDS)}")
         try:
             behaviour = d["behaviour"]
             arrays = {k: np.asarray(d[k]) for k in ("lo", "hi", "action", "strength")}

@@ -34,7 +34,8 @@ from coevo.errors import RunDirError
 if TYPE_CHECKING:
     from coevo.bus.messages import PolicyUpdate
 
-__all__ = ["RunPaths", "WorkerPaths", "LearnPaths", "read_store", "staged_dir", "read_jsonl", "read_json", "write_bytes", "write_json",
+__all__ = ["RunPaths", "WorkerPaths", "LearnPaths", "read_store", "staged_dir", "ensure_dir", "read_jsonl", "read_json", "write_bytes",
+           "write_json",
            "write_text", "write_csv"]
 
 
@@ -272,6 +273,19 @@ def staged_dir(final: Path) -> Iterator[Path]:
     os.replace(tmp, final)
 
 
+
+
+def ensure_dir(path: Path, *, what: str) -> Path:
+    """``path`` as a directory, created if missing; a file there or a place that cannot hold one is a RunDirError
+    naming ``what`` (e.g. ``--out``) and the path."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise RunDirError(f"{what} {str(path)!r} is a file, not a directory")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RunDirError(f"{what} {str(path)!r}: cannot create the directory: {exc.strerror or exc}") from None
+    return path
 
 
 def write_bytes(path: Path, data: bytes) -> None:

@@ -50,7 +50,7 @@ REGIMES = FuelTask.regimes
 from coevo.agents.pacing import DEFAULT_MAX_LEAD
 from coevo.config import GAConfig
 from coevo.errors import ConfigError, RunDirError
-from coevo.runs.layout import LearnPaths, RunPaths, write_json
+from coevo.runs.layout import LearnPaths, RunPaths, ensure_dir, write_json
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.settings import WorldConfig
 
@@ -224,7 +224,7 @@ def prepare(out: Path, spec: CompareSpec, *, resume: bool) -> list[Replicate]:
         if not resume:
             raise RunDirError(f"--out {str(out)!r} already holds this comparison; add --resume to continue it")
     else:
-        out.mkdir(parents=True, exist_ok=True)
+        ensure_dir(out, what="--out")
         write_json(marker, {"spec": _spec_json(spec), "created": time.time()})
     todo = []
     for rep in replicates(spec):

@@ -21,6 +21,7 @@ def cmd_evolvability(args: argparse.Namespace) -> int:
     """Run the grid (or only rewrite the report of a finished one) and print the claims' verdicts."""
     from coevo.experiments.evolvability.experiment import GridResults, GridSpec, run_grid
     from coevo.experiments.evolvability.report import write_report
+    from coevo.runs.layout import ensure_dir
 
     if args.report_only:
         if not args.out:
@@ -33,6 +34,7 @@ def cmd_evolvability(args: argparse.Namespace) -> int:
                          landscapes=args.landscapes, runs=args.runs, generations=args.generations,
                          population=args.population, seed=args.seed)
     out = Path(args.out) if args.out else Path("runs") / f"evolvability-{time.strftime('%Y%m%d-%H%M%S')}"
+    ensure_dir(out, what="--out")  # before the grid runs, not after
     print(f"evolvability grid: {spec.total_runs} runs of {spec.generations} generations; output in {out}", flush=True)
     with ProgressBar("evolvability", total=1, unit="batch-generations", quiet=args.quiet) as bar:
         res = run_grid(spec, on_progress=lambda done, total: bar.update(done, total))

@@ -1,0 +1,220 @@
+"""Bad input: every flag of every command, with hostile values, ends in an exit status, never a traceback.
+
+The flags are read from :func:`coevo.cli.build_parser`, so a new flag is tried without
+touching this file.  Each command runs in this process through :func:`coevo.cli.main`
+with a base command line that stops quickly: tiny settings, an unreachable router
+(``--connect-timeout 0``), a listen address this host does not have, and, for the
+commands that would start processes or long experiments, the function doing that work
+replaced by one that raises (everything the flags are read and checked by happens before
+it).  An alarm turns a command that would still run into Ctrl-C (status 130).
+
+For every value: the exit status is 0, 1, 2 or 130 and nothing escapes ``main``.  For a
+value that is clearly bad for a number (nan, inf, 1e308, empty) the status is 2 and stderr
+is one line ``Type: message`` naming the value.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import faulthandler
+import io
+import itertools
+import re
+import signal
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from coevo.cli import build_parser, main
+from coevo.errors import CoevoError
+
+NUMBERS = ["nan", "inf", "-1", "0", "1e308", ""]
+CLEARLY_BAD = {"nan", "inf", "1e308", ""}  # for a flag that takes a number
+NO_ROUTER = ["--connect", "tcp/127.0.0.1:9", "--connect-timeout", "0"]
+NO_LISTEN = ["--listen", "tcp/192.0.2.1:7447"]  # TEST-NET-1: not an address of this host, so binding fails at once
+TINY = ["--generations", "1", "--population", "2", "--episodes", "1", "--ga", "best_episodes=1"]
+ALARM_S = 5.0
+_count = itertools.count()
+
+
+class Reached(CoevoError):
+    """Raised in place of a command's long work: every flag was read and checked before it."""
+
+
+@pytest.fixture
+def places(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> dict[str, Path]:
+    """Hostile places: a file where a directory is expected, a directory where a file is, broken JSON files."""
+    monkeypatch.chdir(tmp_path)  # relative names ('nan', '-1') land here
+    p = {"file": tmp_path / "a-file", "dir": tmp_path / "a-dir", "broken_json": tmp_path / "broken.json",
+         "full": tmp_path / "full"}
+    p["file"].write_text("not what you expected\n")
+    p["dir"].mkdir()
+    p["broken_json"].write_text('{"run": "x", ')
+    p["full"].mkdir()
+    (p["full"] / "x").write_text("x")
+    for what in ("broken-run", "broken-worker"):  # run directories with a broken run.json / worker.json
+        d = tmp_path / what
+        (d / "workers" / "tracking").mkdir(parents=True)
+        (d / "run.json").write_text('{"run": ' if what == "broken-run" else '{"run": "broken-worker", "regime": "mutual"}')
+        (d / "workers" / "tracking" / "worker.json").write_text("[1, 2" if what == "broken-worker" else "{}")
+        p[what] = d
+    for mod, name in (("coevo.runs.local", "run_local"), ("coevo.runs.chaos", "run_chaos"),
+                      ("coevo.experiments.compare", "run_all"), ("coevo.experiments.earl.experiment", "run_grid")):
+        monkeypatch.setattr(f"{mod}.{name}", _reached(name))
+    return p
+
+
+def _reached(name: str):
+    def stand_in(*args: object, **kwargs: object) -> None:
+        raise Reached(f"{name} would start here")
+    return stand_in
+
+
+def _base(command: str, flag: str, places: dict[str, Path]) -> list[str]:
+    """A command line for ``command`` that stops quickly, leaving ``flag`` to the value under test."""
+    n = next(_count)
+    fresh = f"fresh-{n}"
+    full = str(places["full"])
+    bases: dict[str, list[str]] = {
+        "learn": ["--behaviour", "executive" if flag in ("--history", "--rate", "--tracking", "--docking") else "tracking",
+                  *TINY, "--measure-epochs", "1", "--quiet",
+                  "--out", fresh if flag == "--out" else full],
+        "bench": ["--lanes", "1", "--repeats", "1", "--baseline-seconds", "0.01", "--rules", "1"],
+        "broker": [*NO_LISTEN, "--data-dir", fresh],
+        "router": [*NO_LISTEN],
+        "worker": ["--behaviour", "tracking", *NO_ROUTER, "--out", fresh]
+        + ([] if flag == "--settings" else ["--run", "x", "--regime", "independent", *TINY]),
+        "run": ([] if flag in ("--resume", "--settings") else ["--run", "sweep", *TINY, "--measure-epochs", "1"])
+        + ([] if flag == "--resume" else ["--root", fresh]) + ["--quiet"],
+        "status": ["--run", "x", *NO_ROUTER, "--duration", "1"],
+        "compare": ["--out", fresh, "--runs", "1", *TINY, "--quiet"],
+        "evolvability": ["--landscapes", "1", "--runs", "1", "--generations", "1", "--population", "2", "--classes",
+                         "gradual", "--rates", "0.1", "--models", "fm", "--quiet", "--out", fresh],
+        "earl": ["--runs", "1", "--generations", "0", "--quiet", "--out", fresh],
+        "show": ["--default", "tracking", "--episodes", "1", "--rules"],
+        "chaos": ["--run", "sweep", "--root", fresh, *TINY, "--faults", "0", "--quiet"],
+        "replay": [str(places["broken-worker"])],
+        "check": [str(places["broken-worker"]), "--no-replay"],
+    }
+    base = bases[command]
+    if flag in base:  # the value under test replaces the base's
+        i = base.index(flag)
+        j = i + 1
+        while j < len(base) and not base[j].startswith("--"):
+            j += 1
+        base = base[:i] + base[j:]
+    return base
+
+
+def _flags(sub: argparse.ArgumentParser) -> Iterator[argparse.Action]:
+    for a in sub._actions:
+        if isinstance(a, (argparse._HelpAction, argparse._StoreTrueAction, argparse._StoreFalseAction,
+                          argparse._StoreConstAction)):
+            continue
+        yield a
+
+
+def _numeric(action: argparse.Action) -> bool:
+    """A flag that takes a number: its type turns "1" into one (not ``--initial``, whose type makes text)."""
+    if action.choices is not None or action.type is None:
+        return False
+    try:
+        return isinstance(action.type("1"), (int, float))
+    except (argparse.ArgumentTypeError, ValueError, TypeError):
+        return False
+
+
+def _values(action: argparse.Action, places: dict[str, Path]) -> list[str]:
+    if action.choices is not None:
+        return ["nan", ""]
+    if action.metavar == "NAME=VALUE":  # --ga, --world: hostile numbers inside settings (population is the flag's)
+        names = ["mutation_rate", "initial_rules"] if "--ga" in action.option_strings else ["target_speed"]
+        return [f"{n}={v}" for n in names for v in NUMBERS] + ["", "nan", "=1", "a=b=c"]
+    if "--connect-timeout" in action.option_strings:
+        return [v for v in NUMBERS if v != "-1"]  # -1 is "wait for the router for ever", inside zenoh: not a bug
+    if action.type is not None and action.type is not str:
+        return NUMBERS
+    return ["", "nan", "-1", str(places["file"]), str(places["dir"]), "/proc/x/y", str(places["broken_json"]),
+            str(places["broken-run"]), str(places["broken-worker"])]
+
+
+def _run(argv: list[str]) -> tuple[int | None, str, BaseException | None]:
+    """``coevo ARGV`` in this process: (exit status, stderr, what escaped main)."""
+    err = io.StringIO()
+    old_term = signal.getsignal(signal.SIGTERM)
+
+    def alarm(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt("the sweep's alarm")
+
+    old_alarm = signal.signal(signal.SIGALRM, alarm)
+    signal.setitimer(signal.ITIMER_REAL, ALARM_S)
+    code: int | None = None
+    escaped: BaseException | None = None
+    try:
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            code = main(["--log-level", "ERROR", *argv])
+    except SystemExit as exc:  # argparse
+        code = exc.code if isinstance(exc.code, int) else 2
+    except BaseException as exc:  # noqa: BLE001 - the point of the sweep: report what escaped, with its argv
+        escaped = exc
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old_alarm)
+        signal.signal(signal.SIGTERM, old_term)
+    return code, err.getvalue(), escaped
+
+
+def _commands() -> list[str]:
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return sorted(sub.choices)
+
+
+def _named(value: str, stderr: str) -> bool:
+    """The value appears as given, or as Python writes that number (1e+308)."""
+    if not value:
+        return "''" in stderr
+    return value in stderr or str(float(value)) in stderr
+
+
+@pytest.mark.parametrize("command", _commands())
+def test_every_flag_with_hostile_values_ends_in_a_status_never_a_traceback(command: str, places: dict[str, Path]) -> None:
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[command]
+    problems: list[str] = []
+    faulthandler.dump_traceback_later(120, exit=True)  # a hang inside zenoh ignores the alarm: show where, and end
+    try:
+        tried = _sweep(command, sub, places, problems)
+    finally:
+        faulthandler.cancel_dump_traceback_later()
+    assert tried, f"no flags found for {command}"
+    assert not problems, f"{len(problems)} of {tried} command lines misbehave:\n" + "\n".join(problems)
+
+
+def _sweep(command: str, sub: argparse.ArgumentParser, places: dict[str, Path], problems: list[str]) -> int:
+    """Try every flag of ``command`` with its hostile values; note what misbehaves in ``problems``; how many tried."""
+    tried = 0
+    for action in _flags(sub):
+        flag = action.option_strings[0] if action.option_strings else None
+        numeric = _numeric(action)
+        for value in _values(action, places):
+            nargs = action.nargs if isinstance(action.nargs, int) else 1
+            base = _base(command, flag or "", places)
+            argv = [command, *base, flag, *[value] * nargs] if flag else [command, value, *base[1:]]
+            code, stderr, escaped = _run(argv)
+            tried += 1
+            shown = " ".join(repr(a) if a == "" or " " in a else a for a in argv)
+            if escaped is not None:
+                problems.append(f"coevo {shown}: {type(escaped).__name__}: {escaped}")
+                continue
+            if code not in (0, 1, 2, 130) or "Traceback" in stderr:
+                problems.append(f"coevo {shown}: status {code}, stderr {stderr[-300:]!r}")
+                continue
+            if numeric and value in CLEARLY_BAD:
+                lines = [x for x in stderr.splitlines() if x.strip()]
+                if code != 2 or len(lines) != 1 or not re.match(r"^[A-Z]\w+: ", lines[0]) or not _named(value, lines[0]):
+                    problems.append(f"coevo {shown}: status {code}, expected 2 and one 'Type: message' line naming "
+                                    f"{value!r}; stderr {stderr[-300:]!r}")
+    return tried
