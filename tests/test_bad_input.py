@@ -61,7 +61,8 @@ def places(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> dict[str, Path]:
         (d / "workers" / "tracking" / "worker.json").write_text("[1, 2" if what == "broken-worker" else "{}")
         p[what] = d
     for mod, name in (("coevo.runs.local", "run_local"), ("coevo.runs.chaos", "run_chaos"),
-                      ("coevo.experiments.compare", "run_all"), ("coevo.experiments.earl.experiment", "run_grid")):
+                      ("coevo.experiments.compare", "run_all"), ("coevo.experiments.earl.experiment", "run_grid"),
+                      ("coevo.experiments.earl.td_tasks", "run_task")):
         monkeypatch.setattr(f"{mod}.{name}", _reached(name))
     return p
 
@@ -93,6 +94,9 @@ def _base(command: str, flag: str, places: dict[str, Path]) -> list[str]:
         "evolvability": ["--landscapes", "1", "--runs", "1", "--generations", "1", "--population", "2", "--classes",
                          "gradual", "--rates", "0.1", "--models", "fm", "--quiet", "--out", fresh],
         "earl": ["--runs", "1", "--generations", "0", "--quiet", "--out", fresh],
+        "td-baseline": ["--tasks", "door", "--seeds", "1", "--generations", "1", "--population", "2", "--episodes", "1",
+                        "--trials", "1", "--quiet", "--out", fresh],
+        "keygen": ["--run", "x", "--out", f"{fresh}.key"],
         "show": ["--default", "tracking", "--episodes", "1", "--rules"],
         "chaos": ["--run", "sweep", "--root", fresh, *TINY, "--faults", "0", "--quiet"],
         "replay": [str(places["broken-worker"])],

@@ -105,7 +105,7 @@ def test_a_write_error_is_not_remembered_and_the_file_keeps_whole_lines(tmp_path
 def test_a_broker_whose_disk_fills_says_degraded_confirms_only_what_is_on_disk_and_heals(tmp_path: Path) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     data = tmp_path / "data"
-    b = coevo_proc("broker", "--listen", endpoint, "--data-dir", str(data), log=tmp_path / "broker.log")
+    b = coevo_proc("broker", "--listen", endpoint, "--data-dir", str(data), "--open", log=tmp_path / "broker.log")
     try:
         with open_session(make_config(mode="client", connect=[endpoint], connect_timeout=20)) as s:
             board = StatusBoard(s, "full")
