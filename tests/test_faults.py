@@ -214,10 +214,13 @@ def test_a_killed_broker_loses_nothing_once_restarted(tmp_path: Path) -> None:
     assert all(p.returncode == 0 for p in lr.workers.values())
     check = check_run(lr.dir)
     assert check.ok, check.problems
-    published = [json.loads(x) for b in Behaviour for x in (lr.worker_dir(b) / "published.jsonl").read_text().splitlines()]
-    unheard = [p for p in published if t_kill < p["sent_at"] < t_back]
+    unheard = {b: [p for x in (lr.worker_dir(b) / "published.jsonl").read_text().splitlines()
+                   if t_kill < (p := json.loads(x))["sent_at"] < t_back] for b in Behaviour}
     republished = sum(json.loads((lr.worker_dir(b) / "done.json").read_text())["republished"] for b in Behaviour)
-    assert republished >= len(unheard)  # what the dead broker missed came again, and is in the store (check above)
+    # What the dead broker missed came again and is in the store (check above).  Each worker's newest version may
+    # come back by its routine every-generation put rather than by the store sync, so only the older ones must
+    # have been republished.
+    assert republished >= sum(max(0, len(v) - 1) for v in unheard.values())
     assert "store reloaded" in (lr.dir / "logs" / "broker.log").read_text()
 
 
