@@ -62,6 +62,8 @@ class ProgressBar:
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None) -> None:
         if self._bar is not None:
+            if exc_type is not None:  # an error says it in one line: no half-drawn bar left above it
+                self._bar.live.transient = True
             self._bar.stop()
             self._bar = None
 
