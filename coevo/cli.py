@@ -47,6 +47,17 @@ def _read_rules(path: str | None, behaviour: str) -> Any:
     return read_rule_file(Path(path), behaviour)
 
 
+GA_FLAGS = ("generations", "population", "episodes", "world", "ga")  # the settings flags of console.add_settings
+RUN_FLAGS = ("task", "regime", "seed", "model", "max_lead", *GA_FLAGS)  # and a run's
+
+
+def _refuse(args: argparse.Namespace, names: tuple[str, ...], why: str) -> None:
+    """A ConfigError naming each of the flags ``names`` that was given, when ``why`` says they cannot be."""
+    given = [f"--{n.replace('_', '-')}" for n in names if getattr(args, n, None) is not None]
+    if given:
+        raise ConfigError(f"{why}; drop {', '.join(given)}")
+
+
 # ---------------------------------------------------------------- commands
 def cmd_learn(args: argparse.Namespace) -> int:
     from coevo.runs.learn import default_out, learn
@@ -63,10 +74,7 @@ def cmd_learn(args: argparse.Namespace) -> int:
     if args.settings:  # a run's settings (coevo compare's offline Executive): world, GA and seed from there
         from coevo.runs.settings import RunSettings
 
-        given = [f"--{n.replace('_', '-')}" for n in ("generations", "population", "episodes", "world", "ga", "fail")
-                 if getattr(args, n) is not None] + (["--seed"] if args.seed is not None else [])
-        if given:
-            raise ConfigError(f"--settings gives the world, GA and seed; drop {', '.join(given)}")
+        _refuse(args, (*GA_FLAGS, "fail", "seed"), "--settings gives the world, GA and seed")
         settings = RunSettings.load(Path(args.settings))
         if settings.task != task.name:
             raise ConfigError(f"--settings {args.settings!r} are for task {settings.task!r}, not {task.name!r}")
@@ -147,10 +155,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
     from coevo.runs.settings import RunSettings
 
     if args.settings:
-        given = [f"--{n.replace('_', '-')}" for n in ("task", "regime", "run", "model", "max_lead", "generations",
-                                                       "population", "episodes", "world", "ga") if getattr(args, n) is not None]
-        if given:
-            raise ConfigError(f"--settings gives every run setting; drop {', '.join(given)}")
+        _refuse(args, ("task", "regime", "run", "model", "max_lead", *GA_FLAGS), "--settings gives every run setting")
         settings = RunSettings.load(Path(args.settings))
         base: Path | None = Path(args.settings).parent
     else:
@@ -172,20 +177,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     from coevo.runs.settings import RunSettings
 
     if args.resume:
-        given = [f"--{n.replace('_', '-')}" for n in ("task", "regime", "run", "generations", "population", "episodes",
-                                                       "world", "ga", "seed", "model", "max_lead", "settings")
-                 if getattr(args, n, None) is not None]
-        if given:
-            raise ConfigError(f"--resume takes every setting from the run's run.json; drop {', '.join(given)}")
+        _refuse(args, (*RUN_FLAGS, "run", "settings"), "--resume takes every setting from the run's run.json")
         lr = LocalRun.resume(Path(args.resume), log_level=args.log_level)
     else:
         if args.settings:
-            given = [f"--{n.replace('_', '-')}" for n in ("task", "regime", "run", "generations", "population", "episodes",
-                                                           "world", "ga", "seed", "model", "max_lead")
-                     if getattr(args, n, None) is not None]
-            if given:
-                raise ConfigError(f"--settings gives every run setting; drop {', '.join(given)}")
-            settings = RunSettings.load(Path(args.settings))
+            _refuse(args, RUN_FLAGS, "--settings gives every run setting but the run id")
+            settings = RunSettings.load(Path(args.settings)).fresh(args.run)  # a new run: its own endpoint and key
         else:
             task = args.task or "fuel"
             regime = args.regime or "independent"

@@ -112,6 +112,11 @@ class RunSettings(Settings):
         except ConfigError as exc:
             raise RunDirError(f"{str(path)!r} does not hold valid run settings: {exc}") from None
 
+    def fresh(self, run: str | None = None) -> RunSettings:
+        """The same settings for a new run (named ``run``, else the same): no endpoint, key or roster of the old one."""
+        data = self.model_dump(mode="json") | {"endpoint": None, "started": None, "key_file": None, "roster": None}
+        return RunSettings.make(**(data | ({"run": run} if run is not None else {})))
+
     def restarted(self, endpoint: str) -> RunSettings:
         """The same run, its broker now at ``endpoint``."""
         return self.model_copy(update={"endpoint": endpoint, "started": time.time()})
