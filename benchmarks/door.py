@@ -145,6 +145,7 @@ def rounded(value: Any, digits: int = 4) -> Any:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--first-seed", type=int, default=0, help="seeds first-seed .. first-seed + seeds - 1 (held-out checks)")
     ap.add_argument("--generations", type=int, default=50)
     ap.add_argument("--fail", default="front,front_right,right")
     ap.add_argument("--json", default="docs/door/benchmark.json")
@@ -160,7 +161,7 @@ def main() -> None:
     ga_cfg = get_task("door").default_ga(**ga_over)  # type: ignore[attr-defined]
     t0 = time.perf_counter()
     runs = []
-    for s in range(args.seeds):
+    for s in range(args.first_seed, args.first_seed + args.seeds):
         r = one_seed(s, args.generations, intact, blind, ga_cfg)
         runs.append(r)
         print(f"seed {s}: default {r['default']:.1f} %, all sonars {r['all_sonars']:.1f} %, {capability_label(blind)} "
