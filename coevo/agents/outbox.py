@@ -27,6 +27,7 @@ from coevo.bus.messages import PolicyUpdate
 from coevo.bus.session import is_put, query
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import MessageError
+from coevo.runs.layout import read_store
 
 __all__ = ["BrokerWatch", "Outbox"]
 
@@ -89,8 +90,7 @@ class Outbox:
         self._pub: Any = None
         self._current: Any = None
         self._policy_key = keys.policy(run, behaviour)
-        for line in self.log_path.read_text(encoding="utf-8").splitlines():
-            msg = PolicyUpdate.model_validate(json.loads(line))
+        for msg in read_store(self.log_path):  # the outbox log holds stored-policy lines, like the store's files
             self.published[msg.version] = self.gate.seal(msg, self._policy_key)
 
     def __enter__(self) -> Outbox:
