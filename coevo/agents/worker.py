@@ -44,7 +44,6 @@ from coevo.bus.auth import RunKey
 from coevo.bus.messages import PolicyUpdate, Status
 from coevo.bus.rejections import Rejections
 from coevo.bus.session import open_session, sigterm_as_exit
-from coevo.bus.trust import Gate
 from coevo.errors import ConfigError, MessageError, RunDirError
 from coevo.ga import GA, GenerationReport
 from coevo.policy.text import format_ruleset
@@ -108,8 +107,7 @@ class Worker:
                               f"worker, not {self.worker_id!r}: drop --seed/--worker-id or fix the roster in run.json")
         if run_key is not None and run_key.run != self.run_id:
             raise ConfigError(f"the key is run {run_key.run!r}'s, not run {self.run_id!r}'s")
-        self.gate = Gate(key=run_key, roster=settings.roster,
-                         generations=self.ga_cfg.generations if settings.roster is not None else None, reject=self._reject)
+        self.gate = settings.gate(run_key, reject=self._reject)
         self.net_seconds = 0.0
         self.checkpoint_seconds = 0.0
         self._completed = 0

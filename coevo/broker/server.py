@@ -1,12 +1,13 @@
 """``coevo broker``: the Zenoh router workers meet at, plus the policy store.
 
 A Python zenoh session in router mode (there is no zenohd here) listens for
-clients.  A subscriber on ``coevo/*/policy/*`` feeds a bounded inbox; one thread
+clients.  Subscribers on ``coevo/*/policy/*`` (and ``coevo/*/case/*``, a CEL run's
+case base) feed a bounded inbox; one thread
 decodes, validates and stores what arrives (the callback only checks the size and
 queues, so a slow disk never stalls the connection).  The inbox holds at most
 ``inbox_bytes`` bytes: a flood beyond that is dropped unread and counted
 (``flood``), and the workers' store sync republishes any real policy that was
-among it.  Queryables on ``coevo/*/store/{latest,history,versions}/*`` answer from
+among it.  Queryables on ``coevo/*/store/{latest,history,versions,cases}/*`` answer from
 memory, which holds only what was fsynced (:mod:`coevo.broker.store`).  Every
 ``status_every`` seconds the broker publishes, for each run it has heard of, a
 :class:`~coevo.bus.messages.BrokerStatus` (policies stored, messages rejected by
@@ -44,7 +45,7 @@ import zenoh
 from coevo.broker.store import PolicyStore, Quota
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
-from coevo.bus.messages import MAX_BYTES, BrokerStatus, PolicyUpdate
+from coevo.bus.messages import MAX_BYTES, BrokerStatus, CaseUpdate, PolicyUpdate
 from coevo.bus.session import config_from_args, open_session, sigterm_as_exit
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import CoevoError, MessageError
@@ -105,18 +106,17 @@ class Keyring:
         except CoevoError as exc:
             log.error("run %s: %s; its messages are refused", run, exc)
             return None
-        roster, generations = None, None
         if paths.run_json.exists():
             try:
                 from coevo.runs.settings import RunSettings
 
-                settings = RunSettings.load(paths.run_json)
-                roster = settings.roster
-                generations = settings.ga.generations if roster is not None else None
+                gate = RunSettings.load(paths.run_json).gate(key)
+                log.info("run %s: key loaded%s", run, ", roster " + str(gate.roster) if gate.roster else "")
+                return gate
             except CoevoError as exc:
                 log.warning("run %s: %s; checking its key only, not its roster", run, exc)
-        log.info("run %s: key loaded%s", run, ", roster " + str(roster) if roster else "")
-        return Gate(key=key, roster=roster, generations=generations)
+        log.info("run %s: key loaded", run)
+        return Gate(key=key)
 
 
 class Broker:
@@ -149,7 +149,8 @@ class Broker:
         for t in self._threads:
             t.start()
         self._decls.append(s.declare_subscriber(f"{keys.ROOT}/*/policy/*", self._on_policy))
-        for topic in ("latest", "history", "versions"):
+        self._decls.append(s.declare_subscriber(f"{keys.ROOT}/*/case/*", self._on_policy))  # a CEL run's case base
+        for topic in ("latest", "history", "versions", "cases"):
             self._decls.append(s.declare_queryable(f"{keys.ROOT}/*/store/{topic}/*", self._on_query))
         self._sync_token()  # last: the store is ready
         return self
@@ -200,7 +201,7 @@ class Broker:
     def serve_forever(self) -> None:
         self._stop.wait()
 
-    # Callbacks: check the size, queue and return.
+    # Callbacks: check the size, queue and return (policies and cases alike).
     def _on_policy(self, sample: Any) -> None:
         key = str(sample.key_expr)
         payload = bytes(sample.payload.to_bytes())
@@ -231,14 +232,14 @@ class Broker:
                 if gate is None:
                     raise MessageError("unauthenticated", f"this broker holds no key for run {run!r}")
                 msg = gate.decode(key, payload)
-                if not isinstance(msg, PolicyUpdate):
+                if not isinstance(msg, (PolicyUpdate, CaseUpdate)):  # decode checked it fits its key
                     raise MessageError("wrong_key", f"{msg.kind} message on {key!r}")
                 stored = self.store.add(msg)
             except MessageError as err:
                 self.store.reject(err, key)
                 continue
             if stored:
-                log.info("stored %s v%d of %s (fitness %.3f)", msg.behaviour, msg.version, msg.run, msg.fitness)
+                log.info("stored %s %s v%d of %s (fitness %.3f)", msg.behaviour, msg.kind, msg.version, msg.run, msg.fitness)
             self._sync_token()
 
     def _report(self) -> None:
@@ -258,7 +259,8 @@ class Broker:
     def _on_query(self, query: Any) -> None:
         parts = keys.parse(str(query.key_expr))
         topic = parts.get("topic", "")
-        for run, beh in self.store.matching(parts.get("run", "*"), parts.get("behaviour", "*")):
+        cases = topic == "store/cases"
+        for run, beh in self.store.matching(parts.get("run", "*"), parts.get("behaviour", "*"), cases=cases):
             gate = self.keyring.gate(run)
             if gate is None:
                 continue  # a run this broker holds no key for (stored before its key went): it says nothing of it
@@ -266,6 +268,11 @@ class Broker:
                 key = keys.store_versions(run, beh)
                 query.reply(key, gate.seal_bytes(msgpack.packb(
                     {"run": run, "behaviour": beh, "workers": self.store.versions(run, beh)}), key))
+                continue
+            if cases:
+                key = keys.store_cases(run, beh)
+                for c in self.store.cases(run, beh):
+                    query.reply(key, gate.seal(c, key))
                 continue
             latest = topic == "store/latest"
             key = PolicyStore.key_of(run, beh, latest)

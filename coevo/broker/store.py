@@ -1,6 +1,8 @@
 """The policy store: latest and full history of every published policy, per run and behaviour.
 
-It appends each accepted update to ``<data_dir>/<run>/store/<behaviour>.jsonl``,
+It appends each accepted update to ``<data_dir>/<run>/store/<behaviour>.jsonl``
+(a CEL learner's cases, :class:`~coevo.bus.messages.CaseUpdate`, to
+``<data_dir>/<run>/store/cases/<behaviour>.jsonl``: the case base, with the same rules),
 flushed and fsynced, and only then keeps it in memory for queries: what the
 store reports holding (``latest``, ``history``, ``versions``) is what is on disk,
 never a write that failed.  A broker that restarts reloads what it had.  A broker
@@ -35,10 +37,17 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from coevo.bus import keys
-from coevo.bus.messages import PolicyUpdate
+from coevo.bus.messages import CaseUpdate, PolicyUpdate
 from coevo.bus.rejections import Rejections
 from coevo.errors import ConfigError, MessageError
-from coevo.runs.layout import RunPaths, read_store
+from coevo.runs.layout import RunPaths, read_cases, read_store
+
+Stored = PolicyUpdate | CaseUpdate
+_CASES = "cases/"  # the stream of a behaviour's cases is "cases/BEHAVIOUR"; a behaviour's policies, "BEHAVIOUR"
+
+
+def _stream(msg: Stored) -> str:
+    return _CASES + msg.behaviour if isinstance(msg, CaseUpdate) else msg.behaviour
 
 __all__ = ["PolicyStore", "Quota"]
 
@@ -74,7 +83,7 @@ class PolicyStore:
         self.data_dir = Path(data_dir)
         self.quota = quota or Quota()
         self._lock = threading.Lock()
-        self._history: dict[tuple[str, str], list[PolicyUpdate]] = {}
+        self._history: dict[tuple[str, str], list[Stored]] = {}  # (run, stream) -> messages in arrival order
         self._seen: set[tuple[str, str, str, int]] = set()
         self._sizes: dict[tuple[str, str], int] = {}  # bytes of each store file known whole and fsynced
         self._rejected: dict[str, Rejections] = {}  # per run (the key's run chunk), for runs reported
@@ -99,17 +108,21 @@ class PolicyStore:
         except OSError as exc:
             raise ConfigError(f"--data-dir {str(d)!r} cannot hold the store: {exc.strerror or exc}") from None
 
-    def _file(self, run: str, behaviour: str) -> Path:
-        return RunPaths.of(self.data_dir, run).store_file(behaviour)
+    def _file(self, run: str, stream: str) -> Path:
+        paths = RunPaths.of(self.data_dir, run)
+        return paths.case_file(stream[len(_CASES):]) if stream.startswith(_CASES) else paths.store_file(stream)
 
     def _load(self) -> None:
-        for f in sorted(self.data_dir.glob("*/store/*.jsonl")):
-            if not keys.valid_id(f.parent.parent.name):
+        files = [(f, f.parent.parent.name, f.stem, read_store) for f in sorted(self.data_dir.glob("*/store/*.jsonl"))]
+        files += [(f, f.parent.parent.parent.name, _CASES + f.stem, read_cases)
+                  for f in sorted(self.data_dir.glob("*/store/cases/*.jsonl"))]
+        for f, run, stream, reader in files:
+            if not keys.valid_id(run):
                 continue
             try:
                 _cut_torn_tail(f)
                 damaged: list[str] = []
-                msgs = read_store(f, problems=damaged)  # damaged in the middle: keep the rest
+                msgs = reader(f, problems=damaged)  # damaged in the middle: keep the rest
             except (OSError, UnicodeDecodeError) as exc:
                 log.error("store: %s cannot be read (%s); skipped", f, exc)
                 continue
@@ -117,16 +130,16 @@ class PolicyStore:
                 self._remember(msg)
             for problem in damaged:
                 log.warning("store: %s; skipped", problem)
-            self._sizes[(f.parent.parent.name, f.stem)] = f.stat().st_size
+            self._sizes[(run, stream)] = f.stat().st_size
         if self._seen:
             log.info("store reloaded %d policies from %s", len(self._seen), self.data_dir)
 
-    def _remember(self, msg: PolicyUpdate) -> bool:
-        ident = (msg.run, msg.behaviour, msg.worker, msg.version)
+    def _remember(self, msg: Stored) -> bool:
+        ident = (msg.run, _stream(msg), msg.worker, msg.version)
         if ident in self._seen:
             return False
         self._seen.add(ident)
-        self._history.setdefault((msg.run, msg.behaviour), []).append(msg)
+        self._history.setdefault((msg.run, _stream(msg)), []).append(msg)
         return True
 
     @property
@@ -139,8 +152,8 @@ class PolicyStore:
         with self._lock:
             return next((e for (r, _), e in self._failing.items() if r == run), "")
 
-    def add(self, msg: PolicyUpdate) -> bool:
-        """Persist and then keep an update; False if it was a duplicate or could not be written.
+    def add(self, msg: Stored) -> bool:
+        """Persist and then keep an update (a policy or a case); False if it was a duplicate or could not be written.
 
         A run id that is not a plain directory name, or an update beyond a quota, is a
         MessageError (``invalid``, ``quota``) for the caller to count.
@@ -148,9 +161,9 @@ class PolicyStore:
         if not keys.valid_id(msg.run):  # the models check it too; this guards the path below
             raise MessageError("invalid", f"run id {msg.run!r} is not a plain directory name")
         line = (json.dumps(msg.model_dump(mode="json"), sort_keys=True) + "\n").encode("utf-8")
-        pair = (msg.run, msg.behaviour)
+        pair = (msg.run, _stream(msg))
         with self._lock:
-            if (msg.run, msg.behaviour, msg.worker, msg.version) in self._seen:
+            if (*pair, msg.worker, msg.version) in self._seen:
                 self._active.add(msg.run)
                 return False
             self._admit(msg.run, len(line))
@@ -258,20 +271,24 @@ class PolicyStore:
     def latest(self, run: str, behaviour: str) -> PolicyUpdate | None:
         with self._lock:
             h = self._history.get((run, behaviour))
-            return h[-1] if h else None
+            return h[-1] if h else None  # type: ignore[return-value]
 
     def history(self, run: str, behaviour: str) -> list[PolicyUpdate]:
         with self._lock:
-            return list(self._history.get((run, behaviour), []))
+            return list(self._history.get((run, behaviour), []))  # type: ignore[arg-type]
 
-    def matching(self, run_pattern: str, behaviour_pattern: str) -> list[tuple[str, str]]:
-        """(run, behaviour) pairs a query's chunks select (``*`` or a literal)."""
+    def cases(self, run: str, behaviour: str) -> list[CaseUpdate]:
+        """The case base of (run, behaviour): every case stored, in arrival order."""
         with self._lock:
-            pairs = list(self._history)
-        return [
-            (r, b) for r, b in pairs
-            if run_pattern in ("*", "**", r) and behaviour_pattern in ("*", "**", b)
-        ]
+            return list(self._history.get((run, _CASES + behaviour), []))  # type: ignore[arg-type]
+
+    def matching(self, run_pattern: str, behaviour_pattern: str, *, cases: bool = False) -> list[tuple[str, str]]:
+        """(run, behaviour) pairs of policies (``cases``: of cases) a query's chunks select (``*`` or a literal)."""
+        with self._lock:
+            streams = list(self._history)
+        pairs = [(r, s[len(_CASES):]) for r, s in streams if s.startswith(_CASES)] if cases else \
+            [(r, s) for r, s in streams if not s.startswith(_CASES)]
+        return [(r, b) for r, b in pairs if run_pattern in ("*", "**", r) and behaviour_pattern in ("*", "**", b)]
 
     @staticmethod
     def key_of(run: str, behaviour: str, latest: bool) -> str:

@@ -10,10 +10,15 @@
     coevo/<run>/store/history/<behaviour>       broker queryable: every PolicyUpdate, in order
     coevo/<run>/store/versions/<behaviour>      broker queryable: the versions it holds, per worker
     coevo/<run>/broker                          BrokerStatus: what the broker stored and rejected
+    coevo/<run>/case/<behaviour>                CaseUpdate: a strategy for the case base (CEL learner)
+    coevo/<run>/store/cases/<behaviour>         broker queryable: every CaseUpdate, in order
+    coevo/<run>/capabilities/<robot>            CapabilityUpdate: the robot's working sensors (its monitor)
+    coevo/<run>/execution/<robot>               ExecutionStatus heartbeat of an execution module
+    coevo/<run>/robot_alive/<robot>             liveliness token of an execution module
     coevo/_broker                               liveliness token of a broker with its store up
     coevo/_broker/degraded                      liveliness token of a broker whose store cannot write
 
-Run ids and worker ids are single key chunks: letters, digits, ``_``, ``-``, ``.``.
+Run ids, worker ids and robot ids are single key chunks: letters, digits, ``_``, ``-``, ``.``.
 """
 
 from __future__ import annotations
@@ -24,7 +29,7 @@ from coevo.errors import ConfigError
 from coevo.policy.schema import registered
 
 __all__ = ["ROOT", "BROKER", "BROKER_DEGRADED", "check_id", "valid_id", "policy", "current", "status", "control", "alive", "store_latest", "store_history",
-           "store_versions", "broker_status", "parse"]
+           "store_versions", "broker_status", "case", "store_cases", "capabilities", "execution", "robot_alive", "parse"]
 
 ROOT = "coevo"
 BROKER = f"{ROOT}/_broker"
@@ -92,8 +97,36 @@ def broker_status(run: str) -> str:
     return f"{ROOT}/{check_id('run id', run)}/broker"
 
 
+def case(run: str, behaviour: str | None = None) -> str:
+    return f"{ROOT}/{check_id('run id', run)}/case/{_w(behaviour)}"
+
+
+def store_cases(run: str, behaviour: str | None = None) -> str:
+    return f"{ROOT}/{check_id('run id', run)}/store/cases/{_w(behaviour)}"
+
+
+def _r(robot: str | None) -> str:
+    return "*" if robot is None else check_id("robot id", robot)
+
+
+def capabilities(run: str, robot: str | None = None) -> str:
+    return f"{ROOT}/{check_id('run id', run)}/capabilities/{_r(robot)}"
+
+
+def execution(run: str, robot: str | None = None) -> str:
+    return f"{ROOT}/{check_id('run id', run)}/execution/{_r(robot)}"
+
+
+def robot_alive(run: str, robot: str | None = None) -> str:
+    return f"{ROOT}/{check_id('run id', run)}/robot_alive/{_r(robot)}"
+
+
+_ROBOT_TOPICS = ("capabilities", "execution", "robot_alive")
+
+
 def parse(key: str) -> dict[str, str]:
-    """Split a concrete key into its parts: ``{"run", "topic", "behaviour"?, "worker"?}``; {} if not coevo's."""
+    """Split a concrete key into its parts: ``{"run", "topic", "behaviour"?, "worker"?}`` (``"robot"`` instead of
+    ``"behaviour"`` on an execution module's topics); {} if not coevo's."""
     parts = str(key).split("/")
     if len(parts) < 3 or parts[0] != ROOT:
         return {}
@@ -102,6 +135,9 @@ def parse(key: str) -> dict[str, str]:
     if parts[2] == "store" and len(rest) == 2:
         out["topic"] = f"store/{rest[0]}"
         rest = rest[1:]
+    if rest and parts[2] in _ROBOT_TOPICS:
+        out["robot"] = rest[0]
+        return out
     if rest:
         out["behaviour"] = rest[0]
     if len(rest) > 1:

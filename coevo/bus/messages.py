@@ -23,7 +23,6 @@ from pydantic import (
     Field,
     TypeAdapter,
     ValidationError,
-    field_validator,
 )
 
 from coevo.bus import auth, keys
@@ -31,8 +30,8 @@ from coevo.errors import MessageError, RuleSetError
 from coevo.policy.rules import RuleSet
 from coevo.policy.schema import registered
 
-__all__ = ["SCHEMA_VERSION", "MAX_BYTES", "REASONS", "PolicyUpdate", "Status", "BrokerStatus", "Control", "Message", "encode",
-           "decode", "unseal"]
+__all__ = ["SCHEMA_VERSION", "MAX_BYTES", "REASONS", "PolicyUpdate", "Status", "BrokerStatus", "Control", "CaseUpdate",
+           "CapabilityUpdate", "ExecutionStatus", "Message", "encode", "decode", "unseal"]
 
 SCHEMA_VERSION = 1
 MAX_BYTES = 1 << 20  # a 64-rule policy is ~5 KB; anything near a megabyte is not ours
@@ -52,7 +51,8 @@ REASONS = {
     "flood": "dropped unread: more arrived than a receiver keeps between two reads",
     "unauthenticated": "in a run with a key: no envelope, a wrong authenticator (forged, altered, or replayed onto "
                        "another key), or a run the broker holds no key for",
-    "not_roster": "a policy or status from a worker id that is not the behaviour's publisher in the run's roster",
+    "not_roster": "a policy, case or status from a worker id that is not the behaviour's publisher in the run's roster, "
+                  "or a capability list or execution status from a robot id that is not the run's robot",
     "bad_version": "a policy version its publisher cannot have reached: above its generation, past the run's "
                    "generations, or more versions than generations since the one held",
     "quota": "the broker's store is full for that run (policies, bytes) or for new runs",
@@ -84,6 +84,30 @@ class _Msg(BaseModel):
     sent_at: float = Field(ge=0)
 
 
+def _rules_ok(v: dict[str, Any]) -> dict[str, Any]:
+    try:
+        RuleSet.from_dict(v)
+    except RuleSetError as exc:
+        raise ValueError(f"bad rule set: {exc}") from None
+    return v
+
+
+def _finite_number(v: float) -> float:
+    if not math.isfinite(v):
+        raise ValueError(f"fitness must be finite, got {v}")
+    return v
+
+
+def _distinct(v: list[str]) -> list[str]:
+    if len(set(v)) != len(v):
+        raise ValueError(f"a sensor named twice in {v}")
+    return v
+
+
+Fitness = Annotated[float, AfterValidator(_finite_number)]
+Rules = Annotated[dict[str, Any], AfterValidator(_rules_ok)]
+
+
 class PolicyUpdate(_Msg):
     """A worker's new best-so-far policy."""
 
@@ -92,25 +116,9 @@ class PolicyUpdate(_Msg):
     worker: _Id
     version: int = Field(ge=1)
     generation: int = Field(ge=0)
-    fitness: float
+    fitness: Fitness
     episodes: int = Field(ge=0)
-    rules: dict[str, Any]
-
-    @field_validator("fitness")
-    @classmethod
-    def _finite(cls, v: float) -> float:
-        if not math.isfinite(v):
-            raise ValueError(f"fitness must be finite, got {v}")
-        return v
-
-    @field_validator("rules")
-    @classmethod
-    def _rules(cls, v: dict[str, Any]) -> dict[str, Any]:
-        try:
-            RuleSet.from_dict(v)
-        except RuleSetError as exc:
-            raise ValueError(f"bad rule set: {exc}") from None
-        return v
+    rules: Rules
 
     def ruleset(self) -> RuleSet:
         rs = RuleSet.from_dict(self.rules)
@@ -151,6 +159,60 @@ class BrokerStatus(_Msg):
     degraded: str = Field(default="", max_length=500)  # why the store cannot write ("" while it can)
 
 
+#: A capability list: the names of the sensors that work (which names exist is the task's to check).
+Capabilities = Annotated[list[Annotated[str, Field(pattern=r"^[a-z0-9_]{1,32}$")]], Field(max_length=64),
+                         AfterValidator(_distinct)]
+
+
+class CaseUpdate(_Msg):
+    """A CEL learner's strategy for the case base (report Appendix B §6): the best rules it found under a
+    capability list, stored by the broker so that a restarted learner, or a later run, finds them."""
+
+    kind: Literal["case"] = "case"
+    behaviour: BehaviourName
+    worker: _Id
+    version: int = Field(ge=1)  # the worker's n-th case
+    generation: int = Field(ge=0)  # the learner's generations when it stored the case
+    fitness: Fitness
+    capabilities: Capabilities
+    rules: Rules
+
+    def ruleset(self) -> RuleSet:
+        return PolicyUpdate.ruleset(self)  # type: ignore[arg-type]
+
+
+class CapabilityUpdate(_Msg):
+    """An execution module's monitor: the robot's working sensors (report Appendix B §5).  ``change`` counts
+    the monitor's verdicts (0: the list it started with); the newest wins.  Sent on each change and again
+    with every heartbeat, so a learner that missed one, or started later, catches up."""
+
+    kind: Literal["capabilities"] = "capabilities"
+    robot: _Id
+    change: int = Field(ge=0)
+    trial: int = Field(ge=0)  # the trial during which the monitor decided (0 for the initial list)
+    decision: int = Field(ge=0)  # its decision within that trial
+    capabilities: Capabilities
+
+
+class ExecutionStatus(_Msg):
+    """An execution module's heartbeat: where the robot is and how well it does (report §8.1's external
+    performance: successes out of its last ``window`` trials, in %)."""
+
+    kind: Literal["execution"] = "execution"
+    robot: _Id
+    trial: int = Field(ge=0)  # trials played
+    trials: int = Field(ge=0)  # trials the run plays in all
+    generation: int = Field(ge=0)  # the learner generation whose trials the robot is playing (its clock)
+    performance: float = Field(ge=0, le=100)
+    rules_version: int = Field(ge=0)  # the learner's policy version in use (0: the initial rules)
+    capabilities: Capabilities
+    changes: int = Field(ge=0)  # capability changes the monitor reported
+    last_change: int | None = Field(default=None, ge=0)  # the trial of the last one
+    rejected: dict[str, int] = Field(default_factory=dict)
+    done: bool = False
+    open: bool = False
+
+
 class Control(_Msg):
     """A command to every process of a run."""
 
@@ -158,11 +220,15 @@ class Control(_Msg):
     command: Literal["stop"]
 
 
-Message = Annotated[Union[PolicyUpdate, Status, BrokerStatus, Control], Field(discriminator="kind")]
+Message = Annotated[Union[PolicyUpdate, Status, BrokerStatus, Control, CaseUpdate, CapabilityUpdate, ExecutionStatus],
+                    Field(discriminator="kind")]
 _ADAPTER: TypeAdapter[Any] = TypeAdapter(Message)
 
 
-def encode(msg: PolicyUpdate | Status | BrokerStatus | Control, *, key: str | None = None,
+AnyMessage = Union[PolicyUpdate, Status, BrokerStatus, Control, CaseUpdate, CapabilityUpdate, ExecutionStatus]
+
+
+def encode(msg: AnyMessage, *, key: str | None = None,
            secret: bytes | None = None) -> bytes:
     """Message -> bytes; with ``secret``, sealed in an envelope authenticated for the key expression ``key``."""
     body = msgpack.packb(msg.model_dump(mode="json"), use_bin_type=True)
@@ -208,7 +274,7 @@ def unseal(payload: bytes, *, key: str, secret: bytes | None) -> bytes:
 
 
 def decode(payload: bytes, *, key: str | None = None,
-           secret: bytes | None = None) -> PolicyUpdate | Status | BrokerStatus | Control:
+           secret: bytes | None = None) -> AnyMessage:
     """Bytes -> message, checking it against the key it arrived on (if given).
 
     With ``secret`` (a run with a key) the payload must be an envelope whose authenticator
@@ -237,25 +303,32 @@ def decode(payload: bytes, *, key: str | None = None,
         elif field == "rules" and first["type"] == "value_error":
             reason = "bad_rules"
         raise MessageError(reason, f"{where}: {first['msg']}") from None
-    if isinstance(msg, PolicyUpdate) and msg.rules.get("behaviour") != msg.behaviour:
+    if isinstance(msg, (PolicyUpdate, CaseUpdate)) and msg.rules.get("behaviour") != msg.behaviour:
         raise MessageError("bad_rules", f"a {msg.behaviour} policy carrying {msg.rules.get('behaviour')!r} rules")
     if key is not None:
         _check_key(msg, key)
     return msg
 
 
-def _check_key(msg: PolicyUpdate | Status | BrokerStatus | Control, key: str) -> None:
+_TOPICS = {"policy": ("policy", "current", "store/latest", "store/history"), "status": ("status",), "broker": ("broker",),
+           "control": ("control",), "case": ("case", "store/cases"), "capabilities": ("capabilities",),
+           "execution": ("execution",)}
+
+
+def _check_key(msg: AnyMessage, key: str) -> None:
     k = keys.parse(key)
     if not k:
         raise MessageError("wrong_key", f"{key!r} is not a coevo key")
     if k["run"] != msg.run:
         raise MessageError("wrong_run", f"message for run {msg.run!r} on {key!r}")
-    topics = {"policy": ("policy", "current", "store/latest", "store/history"), "status": ("status",), "broker": ("broker",), "control": ("control",)}[msg.kind]
-    if k["topic"] not in topics:
+    if k["topic"] not in _TOPICS[msg.kind]:
         raise MessageError("wrong_key", f"{msg.kind} message on {key!r}")
     beh = getattr(msg, "behaviour", None)
     if beh is not None and k.get("behaviour") != beh:
         raise MessageError("wrong_behaviour", f"{beh} {msg.kind} on {key!r}")
+    robot = getattr(msg, "robot", None)
+    if robot is not None and k.get("robot") != robot:
+        raise MessageError("wrong_behaviour", f"{msg.kind} of robot {robot!r} on {key!r}")
     worker = getattr(msg, "worker", None)
     if msg.kind == "status" and k.get("worker") != worker:
         raise MessageError("wrong_behaviour", f"status of worker {worker!r} on {key!r}")

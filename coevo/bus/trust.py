@@ -3,8 +3,9 @@
 * **Key**: with the run's :class:`~coevo.bus.auth.RunKey` every message must carry a
   valid authenticator for the key it arrived on (``unauthenticated`` otherwise);
   without one the gate is *open* and says so.
-* **Roster** (behaviour -> worker id, from the run's settings): a policy or status
-  of a behaviour from any other worker id is ``not_roster``.
+* **Roster** (behaviour -> worker id, from the run's settings): a policy, case or
+  status of a behaviour from any other worker id is ``not_roster``; so is a capability
+  list or execution status from a robot other than the run's ``robot`` (a CEL run).
 * **Versions**: a worker publishes at most one version per generation, numbered
   1, 2, ..., so a policy's version never exceeds its generation, its generation never
   exceeds the run's generations (when the gate knows them), and a ``current`` policy's
@@ -26,7 +27,17 @@ from typing import Any
 
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
-from coevo.bus.messages import Message, PolicyUpdate, Status, decode, encode, unseal
+from coevo.bus.messages import (
+    CapabilityUpdate,
+    CaseUpdate,
+    ExecutionStatus,
+    Message,
+    PolicyUpdate,
+    Status,
+    decode,
+    encode,
+    unseal,
+)
 from coevo.errors import MessageError
 
 __all__ = ["Gate", "OPEN"]
@@ -42,6 +53,7 @@ class Gate:
     roster: Mapping[str, str] | None = None
     generations: int | None = None
     reject: Callable[[MessageError, str], None] | None = None
+    robot: str | None = None  # a CEL run's execution module (None: any robot id)
 
     @property
     def open(self) -> bool:
@@ -72,7 +84,9 @@ class Gate:
 
     def check(self, msg: Any, key_expr: str) -> None:
         beh, worker = getattr(msg, "behaviour", None), getattr(msg, "worker", None)
-        if self.roster is not None and isinstance(msg, (PolicyUpdate, Status)):
+        if self.robot is not None and isinstance(msg, (CapabilityUpdate, ExecutionStatus)) and msg.robot != self.robot:
+            raise MessageError("not_roster", f"{msg.kind} of robot {msg.robot!r}; the run's robot is {self.robot!r}")
+        if self.roster is not None and isinstance(msg, (PolicyUpdate, Status, CaseUpdate)):
             if self.roster.get(beh) != worker:
                 raise MessageError("not_roster", f"{msg.kind} of {beh} from worker {worker!r}; the roster's publisher is "
                                                  f"{self.roster.get(beh)!r}")

@@ -3,6 +3,8 @@
     RUN/run.json                 the run's settings (coevo.runs.settings.RunSettings)
     RUN/secret.key               the run's secret key, mode 0600 (coevo.bus.auth.RunKey; absent in an open run)
     RUN/store/BEHAVIOUR.jsonl    the broker's store: every PolicyUpdate of a behaviour, in arrival order
+    RUN/store/cases/BEHAVIOUR.jsonl   the case base in the store: every CaseUpdate (a CEL run)
+    RUN/execution/               a CEL run's execution module (:class:`ExecutionPaths`)
     RUN/workers/BEHAVIOUR/       one worker's directory (:class:`WorkerPaths`)
     RUN/logs/PROCESS.log         each process's output, appended over restarts
     RUN/summary.json, measures.json, curves.csv     written by coevo run at the end
@@ -32,9 +34,10 @@ from typing import TYPE_CHECKING, Any
 from coevo.errors import RunDirError
 
 if TYPE_CHECKING:
-    from coevo.bus.messages import PolicyUpdate
+    from pydantic import BaseModel
 
-__all__ = ["RunPaths", "WorkerPaths", "LearnPaths", "read_store", "staged_dir", "ensure_dir", "read_jsonl", "read_json", "write_bytes",
+
+__all__ = ["RunPaths", "WorkerPaths", "ExecutionPaths", "LearnPaths", "read_store", "read_cases", "staged_dir", "ensure_dir", "read_jsonl", "read_json", "write_bytes",
            "write_json",
            "write_text", "write_csv"]
 
@@ -57,6 +60,8 @@ class WorkerPaths:
 
     #: The append-only logs a checkpoint records the sizes of (cut back to them on --resume).
     LOGS = ("curve.jsonl", "adoptions.jsonl", "published.jsonl")
+    #: A CEL learner's two more (:mod:`coevo.cel.learner`).
+    CEL_LOGS = ("changes.jsonl", "cases.jsonl")
 
     @property
     def worker_json(self) -> Path:
@@ -79,6 +84,16 @@ class WorkerPaths:
         return self.dir / "checkpoint.msgpack"
 
     @property
+    def changes(self) -> Path:
+        """A CEL learner's capability changes: after how many generations it took which list, and its restart."""
+        return self.dir / "changes.jsonl"
+
+    @property
+    def cases(self) -> Path:
+        """A CEL learner's case base: the cases it found in the store at its start, then the ones it stored."""
+        return self.dir / "cases.jsonl"
+
+    @property
     def best_rules(self) -> Path:
         return self.dir / "best.rules"
 
@@ -97,6 +112,40 @@ class WorkerPaths:
             raise RunDirError(f"{str(self.worker_json)!r} is not a worker's settings: "
                               f"{'missing ' + ', '.join(missing) if missing else 'ga and world must be objects'}")
         return meta
+
+
+@dataclass(frozen=True)
+class ExecutionPaths:
+    """A CEL execution module's directory (``RUN/execution/``; see :mod:`coevo.cel.robot` for what each holds)."""
+
+    dir: Path
+
+    #: The append-only logs a checkpoint records the sizes of (cut back to them on --resume).
+    LOGS = ("performance.jsonl", "changes.jsonl", "policies.jsonl")
+
+    @property
+    def performance(self) -> Path:
+        return self.dir / "performance.jsonl"
+
+    @property
+    def changes(self) -> Path:
+        return self.dir / "changes.jsonl"
+
+    @property
+    def policies(self) -> Path:
+        return self.dir / "policies.jsonl"
+
+    @property
+    def checkpoint(self) -> Path:
+        return self.dir / "checkpoint.msgpack"
+
+    @property
+    def meta_json(self) -> Path:
+        return self.dir / "execution.json"
+
+    @property
+    def done(self) -> Path:
+        return self.dir / "done.json"
 
 
 @dataclass(frozen=True)
@@ -176,7 +225,18 @@ class RunPaths:
         return self.store_dir / f"{behaviour}.jsonl"
 
     def store_files(self) -> list[Path]:
+        """The store's policy files (one per behaviour)."""
         return sorted(self.store_dir.glob("*.jsonl"))
+
+    def case_file(self, behaviour: str) -> Path:
+        return self.store_dir / "cases" / f"{behaviour}.jsonl"
+
+    def case_files(self) -> list[Path]:
+        return sorted((self.store_dir / "cases").glob("*.jsonl"))
+
+    @property
+    def execution(self) -> ExecutionPaths:
+        return ExecutionPaths(self.dir / "execution")
 
     @property
     def workers_dir(self) -> Path:
@@ -213,10 +273,11 @@ class RunPaths:
         return self.dir / "curves.csv"
 
 
-def read_store(path: Path, *, problems: list[str] | None = None) -> list[PolicyUpdate]:
-    """The policies of one store file, in order, validated.
+def read_store(path: Path, *, problems: list[str] | None = None, model: type[BaseModel] | None = None) -> list[Any]:
+    """The policies of one store file (``model``: the messages of another kind, e.g. CaseUpdate), in order,
+    validated.
 
-    A line that is not a stored policy is a RunDirError naming the file and line, or,
+    A line that is not a stored message is a RunDirError naming the file and line, or,
     when ``problems`` is given, noted there and skipped (the broker reloading its
     store, and ``coevo check``, keep the rest).
     """
@@ -224,16 +285,25 @@ def read_store(path: Path, *, problems: list[str] | None = None) -> list[PolicyU
 
     from coevo.bus.messages import PolicyUpdate
 
+    model = model or PolicyUpdate
+    what = "stored policy" if model is PolicyUpdate else f"stored {model.model_fields['kind'].default}"
     out = []
     for n, row in read_jsonl(path, problems=problems, numbered=True):
         try:
-            out.append(PolicyUpdate.model_validate(row))
+            out.append(model.model_validate(row))
         except ValidationError as exc:
-            msg = f"{path} line {n} is not a stored policy: {str(exc).splitlines()[0]}"
+            msg = f"{path} line {n} is not a {what}: {str(exc).splitlines()[0]}"
             if problems is None:
                 raise RunDirError(msg) from None
             problems.append(msg)
     return out
+
+
+def read_cases(path: Path, *, problems: list[str] | None = None) -> list[Any]:
+    """The CaseUpdates of one case file (the store's, or a CEL learner's log), in order, validated."""
+    from coevo.bus.messages import CaseUpdate
+
+    return read_store(path, problems=problems, model=CaseUpdate)
 
 
 def read_json(path: Path, *, what: str) -> dict[str, Any]:

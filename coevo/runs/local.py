@@ -175,7 +175,7 @@ class LocalRun:
 
     def gate(self) -> Gate:
         """What this run's own processes accept: its key (none if open), its roster, its generations."""
-        return Gate(key=self.key, roster=self.settings.roster, generations=self.settings.ga.generations)
+        return self.settings.gate(self.key)
 
     def start_broker(self) -> subprocess.Popen[bytes]:
         # The broker finds the run's key in its data directory (RUN/secret.key): nothing secret on its command line.

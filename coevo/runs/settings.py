@@ -10,6 +10,7 @@ those of the run's task, validated by the task's own model and stored in full.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
@@ -17,9 +18,12 @@ from pydantic import BaseModel, Field, field_validator, model_validator
 
 from coevo.agents.models import MODELS
 from coevo.agents.pacing import DEFAULT_MAX_LEAD
+from coevo.bus.auth import RunKey
 from coevo.bus.keys import check_id
+from coevo.bus.trust import Gate
+from coevo.cel.settings import CelSettings
 from coevo.config import GAConfig, Settings, build
-from coevo.errors import CoevoError, ConfigError, RunDirError
+from coevo.errors import CoevoError, ConfigError, MessageError, RunDirError
 from coevo.runs.layout import RunPaths, read_json, write_json
 from coevo.tasks import DEFAULT_TASK, Task, get_task
 
@@ -44,6 +48,8 @@ class RunSettings(Settings):
                                           "status from any other is rejected (None: any worker id, a run by hand)")
     key_file: str | None = Field(None, description="the run's secret key file, relative to run.json's directory "
                                  "(None: an open run, its messages unauthenticated)")
+    cel: CelSettings | None = Field(None, description="a Continuous and Embedded Learning run (door task): the execution "
+                                    "module, its failure schedule and the learner's restart (coevo cel)")
     endpoint: str | None = Field(None, description="where the run's broker listens (its latest start)")
     started: float | None = None
 
@@ -61,6 +67,10 @@ class RunSettings(Settings):
                 raise ValueError(f"roster names {sorted(self.roster)}; it must name each of {list(task.behaviours)}")
             for b, w in self.roster.items():
                 check_id(f"roster worker id for {b}", w)
+        if self.cel is not None and self.task != "door":
+            raise ValueError(f"a CEL run (cel settings) is a door-task run, not a {self.task!r} one")
+        if self.cel is not None and self.roster is not None and self.cel.robot in self.roster.values():
+            raise ValueError(f"the robot id {self.cel.robot!r} is also a worker id of the roster")
         full = build(task.world_settings, self.world).model_dump(mode="json")
         object.__setattr__(self, "world", full)  # stored in full: a later default change cannot alter the run
         return self
@@ -91,6 +101,13 @@ class RunSettings(Settings):
     def with_roster(self) -> RunSettings:
         """These settings with a roster (the default one if there is none yet)."""
         return self if self.roster is not None else self.model_copy(update={"roster": self.default_roster()})
+
+    def gate(self, key: RunKey | None, *, reject: Callable[[MessageError, str], None] | None = None) -> Gate:
+        """What the run's receivers accept: its key (None: open), its roster, the generations a policy can reach
+        (when there is a roster) and, in a CEL run, its robot."""
+        roster = self.roster
+        return Gate(key=key, roster=roster, generations=self.ga.generations if roster is not None else None,
+                    robot=self.cel.robot if self.cel is not None and roster is not None else None, reject=reject)
 
     def key_path(self, base: Path) -> Path | None:
         """The key file's path (``key_file`` relative to ``base``, run.json's directory); None in an open run."""
