@@ -405,7 +405,10 @@ def build_parser() -> argparse.ArgumentParser:
     from coevo.experiments.evolvability.command import add_parser as add_evolvability
     from coevo.show.command import add_parser as add_show
 
+    from coevo.cel.command import add_parsers as add_cel
+
     add_compare(sub)
+    add_cel(sub)
     add_evolvability(sub)
     add_earl(sub)
     from coevo.experiments.earl.td_command import add_td_arguments, td_main

@@ -167,4 +167,5 @@ def max_lead_arg(text: str) -> int | None:
 
 def add_max_lead(p: argparse.ArgumentParser, *, default: str | None = "1") -> None:
     p.add_argument("--max-lead", default=None if default is None else max_lead_arg(default), type=max_lead_arg, metavar="N|off",
-                   help="pacing: start a generation only when every partner is at most N generations behind (default 1; off = unpaced)")
+                   help="pacing: start a generation only when every partner is at most N generations behind "
+                        f"(default {default or 1}; off = unpaced)")

@@ -70,11 +70,12 @@ class Pacer:
     """Follows the partners' heartbeats and liveliness and holds a worker back when it is too far ahead."""
 
     def __init__(self, session: Any, run: str, partners: Iterable[str], *, max_lead: int | None,
-                 wait_limit: float = 120.0, grace: float = 10.0, settle: float = 0.5) -> None:
+                 wait_limit: float = 120.0, grace: float = 10.0, settle: float = 0.5, patient: bool = False) -> None:
         self.run = run
         self.partners = tuple(partners)
         self.max_lead = max_lead
         self.wait_limit = wait_limit
+        self.patient = patient
         self.grace = grace
         self.settle = settle
         self.waited = 0.0
@@ -90,10 +91,27 @@ class Pacer:
         self._live: dict[str, set[str]] = {b: set() for b in self.partners}
         self._lock = threading.Lock()
         on = max_lead is not None and bool(self.partners)
-        self._subs = [ring_subscriber(session, keys.status(run, b), 64) for b in self.partners] if on else []
+        self._subs = [ring_subscriber(session, self._status_key(b), 64) for b in self.partners] if on else []
         self._tokens = [session.liveliness().declare_subscriber(k, cb, history=True)
-                        for k, cb in ((keys.alive(run), self._on_token), (keys.BROKER, self._on_broker),
+                        for k, cb in ((self._alive_key(), self._on_token), (keys.BROKER, self._on_broker),
                                       (keys.BROKER_DEGRADED, self._on_broker))] if on else []
+
+    # What a partner is, on the bus: a behaviour's worker (a subclass paces by another kind of process).
+    def _status_key(self, partner: str) -> str:
+        return keys.status(self.run, partner)
+
+    def _alive_key(self) -> str:
+        return keys.alive(self.run)
+
+    def _token_partner(self, parts: dict[str, str]) -> tuple[str, str]:
+        """(partner, process id) of a liveliness token's key parts."""
+        return parts.get("behaviour", ""), parts.get("worker", "")
+
+    def _progress_of(self, msg: Any) -> tuple[str, int, bool] | None:
+        """(partner, generations completed, finished) of a heartbeat; None for anything else."""
+        if not isinstance(msg, Status):
+            return None
+        return msg.behaviour, msg.generation, msg.done or msg.generation >= msg.generations
 
     def _on_broker(self, sample: Any) -> None:
         key = str(sample.key_expr)
@@ -105,18 +123,17 @@ class Pacer:
                 self._brokers.discard(key)
 
     def _on_token(self, sample: Any) -> None:
-        parts = keys.parse(str(sample.key_expr))
-        beh = parts.get("behaviour", "")
+        beh, who = self._token_partner(keys.parse(str(sample.key_expr)))
         if beh not in self._live:
             return
         with self._lock:
             if is_put(sample):
-                self._live[beh].add(parts.get("worker", ""))
+                self._live[beh].add(who)
                 self._gone.pop(beh, None)
                 self._absent.discard(beh)
                 self._seen.add(beh)
             else:
-                self._live[beh].discard(parts.get("worker", ""))
+                self._live[beh].discard(who)
                 if not self._live[beh]:
                     self._gone[beh] = time.monotonic()  # a heartbeat still in the ring must not bring it back
 
@@ -124,14 +141,16 @@ class Pacer:
         for sub in self._subs:
             # Bad messages on the status keys are not pacing's business (status counts them): skipped.
             for _, msg in drain_messages(sub, 64):
-                if not isinstance(msg, Status) or msg.behaviour not in self._progress:
+                got = self._progress_of(msg)
+                if got is None or got[0] not in self._progress:
                     continue
+                who, generation, finished = got
                 with self._lock:
-                    self._progress[msg.behaviour] = max(self._progress[msg.behaviour], msg.generation)
-                    if msg.done or msg.generation >= msg.generations:
-                        self._finished.add(msg.behaviour)
-                    self._absent.discard(msg.behaviour)
-                    self._seen.add(msg.behaviour)
+                    self._progress[who] = max(self._progress[who], generation)
+                    if finished:
+                        self._finished.add(who)
+                    self._absent.discard(who)
+                    self._seen.add(who)
 
     @property
     def outage(self) -> bool:
@@ -140,12 +159,14 @@ class Pacer:
             return self._broker_seen and not self._brokers
 
     def _dead(self, b: str, now: float, outage: bool) -> bool:
+        if self.patient:
+            return False
         went = self._gone.get(b)
         return went is not None and not outage and now - went >= self.settle
 
     def _behind(self, need: int) -> list[str]:
         now = time.monotonic()
-        late = now - self._t0 > self.grace
+        late = now - self._t0 > self.grace and not self.patient
         outage = self.outage
         with self._lock:
             behind = [b for b in self.partners
@@ -159,8 +180,14 @@ class Pacer:
             self._outage_noted = False  # once per outage
         return behind
 
+    def progress(self, partner: str) -> int:
+        """The generations ``partner`` reported completing (its latest heartbeat)."""
+        self._poll()
+        with self._lock:
+            return self._progress[partner]
+
     def wait(self, completed: int, stop: threading.Event, tick: Callable[[], None] | None = None,
-             tick_every: float = 1.0) -> float:
+             tick_every: float = 1.0, poll: float = 0.05) -> float:
         """Block before the generation after ``completed`` ones until the partners are close enough.
 
         ``tick`` is called about every ``tick_every`` seconds while waiting.
@@ -184,7 +211,7 @@ class Pacer:
                 with self._lock:
                     self._absent.update(behind)
                 break
-            stop.wait(0.05)
+            stop.wait(poll)
             if tick is not None and time.monotonic() >= next_tick:
                 tick()
                 next_tick = time.monotonic() + tick_every

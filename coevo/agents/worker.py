@@ -29,6 +29,7 @@ import json
 import logging
 import os
 import time
+from contextlib import ExitStack
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -46,6 +47,7 @@ from coevo.bus.rejections import Rejections
 from coevo.bus.session import open_session, sigterm_as_exit
 from coevo.errors import ConfigError, MessageError, RunDirError
 from coevo.ga import GA, GenerationReport
+from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
 from coevo.runs.layout import WorkerPaths, read_jsonl, write_json, write_text
 from coevo.runs.settings import RunSettings
@@ -117,6 +119,7 @@ class Worker:
         self._status_pub: Any = None
         self._inbox: Inbox | None = None
         self._outbox: Outbox | None = None
+        self.logs: tuple[str, ...] = WorkerPaths.LOGS  # the append-only logs its checkpoint keeps in step
 
     @property
     def out(self) -> Path:
@@ -143,7 +146,7 @@ class Worker:
             p.dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise RunDirError(f"cannot create the worker directory {str(p.dir)!r}: {exc.strerror or exc}") from None
-        meta, logs = self._meta(), [p.dir / n for n in WorkerPaths.LOGS]
+        meta, logs = self._meta(), [p.dir / n for n in self.logs]
         if not self.resume:
             used = [f for f in (p.worker_json, p.checkpoint, *logs) if f.exists()]
             if used:
@@ -162,7 +165,7 @@ class Worker:
         else:
             write_json(p.worker_json, meta)
         state = resume_state(p, self._ident())
-        sizes = state["worker"]["log_sizes"] if state else {n: 0 for n in WorkerPaths.LOGS}
+        sizes = state["worker"]["log_sizes"] if state else {n: 0 for n in self.logs}
         for f in logs:
             truncate_log(f, int(sizes[f.name]))
         return state
@@ -173,7 +176,7 @@ class Worker:
             if self.resume:
                 log.info("%s: no checkpoint in %s; starting afresh", self.worker_id, self.out)
             return 0.0
-        ga.load_state(state["ga"])
+        self._load_learner(ga, state["ga"])
         self.models.load_state(state["models"])
         w = state["worker"]
         self.rejected.load(w["rejected"])
@@ -189,10 +192,10 @@ class Worker:
     def _checkpoint(self, ga: GA, pace_seconds: float) -> None:
         t0 = time.perf_counter()
         state = {
-            "ga": ga.state_dict(),
+            "ga": self._learner_state(ga),
             "models": self.models.state_dict(),
             "worker": {
-                "log_sizes": {n: (self.out / n).stat().st_size for n in WorkerPaths.LOGS},
+                "log_sizes": {n: (self.out / n).stat().st_size for n in self.logs},
                 "rejected": self.rejected.as_dict(), "net_seconds": self.net_seconds,
                 "checkpoint_seconds": self.checkpoint_seconds, "pace_seconds": pace_seconds,
             },
@@ -200,10 +203,38 @@ class Worker:
         save_checkpoint(self.paths.checkpoint, self._ident(), state)
         self.checkpoint_seconds += time.perf_counter() - t0
 
+    # ------------------------------------------------------------ what a subclass changes (coevo.cel.learner)
+    def _make_ga(self) -> GA:
+        return GA(self.task, self.behaviour, world=self.world, ga=self.ga_cfg, seed=self.seed)
+
+    def _learner_state(self, ga: GA) -> dict[str, Any]:
+        return ga.state_dict()
+
+    def _load_learner(self, ga: GA, state: dict[str, Any]) -> None:
+        ga.load_state(state)
+
+    def _generation(self, ga: GA) -> tuple[GenerationReport, RuleSet | None, float]:
+        """One generation: its report, the new best so far to publish (None: no improvement), the best so far's
+        fitness."""
+        rep = ga.generation(self.models.partners(), tick=self._tick)
+        return rep, (ga.best if rep.improved else None), rep.best_so_far
+
+    def _take_in(self, inbox: Inbox, completed: int) -> None:
+        """Between generations: what arrived for the learner (partner policies)."""
+        inbox.fetch()
+        inbox.adopt(completed)
+
+    def _pacer(self, session: Any) -> Pacer:
+        return Pacer(session, self.run_id, self.models.needed, max_lead=self.max_lead)
+
+    def _services(self, session: Any, broker: BrokerWatch) -> list[Any]:
+        """More context managers the generation loop runs inside (a subclass's subscriptions)."""
+        return []
+
     # ------------------------------------------------------------ the generation loop
     def run(self) -> list[GenerationReport]:
         state = self._prepare()
-        ga = GA(self.task, self.behaviour, world=self.world, ga=self.ga_cfg, seed=self.seed)
+        ga = self._make_ga()
         paced = self._restore(ga, state)
         if state is None:  # generation 0: from now on, logs without a checkpoint mean it was removed
             self._checkpoint(ga, paced)
@@ -221,7 +252,10 @@ class Worker:
                 Outbox(s, broker, run=self.run_id, behaviour=self.behaviour, worker_id=self.worker_id,
                        log_path=p.published, store_timeout=self.store_timeout,
                        confirm_every=self.confirm_every, gate=self.gate) as outbox, \
-                Pacer(s, self.run_id, self.models.needed, max_lead=self.max_lead) as pacer:
+                self._pacer(s) as pacer, \
+                ExitStack() as more:
+            for service in self._services(s, broker):
+                more.enter_context(service)
             self._inbox, self._outbox = inbox, outbox
             token = s.liveliness().declare_token(keys.alive(self.run_id, self.behaviour, self.worker_id))
             self._status_pub = s.declare_publisher(keys.status(self.run_id, self.behaviour, self.worker_id))
@@ -238,18 +272,17 @@ class Worker:
                         break
                     pacer.wait(g, inbox.stop, tick=partial(self._paced_tick, g))
                     t_net = time.perf_counter()
-                    inbox.fetch()
-                    inbox.adopt(g)
+                    self._take_in(inbox, g)
                     self.net_seconds += time.perf_counter() - t_net
-                    rep = ga.generation(self.models.partners(), tick=self._tick)
+                    rep, new_best, best_so_far = self._generation(ga)
                     curve.append(rep)
                     curve_log.write(json.dumps(rep.as_dict()) + "\n")
                     curve_log.flush()
-                    if rep.improved and ga.best is not None:
-                        outbox.record(self._policy(outbox.next_version, rep, ga.best.to_dict(), rep.best_so_far,
+                    if new_best is not None:
+                        outbox.record(self._policy(outbox.next_version, rep, new_best.to_dict(), best_so_far,
                                                    self.ga_cfg.best_episodes))
-                        write_text(p.best_rules, format_ruleset(ga.best))
-                    self._completed, self._best = rep.generation, rep.best_so_far
+                        write_text(p.best_rules, format_ruleset(new_best))
+                    self._completed, self._best = rep.generation, best_so_far
                     self._measures = self.task.status_measures(self.behaviour, rep.measures)
                     # Checkpoint before anything leaves: what was published is always in a checkpoint,
                     # so a resumed worker never publishes a different policy under a version number.
@@ -262,7 +295,7 @@ class Worker:
                     self._heartbeat(done=False)
                     if outbox.broker.back.is_set():
                         inbox.refetch = True  # a restarted broker may hold partner versions this worker missed
-                    outbox.sync(upto=outbox.top - (1 if rep.improved else 0))
+                    outbox.sync(upto=outbox.top - (1 if new_best is not None else 0))
                     self.net_seconds += time.perf_counter() - t0
                     if hang_after is not None and rep.generation >= hang_after:
                         _hang(self.worker_id, rep.generation)
@@ -329,7 +362,12 @@ def run_worker(settings: RunSettings, *, behaviour: str, seed: int | None, worke
     """``coevo worker``: run one worker to its end (exit status 0), or until SIGINT/SIGTERM (130)."""
     out = out if out is not None else settings.paths(Path("runs")).worker(behaviour).dir
     sigterm_as_exit()
-    w = Worker(settings, behaviour=behaviour, seed=seed, worker_id=worker_id, out_dir=out, conf=conf, resume=resume,
+    kind: type[Worker] = Worker
+    if settings.cel is not None:  # a CEL run's learner (coevo cel)
+        from coevo.cel.learner import CelLearner
+
+        kind = CelLearner
+    w = kind(settings, behaviour=behaviour, seed=seed, worker_id=worker_id, out_dir=out, conf=conf, resume=resume,
                final_sync=final_sync, run_key=run_key)
     try:
         curve = w.run()

@@ -173,6 +173,7 @@ class CaseUpdate(_Msg):
     worker: _Id
     version: int = Field(ge=1)  # the worker's n-th case
     generation: int = Field(ge=0)  # the learner's generations when it stored the case
+    origin: _Id | None = None  # the run it was learned in, when not this one (coevo cel --cases-from)
     fitness: Fitness
     capabilities: Capabilities
     rules: Rules

@@ -31,11 +31,11 @@ from typing import Any
 import zenoh
 
 from coevo.bus import keys
-from coevo.bus.messages import BrokerStatus, Status
+from coevo.bus.messages import BrokerStatus, ExecutionStatus, Status
 from coevo.bus.session import drain_messages, is_put, ring_subscriber
 from coevo.errors import MessageError
 
-__all__ = ["DEFAULT_STALL", "WorkerView", "StatusBoard", "status_table", "PlainStatus", "StatusDisplay", "follow"]
+__all__ = ["DEFAULT_STALL", "WorkerView", "RobotView", "StatusBoard", "status_table", "PlainStatus", "StatusDisplay", "follow"]
 
 log = logging.getLogger(__name__)
 
@@ -80,6 +80,37 @@ class WorkerView:
         }
 
 
+@dataclass
+class RobotView:
+    """A CEL run's execution module, as its heartbeats and liveliness token show it."""
+
+    robot: str
+    trial: int = 0
+    trials: int = 0
+    generation: int = 0
+    performance: float = 0.0
+    rules_version: int = 0
+    capabilities: list[str] = field(default_factory=list)
+    changes: int = 0
+    last_change: int | None = None
+    rejected: dict[str, int] = field(default_factory=dict)
+    open: bool = False
+    token: bool = False
+    done: bool = False
+    last_heartbeat: float = 0.0
+    died_at: float | None = None
+
+    state = WorkerView.state
+
+    def as_dict(self, now: float, stall: float) -> dict[str, Any]:
+        return {"robot": self.robot, "trial": self.trial, "trials": self.trials, "generation": self.generation,
+                "performance": self.performance, "rules_version": self.rules_version,
+                "capabilities": list(self.capabilities), "changes": self.changes, "last_change": self.last_change,
+                "rejected": sum(self.rejected.values()), "rejected_by_reason": dict(self.rejected), "open": self.open,
+                "state": self.state(now, stall),
+                "heartbeat_age": round(now - self.last_heartbeat, 3) if self.last_heartbeat else None}
+
+
 class StatusBoard:
     """Subscribes to a run's heartbeats, liveliness and broker status; thread-safe snapshot for display."""
 
@@ -88,6 +119,7 @@ class StatusBoard:
         self.stall = stall
         self._lock = threading.Lock()
         self.workers: dict[str, WorkerView] = {}
+        self.robots: dict[str, RobotView] = {}  # a CEL run's execution module
         self.rejected = 0  # bad messages on the status keys themselves
         self.broker_up = False
         self.broker_degraded = False  # its degraded token is up: the store cannot write
@@ -96,9 +128,12 @@ class StatusBoard:
         gate = getattr(session, "gate", None)
         self.open = gate is None or gate.open  # unverified: anyone on the bus can show up here
         self._roster = None if gate is None else gate.roster
-        self._rings = [ring_subscriber(session, keys.status(run), 256), ring_subscriber(session, keys.broker_status(run), 16)]
+        self._robot = None if gate is None else gate.robot
+        self._rings = [ring_subscriber(session, keys.status(run), 256), ring_subscriber(session, keys.broker_status(run), 16),
+                       ring_subscriber(session, keys.execution(run), 64)]
         self._decls = [
             session.liveliness().declare_subscriber(keys.alive(run), self._on_token, history=True),
+            session.liveliness().declare_subscriber(keys.robot_alive(run), self._on_robot_token, history=True),
             session.liveliness().declare_subscriber(keys.BROKER, self._on_broker, history=True),
             session.liveliness().declare_subscriber(keys.BROKER_DEGRADED, self._on_degraded, history=True),
         ]
@@ -125,6 +160,8 @@ class StatusBoard:
                         self.broker = msg
                     elif isinstance(msg, Status):
                         self._take(msg)
+                    elif isinstance(msg, ExecutionStatus):
+                        self._take_robot(msg)
 
     def _reject(self, err: MessageError, key: str) -> None:
         with self._lock:
@@ -142,6 +179,33 @@ class StatusBoard:
             v.token = True  # a heartbeat proves the process is there (its token may still be on its way)
         elif msg.sent_at > v.died_at:
             v.token, v.died_at = True, None  # sent after the death: a restarted worker
+
+    def _take_robot(self, msg: ExecutionStatus) -> None:
+        v = self.robots.setdefault(msg.robot, RobotView(msg.robot))
+        if msg.trial < v.trial and not v.died_at:
+            return  # an older heartbeat overtaken by a newer one
+        for name in ("trial", "trials", "generation", "performance", "rules_version", "changes", "last_change", "done",
+                     "open"):
+            setattr(v, name, getattr(msg, name))
+        v.capabilities, v.rejected = list(msg.capabilities), dict(msg.rejected)
+        v.last_heartbeat = time.time()
+        if v.died_at is None:
+            v.token = True
+        elif msg.sent_at > v.died_at:
+            v.token, v.died_at = True, None
+
+    def _on_robot_token(self, sample: Any) -> None:
+        robot = keys.parse(str(sample.key_expr)).get("robot", "")
+        if self._robot is not None and robot != self._robot:
+            with self._lock:
+                self.rejected += 1
+            return
+        alive = is_put(sample)
+        with self._lock:
+            v = self.robots.setdefault(robot, RobotView(robot))
+            v.token = alive
+            v.died_at = None if alive else time.time()
+        self.changed.set()
 
     def _on_token(self, sample: Any) -> None:
         parts = keys.parse(str(sample.key_expr))
@@ -174,6 +238,12 @@ class StatusBoard:
         with self._lock:
             return [self.workers[k].as_dict(now, self.stall) for k in sorted(self.workers)]
 
+    def robots_view(self) -> list[dict[str, Any]]:
+        self.poll()
+        now = time.time()
+        with self._lock:
+            return [self.robots[k].as_dict(now, self.stall) for k in sorted(self.robots)]
+
     def broker_view(self) -> dict[str, Any]:
         self.poll()
         with self._lock:
@@ -186,7 +256,7 @@ class StatusBoard:
     def json_line(self) -> str:
         workers = self.snapshot()
         return json.dumps({"run": self.run, "time": time.time(), "open": self.open, "workers": workers,
-                           "broker": self.broker_view()})
+                           "robots": self.robots_view(), "broker": self.broker_view()})
 
 
 # ---------------------------------------------------------------- display
@@ -215,6 +285,11 @@ def _status_rows(board: Any) -> list[tuple[str, ...]]:
         partners = " ".join(f"{k[0].upper()}v{v}" for k, v in sorted(w["partner_versions"].items())) or "-"
         rows.append((who, f"{w['generation']}/{w['generations']}", f"{w['best_fitness']:.3f}", _own(w.get("measures", {})),
                      partners, str(w["buffered"]), _reasons(w["rejected_by_reason"]), w["state"]))
+    for r in board.robots_view():
+        change = "no change" if r["last_change"] is None else f"change {r['changes']} at trial {r['last_change']}"
+        caps = f"{len(r['capabilities'])} sensors: {' '.join(r['capabilities']) or 'none'}"
+        rows.append((r["robot"], f"{r['generation']}", "", f"external={r['performance']:.0f}% trial {r['trial']}/{r['trials']}",
+                     f"rules v{r['rules_version']}; {caps}; {change}", "", _reasons(r["rejected_by_reason"]), r["state"]))
     b = board.broker_view()
     stored = " ".join(f"{k[0].upper()}:{v}" for k, v in sorted(b["stored"].items())) or "-"
     why = f" ({b['degraded']})" if b.get("degraded") else ""  # a degraded store says why: the file and the error

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel
 
-from coevo.cel.casebase import CaseBase
+from coevo.cel.casebase import Case, CaseBase
 from coevo.cel.monitor import check_capabilities
 from coevo.config import GAConfig
 from coevo.errors import ConfigError
@@ -101,6 +101,8 @@ class LearningModule:
         self.best: RuleSet | None = None  # the best since the last change
         self.best_fitness = -np.inf
         self.changes = 0
+        self.last_case: Case | None = None  # the case the last change stored (None: none, or no case base)
+        self.last_cases: list[Case] = []  # the cases the last restart seeded the population with
 
     @property
     def capabilities(self) -> tuple[str, ...]:
@@ -111,9 +113,9 @@ class LearningModule:
     def generation_no(self) -> int:
         return self.ga.generation_no
 
-    def generation(self) -> GenerationStep:
-        """One GA generation on the current model."""
-        rep = self.ga.generation({})
+    def generation(self, tick: Tick | None = None) -> GenerationStep:
+        """One GA generation on the current model (``tick``: called between evaluation rounds, as by the GA)."""
+        rep = self.ga.generation({}, tick=tick)
         new = None
         if rep.best_fitness > self.best_fitness and self.ga.current is not None:
             self.best, self.best_fitness = self.ga.current, rep.best_fitness
@@ -157,8 +159,10 @@ class LearningModule:
 
     def remember(self) -> None:
         """Store the best since the last change in the case base (if any), under the model's capability list."""
+        self.last_case = None
         if self.case_base is not None and self.best is not None:
-            self.case_base.add(self.capabilities, self.best, fitness=self.best_fitness, generation=self.generation_no)
+            self.last_case = self.case_base.add(self.capabilities, self.best, fitness=self.best_fitness,
+                                                generation=self.generation_no)
 
     def restart(self) -> list[int]:
         """Keep ``keep`` of the population, refill the rest (see the module docstring) and forget the best
@@ -174,6 +178,7 @@ class LearningModule:
 
     def _newcomers(self, n: int) -> list[RuleSet]:
         nearest = self.case_base.nearest(self.capabilities, self.cases) if self.case_base else []
+        self.last_cases = nearest
         if not nearest:
             return [self.initial] * n
         return [nearest[i % len(nearest)].rules for i in range(n)]

@@ -5,21 +5,28 @@ evaluated against; the only non-repeatable thing in a run is *when* partner
 versions arrived.  The adoption log records that (after how many of its own
 generations a worker took which version), and the store holds every version, so
 replaying feeds each GA the same partners at the same points and must reproduce
-its learning curve bit for bit.
+its learning curve bit for bit.  A CEL learner (:mod:`coevo.cel.learner`) is replayed
+the same way from its ``changes.jsonl``: after how many generations it took which
+capability list, and the cases it restarted from.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel
 
 from coevo.agents.models import PartnerModels
+from coevo.cel.casebase import Case
 from coevo.config import GAConfig, build
 from coevo.errors import RunDirError
 from coevo.ga import GA
 from coevo.policy.rules import RuleSet
 from coevo.runs.layout import RunPaths, WorkerPaths, read_jsonl, read_store
-from coevo.tasks import DEFAULT_TASK, get_task
+from coevo.tasks import DEFAULT_TASK, Task, get_task
 
 __all__ = ["WorkerReplay", "replay"]
 
@@ -47,14 +54,34 @@ def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, unt
     world = build(task.world_settings, meta["world"])
     ga_cfg = build(GAConfig, meta["ga"])
     curve = read_jsonl(w.curve)
-    adoptions = read_jsonl(w.adoptions)
     n = len(curve) if until is None else min(until, len(curve))
+    if "cel" in meta:
+        rows = _cel_rows(w, meta, world, ga_cfg)
+    else:
+        rows = _rows(w, task, behaviour, meta, world, ga_cfg, store)
+    for g in range(n):
+        rep = next(rows)
+        for k in sorted(set(rep) | set(curve[g])):
+            if k not in _UNCOMPARED and rep.get(k) != curve[g].get(k):
+                return WorkerReplay(behaviour, n, False, g + 1, f"{k}: recorded {curve[g].get(k)!r}, replayed {rep.get(k)!r}")
+    return WorkerReplay(behaviour, n, True, None, "identical")
+
+
+def _by_generation(rows: list[dict[str, Any]]) -> dict[int, list[dict[str, Any]]]:
+    out: dict[int, list[dict[str, Any]]] = {}
+    for a in rows:
+        out.setdefault(int(a["generation"]), []).append(a)
+    return out
+
+
+def _rows(w: WorkerPaths, task: Task, behaviour: str, meta: dict[str, Any], world: BaseModel, ga_cfg: GAConfig,
+          store: dict[tuple[str, str, int], RuleSet]) -> Iterator[dict[str, Any]]:
+    """A co-evolution worker's curve, again: its GA fed the partner versions it adopted, when it adopted them."""
     models = PartnerModels(task, behaviour, meta["regime"], meta["seed"], kind=meta["model"], ga=ga_cfg)
     ga = GA(task, behaviour, world=world, ga=ga_cfg, seed=meta["seed"])
-    by_gen: dict[int, list[dict]] = {}
-    for a in adoptions:
-        by_gen.setdefault(int(a["generation"]), []).append(a)
-    for g in range(n):
+    by_gen = _by_generation(read_jsonl(w.adoptions))
+    g = 0
+    while True:
         for a in by_gen.get(g, []):
             key = (a["partner"], a["from_worker"], int(a["version"]))
             if "rules" in a:
@@ -62,13 +89,44 @@ def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, unt
             elif key in store:
                 rules = store[key]
             else:
-                raise RunDirError(f"{wdir.name}: adopted {key} is neither in the log nor in the store; the run directory is incomplete")
+                raise RunDirError(f"{w.dir.name}: adopted {key} is neither in the log nor in the store; the run directory is incomplete")
             models.adopt(a["partner"], int(a["version"]), rules)
-        rep = ga.generation(models.partners()).as_dict()
-        for k in sorted(set(rep) | set(curve[g])):
-            if k not in _UNCOMPARED and rep.get(k) != curve[g].get(k):
-                return WorkerReplay(behaviour, n, False, g + 1, f"{k}: recorded {curve[g].get(k)!r}, replayed {rep.get(k)!r}")
-    return WorkerReplay(behaviour, n, True, None, "identical")
+        yield ga.generation(models.partners()).as_dict()
+        g += 1
+
+
+class _LoggedCases:
+    """A case base that answers a restart with the cases the live learner restarted from (its changes.jsonl)."""
+
+    def __init__(self, cases: list[Case]) -> None:
+        self.cases = cases
+
+    def add(self, capabilities: Any, rules: RuleSet, *, fitness: float, generation: int) -> Case:
+        return Case(tuple(capabilities), rules, fitness, generation, -1)
+
+    def nearest(self, capabilities: Any, k: int = 1) -> list[Case]:
+        return self.cases
+
+
+def _cel_rows(w: WorkerPaths, meta: dict[str, Any], world: BaseModel, ga_cfg: GAConfig) -> Iterator[dict[str, Any]]:
+    """A CEL learner's curve, again: its learning module given the capability lists it took, when it took them."""
+    from coevo.cel.learning import LearningModule
+    from coevo.cel.settings import CelSettings
+
+    cel = build(CelSettings, meta["cel"])
+    module = LearningModule(world, ga_cfg, seed=meta["seed"], case_base=None, keep=cel.keep,  # type: ignore[arg-type]
+                            cases=cel.cases)
+    by_gen = _by_generation(read_jsonl(w.changes, missing_ok=True))
+    g = 0
+    while True:
+        for c in by_gen.get(g, []):
+            if cel.case_base:
+                module.case_base = _LoggedCases([Case.from_dict(d) for d in c["restart_cases"]])  # type: ignore[assignment]
+            if not module.set_capabilities(c["capabilities"]):
+                raise RunDirError(f"{w.dir.name}: changes.jsonl takes {c['capabilities']} after generation {g}, the list "
+                                  "already in force")
+        yield module.generation().report.as_dict()
+        g += 1
 
 
 def replay(run_dir: Path) -> list[WorkerReplay]:

@@ -1,0 +1,157 @@
+"""``coevo cel`` (a live CEL run on this machine) and ``coevo execution`` (its execution module process).
+
+Registered by :mod:`coevo.cli`; the run is :mod:`coevo.cel.service`, the processes
+:mod:`coevo.cel.learner` and :mod:`coevo.cel.robot`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from coevo.console import add_max_lead, add_settings, count_arg, ga_settings, seed_arg, world_settings
+from coevo.errors import ConfigError
+
+__all__ = ["add_parsers", "cmd_cel", "cmd_execution", "SCHEDULES"]
+
+#: Named failure schedules: (generation, failed sonars) events (docs/cel.md).
+SCHEDULES: dict[str, tuple[tuple[int, tuple[str, ...]], ...]] = {
+    "figure3": ((50, ("front", "front_right", "right")),),
+    "cyclic": ((25, ("front", "front_right", "right")), (50, ()), (75, ("front", "front_right", "right"))),
+    "none": (),
+}
+
+
+def fail_arg(text: str) -> tuple[int, tuple[str, ...]]:
+    """``GEN:SONAR,SONAR`` (``GEN:`` repairs every sonar) -> an event of the failure schedule."""
+    gen, sep, names = text.partition(":")
+    try:
+        g = int(gen)
+    except ValueError:
+        g = -1
+    if not sep or g < 0:
+        raise argparse.ArgumentTypeError(f"invalid failure {text!r}: give GENERATION:SONAR,SONAR (e.g. "
+                                         "50:front,front_right,right; 75: repairs them)")
+    return g, tuple(n.strip() for n in names.split(",") if n.strip())
+
+
+def _settings(args: argparse.Namespace) -> Any:
+    from coevo.cel.settings import CelSettings
+    from coevo.config import build
+    from coevo.runs.local import default_run_id
+    from coevo.runs.settings import RunSettings
+
+    schedule = tuple(args.fail) if args.fail else SCHEDULES[args.schedule]
+    cel = build(CelSettings, {"schedule": schedule, "trials_per_generation": args.trials_per_generation,
+                              "chunk": args.chunk or args.trials_per_generation, "zero_run": args.zero_run,
+                              "repair_run": args.repair_run, "case_base": args.case_base or bool(args.cases_from)})
+    ga = ga_settings(args)
+    if args.generations is None:
+        ga = ga.model_copy(update={"generations": 100})  # the issue's run: 100 generations, the failure at 50
+    last = max((g for g, _ in schedule), default=0)
+    if last > ga.generations:
+        raise ConfigError(f"the failure schedule's last event is at generation {last}, after the run's "
+                          f"{ga.generations} generations")
+    return RunSettings.make(run=args.run or default_run_id("cel"), task="door", regime="independent", seed=args.seed,
+                            max_lead=args.max_lead, world=world_settings(args, "door"), ga=ga, cel=cel)
+
+
+def cmd_cel(args: argparse.Namespace) -> int:
+    from coevo.bus.status import StatusDisplay
+    from coevo.cel.service import CelRun, import_cases
+    from coevo.runs.local import run_local
+    from coevo.runs.settings import RunSettings
+
+    if args.resume:
+        given = [f for f in ("run", "fail", "cases_from", "generations", "population", "episodes", "world", "ga")
+                 if getattr(args, f, None)]
+        if given or args.case_base or args.schedule != "figure3":
+            raise ConfigError("--resume takes every setting from the run's run.json; drop " +
+                              ", ".join(f"--{f.replace('_', '-')}" for f in given or ["the other settings"]))
+        lr: CelRun = CelRun.resume(Path(args.resume), log_level=args.log_level)  # type: ignore[assignment]
+        if lr.settings.cel is None:
+            raise ConfigError(f"{args.resume} is not a CEL run (its run.json has no cel block); use coevo run --resume")
+    else:
+        settings: RunSettings = _settings(args)
+        lr = CelRun(settings, root=Path(args.root), log_level=args.log_level, open_run=args.open)
+        if args.cases_from and not Path(args.cases_from).is_dir():
+            raise ConfigError(f"--cases-from {args.cases_from!r} is not a run directory")
+        lr.create()
+        if args.cases_from:
+            n = import_cases(lr.paths, Path(args.cases_from), worker=lr.settings.roster["door"])  # type: ignore[index]
+            print(f"case base: {n} cases from {args.cases_from}")
+    cel = lr.settings.cel
+    assert cel is not None
+    events = "; ".join(f"gen {g}: {','.join(f) or 'repair'}" for g, f in cel.schedule) or "no failures"
+    title = (f"CEL run {lr.run}: {lr.settings.ga.generations} generations, {events}"
+             + (", case base" if cel.case_base else "") + (" OPEN" if lr.open else ""))
+    with StatusDisplay(title, quiet=args.quiet) as display:
+        summary = run_local(lr, resume=bool(args.resume), measure_epochs=1, on_status=display.show)
+    c = summary.get("cel", {})
+    print(f"run directory: {lr.dir} ({summary['seconds']:.1f} s)")
+    for d in c.get("detections", []):
+        if d["detected"]:
+            print(f"failure at generation {d['generation']} ({','.join(d['failed']) or 'repair'}): detected after "
+                  f"{d['trials']} trials, {d['decisions']} decisions; learner on the new model from generation "
+                  f"{d.get('learner_from', '?')}")
+        else:
+            print(f"failure at generation {d['generation']}: NOT detected")
+    if c.get("external_end") is not None:
+        print(f"external performance at the end: {c['external_end']:.0f} %; new rules reached the robot in "
+              f"{c['latency_ms']['median']:.1f} ms (median)" if c.get("latency_ms") else "")
+    if summary["interrupted"]:
+        print(f"the run stopped early; continue it with coevo cel --resume {lr.dir}", file=sys.stderr)
+        return 130 if summary.get("stopped_here") else 1
+    return 0
+
+
+def cmd_execution(args: argparse.Namespace) -> int:
+    from coevo.bus.session import config_from_args
+    from coevo.cel.robot import run_execution
+    from coevo.cli import _run_key
+    from coevo.runs.settings import RunSettings
+
+    settings = RunSettings.load(Path(args.settings))
+    return run_execution(settings, out=Path(args.out) if args.out else None, conf=config_from_args(args),
+                         resume=args.resume, run_key=_run_key(args.key_file, settings, Path(args.settings).parent))
+
+
+def add_parsers(sub: Any) -> None:
+    from coevo.bus.session import add_connection_args
+
+    p = sub.add_parser("cel", help="Appendix B: a live CEL run (broker, learning module, execution module) with a "
+                                   "failure schedule")
+    p.add_argument("--run", help="run id (default cel-TIME)")
+    p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
+    p.add_argument("--resume", metavar="RUN_DIR", help="continue this run from its processes' checkpoints")
+    p.add_argument("--seed", type=seed_arg, default=0, help="the learner's seed; the robot's world uses seed + 1000003")
+    p.add_argument("--schedule", choices=list(SCHEDULES), default="figure3",
+                   help="figure3: front, front-right and right fail at generation 50 (default); cyclic: fail at 25, "
+                        "repaired at 50, fail again at 75; none")
+    p.add_argument("--fail", type=fail_arg, action="append", metavar="GEN:SONARS",
+                   help="a failure event instead of --schedule, e.g. 50:front,front_right,right (75: repairs; repeatable)")
+    p.add_argument("--case-base", action="store_true",
+                   help="restart from the case base's nearest earlier strategies (kept in the broker's store)")
+    p.add_argument("--cases-from", metavar="RUN_DIR", help="start the case base with an earlier run's (implies --case-base)")
+    p.add_argument("--trials-per-generation", type=count_arg(1, 100_000), default=100,
+                   help="K: the robot's trials per learner generation (default 100, Figure 3's y-axis)")
+    p.add_argument("--chunk", type=count_arg(1, 100_000), help="trials per stretch of the robot (default K)")
+    p.add_argument("--zero-run", type=count_arg(1, 10_000), default=8,
+                   help="the monitor: zero readings in a row while moving forward to mark a sonar defective (default 8)")
+    p.add_argument("--repair-run", type=count_arg(1, 10_000), default=3,
+                   help="the monitor: non-zero readings in a row to mark it working again (default 3)")
+    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--open", action="store_true", help="make no key: messages unauthenticated (local experiments only)")
+    add_max_lead(p, default="0")
+    add_settings(p)
+    p.set_defaults(func=cmd_cel)
+
+    p = sub.add_parser("execution", help="a CEL run's execution module (the robot, with its monitor) as its own process")
+    p.add_argument("--settings", required=True, metavar="RUN_JSON", help="the run's settings (its run.json, made by coevo cel)")
+    p.add_argument("--out", help="its directory (default runs/RUN/execution)")
+    p.add_argument("--resume", action="store_true", help="continue from the checkpoint in --out")
+    p.add_argument("--key-file", metavar="FILE", help="the run's secret key (default: the key_file run.json names)")
+    add_connection_args(p)
+    p.set_defaults(func=cmd_execution)
