@@ -29,6 +29,7 @@ import pytest
 
 from coevo.cli import build_parser, main
 from coevo.errors import CoevoError
+from coevo.runs.settings import RunSettings
 
 NUMBERS = ["nan", "inf", "-1", "0", "1e308", ""]
 CLEARLY_BAD = {"nan", "inf", "1e308", ""}  # for a flag that takes a number
@@ -60,6 +61,10 @@ def places(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> dict[str, Path]:
         (d / "run.json").write_text('{"run": ' if what == "broken-run" else '{"run": "broken-worker", "regime": "mutual"}')
         (d / "workers" / "tracking" / "worker.json").write_text("[1, 2" if what == "broken-worker" else "{}")
         p[what] = d
+    cel = tmp_path / "cel-run"  # a CEL run's run.json, for coevo execution
+    cel.mkdir()
+    RunSettings.make(run="cel-run", task="door", regime="independent", cel={}).save(cel / "run.json")
+    p["cel-run"] = cel
     for mod, name in (("coevo.runs.local", "run_local"), ("coevo.runs.chaos", "run_chaos"),
                       ("coevo.experiments.compare", "run_all"), ("coevo.experiments.earl.experiment", "run_grid"),
                       ("coevo.experiments.earl.td_tasks", "run_task")):
@@ -99,6 +104,11 @@ def _base(command: str, flag: str, places: dict[str, Path]) -> list[str]:
         "keygen": ["--run", "x", "--out", f"{fresh}.key"],
         "show": ["--default", "tracking", "--episodes", "1", "--rules"],
         "chaos": ["--run", "sweep", "--root", fresh, *TINY, "--faults", "0", "--quiet"],
+        "cel": ([] if flag == "--resume" else ["--run", "sweep", "--generations", "2", "--population", "2",
+                                                "--episodes", "1", "--fail", "1:front"])
+        + ([] if flag == "--resume" else ["--root", fresh]) + ["--quiet"],
+        "execution": ([] if flag == "--settings" else ["--settings", str(places["cel-run"] / "run.json")])
+        + [*NO_ROUTER, "--out", fresh],
         "replay": [str(places["broken-worker"])],
         "check": [str(places["broken-worker"]), "--no-replay"],
     }

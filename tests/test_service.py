@@ -15,7 +15,7 @@ import pytest
 from procs import SMALL, coevo_proc, poll, stop
 
 from coevo.bus import keys
-from coevo.bus.messages import PolicyUpdate, encode
+from coevo.bus.messages import PolicyUpdate, decode, encode
 from coevo.bus.session import make_config, open_session
 from coevo.bus.status import StatusBoard
 from coevo.policy import random_ruleset
@@ -163,3 +163,19 @@ def test_current_policy_model_end_to_end_replays_from_the_log(tmp_path: Path) ->
     (run_dir / "store").mkdir()
     rr = subprocess.run([sys.executable, "-m", "coevo", "replay", str(run_dir)], capture_output=True, text=True, timeout=300)
     assert rr.returncode == 0, rr.stdout + rr.stderr
+
+
+def test_the_store_history_answers_every_version_not_only_the_latest(broker) -> None:
+    """zenoh's default query consolidation keeps one reply per key; the store's history is many on one key."""
+    from coevo.bus.session import query
+
+    endpoint, _ = broker
+    rs = random_ruleset("tracking", 6, np.random.default_rng(0)).to_dict()
+    with open_session(make_config(mode="client", connect=[endpoint])) as s:
+        for v in (1, 2, 3):
+            s.put(keys.policy("h", "tracking"), encode(PolicyUpdate(run="h", behaviour="tracking", worker="t", version=v,
+                                                                    generation=v, fitness=0.1 * v, episodes=1, rules=rs,
+                                                                    sent_at=time.time())))
+        got = poll(lambda: (r := query(s, keys.store_history("h", "tracking"), timeout=2.0, what="history")) and
+                   len(r) == 3 and r, 10, "three versions in the history")
+    assert [decode(p).version for _, p in got] == [1, 2, 3]

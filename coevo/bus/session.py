@@ -302,14 +302,17 @@ def open_session(conf: zenoh.Config, *, what: str = "session", gate: Gate | None
 
 
 def query(session: Any, key: str, *, timeout: float, what: str) -> list[tuple[str, bytes]]:
-    """(reply key, payload) of the successful replies to a get on ``key`` (a store queryable), waiting up to ``timeout`` s.
+    """(reply key, payload) of the successful replies to a get on ``key`` (a store queryable), waiting up to ``timeout`` s;
+    every reply, several on one key included, in the order they came.
 
     A session closing or a router going away meanwhile becomes a ServiceError naming ``what``;
     no reply at all within the timeout is an empty list (the caller knows whether that is news).
     """
     try:
-        return [(str(r.ok.key_expr), bytes(r.ok.payload.to_bytes())) for r in session.get(key, timeout=timeout)
-                if r.ok is not None]
+        # No consolidation: a store's history and case base answer many replies on one key, and zenoh's default
+        # keeps only the latest reply per key.
+        return [(str(r.ok.key_expr), bytes(r.ok.payload.to_bytes()))
+                for r in session.get(key, timeout=timeout, consolidation=zenoh.ConsolidationMode.NONE) if r.ok is not None]
     except zenoh.ZError as exc:
         raise ServiceError(f"query for {what} on {key!r} failed: {exc}") from exc
 

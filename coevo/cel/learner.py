@@ -66,6 +66,7 @@ class RobotPacer(Pacer):
     def __init__(self, session: Any, run: str, robot: str, *, trials_per_generation: int, max_lead: int | None) -> None:
         self.K = trials_per_generation
         super().__init__(session, run, (robot,), max_lead=max_lead)
+        self._progress[robot] = -1  # not even generation 0's trials played yet
 
     def _status_key(self, partner: str) -> str:
         return keys.execution(self.run, partner)
