@@ -179,6 +179,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.resume:
         _refuse(args, (*RUN_FLAGS, "run", "settings"), "--resume takes every setting from the run's run.json")
         lr = LocalRun.resume(Path(args.resume), log_level=args.log_level)
+        if lr.settings.cel is not None:
+            raise ConfigError(f"{args.resume} is a CEL run: continue it with coevo cel --resume {args.resume}")
     else:
         if args.settings:
             _refuse(args, RUN_FLAGS, "--settings gives every run setting but the run id")
@@ -190,6 +192,9 @@ def cmd_run(args: argparse.Namespace) -> int:
                                         seed=args.seed or 0, model=args.model or "best",
                                         max_lead=1 if args.max_lead is None else args.max_lead,
                                         world=world_settings(args, task), ga=ga_settings(args))
+        if settings.cel is not None:
+            raise ConfigError(f"{args.settings} is a CEL run's settings: start it with coevo cel (its execution module "
+                              "is not a worker)")
         lr = LocalRun(settings, root=Path(args.root), log_level=args.log_level, open_run=args.open)
         lr.create()
     title = f"run {lr.run} ({lr.settings.regime})" + (" OPEN: messages unauthenticated" if lr.open else "")
@@ -261,9 +266,13 @@ def cmd_check(args: argparse.Namespace) -> int:
     from coevo.runs.check import check_run
 
     res = check_run(Path(args.run_dir), replay=not args.no_replay)
-    for beh, facts in sorted((k, v) for k, v in res.facts.items() if isinstance(v, dict)):
+    for beh, facts in sorted((k, v) for k, v in res.facts.items() if isinstance(v, dict) and "published" in v):
         print(f"{beh}: {facts['generations']} generations, {facts['published']} versions published, "
               f"{facts['adoptions']} adoptions")
+    ex = res.facts.get("execution")
+    if ex:
+        print(f"execution: {ex['generations']} generations of trials, {ex['policies_used']} rule sets used, "
+              f"{ex['changes']} capability changes")
     if res.ok:
         print("complete" + (" (replay exact)" if res.facts.get("replayed") else ""))
         return 0

@@ -8,8 +8,12 @@ on a simulation model that follows that list, restarts on a change (half its
 population kept, half copies of the initial rules or the nearest cases of a case
 base, :mod:`.casebase`) and hands each new best to the execution module.
 :mod:`.experiment` steps the two in lockstep, deterministically, for the Figure 3
-experiment and the cyclic schedule.  The processes and bus messages that make this
-a live service are built on these classes elsewhere.
+experiment and the cyclic schedule.
+
+The live service: :mod:`.learner` (the learning module as a worker process),
+:mod:`.robot` (the execution module as a process, ``coevo execution``), :mod:`.service`
+(``coevo cel``: one run on this machine), :mod:`.settings` (a run's ``cel`` block) and
+:mod:`.command` (the two commands).
 """
 
 from __future__ import annotations

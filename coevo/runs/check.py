@@ -15,6 +15,11 @@ What it checks, per worker directory:
   store holds no policy of any other worker id;
 * ``coevo replay`` reproduces the learning curve exactly from the logs (skipped
   with ``replay=False``).
+
+In a CEL run (``coevo cel``) also: the execution module played every generation's trials
+once (``performance.jsonl``: generations 0..G in order) and says it finished; every rule
+set it used is one the learner published under that version; its monitor's changes are
+numbered 1..n; every case the learner stored is in the broker's store, identical.
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ from typing import Any
 
 from coevo.agents.inbox import rules_digest
 from coevo.errors import CoevoError
-from coevo.runs.layout import RunPaths, read_json, read_jsonl, read_store
+from coevo.runs.layout import RunPaths, read_cases, read_json, read_jsonl, read_store
 
 __all__ = ["RunCheck", "check_run"]
 
@@ -91,6 +96,8 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
     for beh, model, adopted in adoptions:
         for a in adopted:
             _check_adoption(check, beh, model, a, published_all)
+    if run.execution.meta_json.exists():
+        _check_cel(run, check, published_all)
     if replay and not check.problems:
         from coevo.runs.replay import replay as replay_run
 
@@ -99,6 +106,36 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
                 check.problems.append(f"{r.behaviour}: replay differs at generation {r.first_mismatch}: {r.detail}")
         check.facts["replayed"] = True
     return check
+
+
+def _check_cel(run: RunPaths, check: RunCheck, published: dict[tuple[str, int], tuple[str, str]]) -> None:
+    """A CEL run's execution module and case base (see the module docstring)."""
+    ex = run.execution
+    meta = read_json(ex.meta_json, what="execution directory (its execution.json)")
+    gens = int(meta.get("generations", 0))
+    points = [int(r["generation"]) for r in read_jsonl(ex.performance, problems=check.problems)]
+    if points != list(range(gens + 1)):
+        check.problems.append(f"execution: performance.jsonl has generations {_span(points)}, expected 0..{gens}")
+    done = read_json(ex.done, what="execution directory (its done.json)") if ex.done.exists() else {}
+    if not done.get("finished"):
+        check.problems.append("execution: done.json missing or not finished")
+    used = read_jsonl(ex.policies, problems=check.problems)
+    for u in used:
+        pub = published.get(("door", int(u["version"])))
+        if pub is None or pub[1] != rules_digest(u["rules"]):
+            check.problems.append(f"execution: used door v{u['version']}, which the learner did not publish so")
+    changes = [int(c["change"]) for c in read_jsonl(ex.changes, problems=check.problems)]
+    if changes != list(range(1, len(changes) + 1)):
+        check.problems.append(f"execution: changes.jsonl numbers {changes}, not 1..n")
+    learner = run.worker("door")
+    if learner.cases.exists():
+        store = run.case_file("door")
+        held = {(c.worker, c.version): c for c in read_cases(store, problems=check.problems)} if store.exists() else {}
+        own = [c for c in read_cases(learner.cases, problems=check.problems) if c.worker == learner.meta()["worker"]]
+        lost = [c.version for c in own if (c.worker, c.version) not in held or held[(c.worker, c.version)].rules != c.rules]
+        if lost:
+            check.problems.append(f"door: cases {lost} are not in the store as the learner stored them")
+    check.facts["execution"] = {"generations": len(points), "policies_used": len(used), "changes": len(changes)}
 
 
 def _roster(run: RunPaths, check: RunCheck) -> dict[str, str] | None:
