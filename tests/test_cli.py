@@ -108,8 +108,16 @@ def test_bench_rejects_bad_sizes() -> None:
 class _Board:
     """A status board as `coevo status` sees it, filled with wide but plausible values."""
 
-    def __init__(self, generation: int = 420) -> None:
+    def __init__(self, generation: int = 420, robot: bool = False) -> None:
         self.generation = generation
+        self.robot = robot
+
+    def robots_view(self) -> list[dict[str, object]]:
+        if not self.robot:
+            return []
+        return [{"robot": "robot", "trial": 5007, "trials": 10100, "generation": 50, "performance": 37.0,
+                 "rules_version": 31, "capabilities": ["far_left", "left", "front_left", "far_right"], "changes": 1,
+                 "last_change": 5000, "rejected_by_reason": {"not_roster": 2}, "state": "alive"}]
 
     def snapshot(self) -> list[dict[str, object]]:
         rejected = {"flood": 99999, "not_msgpack": 17, "schema_version": 5, "wrong_behaviour": 1234}
@@ -143,6 +151,43 @@ def test_status_table_fits_80_columns_without_cutting_words() -> None:
             for word in cell.split():
                 assert word in words, word  # whole: wrapped between words, never inside one
     assert "stalled" in words and "wrong_behaviour" in words and "picks-D=23%" in words
+
+
+def test_a_cel_runs_status_shows_the_robot_and_fits_80_columns() -> None:
+    from rich.console import Console
+
+    from coevo.bus.status import PlainStatus, status_table
+
+    console = Console(width=80, record=True, color_system=None)
+    console.print(status_table(_Board(robot=True), "CEL run cel-20261123-140544: 100 generations"))
+    text = console.export_text()
+    assert max(len(line) for line in text.splitlines()) <= 80 and "…" not in text
+    words = set(text.split())
+    assert {"ext=37%", "v31,", "not_roster"} <= words
+    robot = [line for line in PlainStatus().lines(_Board(robot=True)) if " robot " in line]
+    assert len(robot) == 1 and "robot gen 50 ext=37% rules v31, 4 sensors, 1 changes" in robot[0], robot
+    assert "best" not in robot[0] and "unconfirmed" not in robot[0]
+
+
+def test_coevo_cels_table_says_what_the_run_is_doing_in_80_columns() -> None:
+    from rich.console import Console
+
+    from coevo.cel.status import CelPlain, cel_table
+
+    class Cel(_Board):
+        def snapshot(self) -> list[dict[str, object]]:
+            return [{"behaviour": "door", "worker": "door-0", "generation": 51, "generations": 100, "best_fitness": 0.9,
+                     "measures": {"success": 96.4}, "rejected_by_reason": {}, "state": "alive"}]
+
+    console = Console(width=80, record=True, color_system=None)
+    console.print(cel_table(100)(Cel(robot=True), "CEL run x: 100 generations"))
+    text = console.export_text()
+    assert max(len(line) for line in text.splitlines()) <= 80
+    for expected in ("51 / 100", "96 % success", "37 % of its last trials", "far_left, left, front_left, far_right",
+                     "trial 5000 (generation 50), change 1", "learner alive, robot alive, broker up"):
+        assert expected in " ".join(text.split()), expected
+    plain = CelPlain(100)
+    assert len(plain.lines(Cel(robot=True))) == 1 and plain.lines(Cel(robot=True)) == []
 
 
 def test_status_as_plain_lines_one_per_worker_when_it_changes() -> None:

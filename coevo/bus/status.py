@@ -285,11 +285,10 @@ def _status_rows(board: Any) -> list[tuple[str, ...]]:
         partners = " ".join(f"{k[0].upper()}v{v}" for k, v in sorted(w["partner_versions"].items())) or "-"
         rows.append((who, f"{w['generation']}/{w['generations']}", f"{w['best_fitness']:.3f}", _own(w.get("measures", {})),
                      partners, str(w["buffered"]), _reasons(w["rejected_by_reason"]), w["state"]))
-    for r in board.robots_view():
-        change = "no change" if r["last_change"] is None else f"change {r['changes']} at trial {r['last_change']}"
-        caps = f"{len(r['capabilities'])} sensors: {' '.join(r['capabilities']) or 'none'}"
-        rows.append((r["robot"], f"{r['generation']}", "", f"external={r['performance']:.0f}% trial {r['trial']}/{r['trials']}",
-                     f"rules v{r['rules_version']}; {caps}; {change}", "", _reasons(r["rejected_by_reason"]), r["state"]))
+    for r in board.robots_view():  # a CEL run's execution module, short (coevo cel has its own table)
+        rows.append((r["robot"], f"{r['generation']}", "", f"ext={r['performance']:.0f}%",
+                     f"rules v{r['rules_version']}, {len(r['capabilities'])} sensors, {r['changes']} changes", "",
+                     _reasons(r["rejected_by_reason"]), r["state"]))
     b = board.broker_view()
     stored = " ".join(f"{k[0].upper()}:{v}" for k, v in sorted(b["stored"].items())) or "-"
     why = f" ({b['degraded']})" if b.get("degraded") else ""  # a degraded store says why: the file and the error
@@ -358,6 +357,8 @@ class PlainStatus:
         for who, gen, best, own, partners, unc, rejected, state in _status_rows(board):
             if who == "broker":
                 text = f"broker {state} {partners} rejected {rejected}"
+            elif not best:  # a CEL run's execution module: no fitness, no partners of its own
+                text = f"{who} gen {gen} {own} {partners} rejected {rejected} {state}"
             else:
                 text = (f"{who} gen {gen} best {best} {own} partners {partners} unconfirmed {unc} "
                         f"rejected {rejected} {state}")
@@ -371,10 +372,13 @@ class StatusDisplay:
     """Shows a board on the terminal as it changes: a live table on a terminal, plain lines in a log
     or a pipe (no box drawing, no redraws), JSON lines with ``json``, nothing with ``quiet``."""
 
-    def __init__(self, title: str, *, json_lines: bool = False, quiet: bool = False) -> None:
+    def __init__(self, title: str, *, json_lines: bool = False, quiet: bool = False, table: Any = None,
+                 plain: Any = None) -> None:
+        """``table(board, title)`` and ``plain.lines(board)`` draw it (default: :func:`status_table`, :class:`PlainStatus`)."""
         self.title, self.json_lines, self.quiet = title, json_lines, quiet
         self.live = not (json_lines or quiet) and sys.stdout.isatty()
-        self._plain = PlainStatus()
+        self._table = table or status_table
+        self._plain = plain or PlainStatus()
         self._rich: Any = None
 
     def __enter__(self) -> StatusDisplay:
@@ -391,7 +395,7 @@ class StatusDisplay:
         if self.json_lines:
             print(board.json_line(), flush=True)
         elif self._rich is not None:
-            self._rich.update(status_table(board, self.title.replace("{time}", time.strftime("%H:%M:%S"))), refresh=True)
+            self._rich.update(self._table(board, self.title.replace("{time}", time.strftime("%H:%M:%S"))), refresh=True)
         else:
             for line in self._plain.lines(board):
                 print(line, flush=True)

@@ -61,6 +61,7 @@ def _settings(args: argparse.Namespace) -> Any:
 def cmd_cel(args: argparse.Namespace) -> int:
     from coevo.bus.status import StatusDisplay
     from coevo.cel.service import CelRun, import_cases
+    from coevo.cel.status import CelPlain, cel_table
     from coevo.runs.local import run_local
     from coevo.runs.settings import RunSettings
 
@@ -87,7 +88,8 @@ def cmd_cel(args: argparse.Namespace) -> int:
     events = "; ".join(f"gen {g}: {','.join(f) or 'repair'}" for g, f in cel.schedule) or "no failures"
     title = (f"CEL run {lr.run}: {lr.settings.ga.generations} generations, {events}"
              + (", case base" if cel.case_base else "") + (" OPEN" if lr.open else ""))
-    with StatusDisplay(title, quiet=args.quiet) as display:
+    with StatusDisplay(title, quiet=args.quiet, table=cel_table(cel.trials_per_generation),
+                       plain=CelPlain(cel.trials_per_generation)) as display:
         summary = run_local(lr, resume=bool(args.resume), measure_epochs=1, on_status=display.show)
     c = summary.get("cel", {})
     print(f"run directory: {lr.dir} ({summary['seconds']:.1f} s)")

@@ -48,7 +48,8 @@ from coevo.cel.settings import CelSettings
 from coevo.errors import ConfigError, MessageError, ServiceError
 from coevo.ga import GA, GenerationReport
 from coevo.policy.rules import RuleSet
-from coevo.runs.layout import WorkerPaths, read_cases
+from coevo.policy.text import format_ruleset
+from coevo.runs.layout import WorkerPaths, read_cases, write_text
 
 __all__ = ["CelLearner", "RobotPacer", "case_of"]
 
@@ -152,6 +153,8 @@ class CelLearner(Worker):
         paced = super()._restore(ga, state)
         if state is not None:
             self._best = float(self._m.best_fitness) if self._m.best is not None else 0.0
+            if self._m.best is not None:  # the robot's rules: the best since the last change, not the GA's of the run
+                write_text(self.paths.best_rules, format_ruleset(self._m.best))
             self._load_cases()
         return paced
 

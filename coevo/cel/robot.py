@@ -134,6 +134,7 @@ class Execution:
         self.event_decisions = 0  # decisions since the latest schedule event began (for the detection delay)
         self.point = _Point()
         self.stop = threading.Event()  # a stop message arrived
+        self._unsent: list[CapabilityChange] = []  # the monitor's changes of the last stretch, put after its checkpoint
         self._learner = 0  # generations the learner reported finishing
         self._session: Any = None
         self._pubs: dict[str, Any] = {}
@@ -249,7 +250,12 @@ class Execution:
                         self._fetch_latest()
                     self._take([], policies)
                     self._play(min(self.cel.chunk, self.K * (generation + 1) - self.module.trial))
+                    # Checkpoint before anything of the stretch leaves: a change put on the bus is always in a
+                    # checkpoint, so a resumed robot never numbers a different change the same (the learner skips it).
                     self._checkpoint()
+                    for c in self._unsent:
+                        self._put_capabilities(c)
+                    self._unsent.clear()
                     self._beat(control)
                 if self.stop.is_set():
                     log.info("%s stopping at trial %d", self.robot, self.module.trial)
@@ -342,7 +348,7 @@ class Execution:
             row.update(event_trial=start, delay_trials=c.trial - start + 1,
                        delay_decisions=self._decisions_since(start, c.trial, first, per_trial) + c.decision + 1)
         self._write("changes.jsonl", row)
-        self._put_capabilities(c)
+        self._unsent.append(c)
         log.info("%s: monitor says %s at trial %d (change %d)", self.robot, ",".join(c.capabilities) or "none",
                  c.trial, self.changes)
 
