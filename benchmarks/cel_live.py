@@ -1,7 +1,7 @@
 """Figure 3 with the live service (issue 17 items 6 and 8): ``coevo cel`` runs, each three processes on the bus.
 
     .venv/bin/python benchmarks/cel_live.py [--runs 10] [--jobs 2] [--root /tmp/cel-live] [--out docs/cel]
-                                            [--lockstep docs/cel/figure3.json] [--case-base] [--schedule figure3]
+                                            [--lockstep docs/cel/figure3.json] [--case-base] [--schedule figure3|cyclic]
 
 Runs ``coevo cel --seed S`` for S = 0 .. runs-1 (``--jobs`` at a time; the default settings: 100
 generations, front, front-right and right fail at generation 50, max-lead 0), then reports:
@@ -64,7 +64,8 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=2, help="runs at a time (each is a broker, a learner and a robot)")
     ap.add_argument("--root", default="/tmp/cel-live", help="where the run directories go (not the repository)")
     ap.add_argument("--out", default="docs/cel")
-    ap.add_argument("--lockstep", default="docs/cel/figure3.json", help="benchmarks/cel.py's per-run curves")
+    ap.add_argument("--lockstep", default="docs/cel/figure3.json",
+                    help="benchmarks/cel.py's per-run curves (for --schedule cyclic: cyclic.json beside it)")
     ap.add_argument("--schedule", default="figure3")
     ap.add_argument("--case-base", action="store_true")
     a = ap.parse_args()
@@ -85,9 +86,12 @@ def main() -> None:
             table[name] = {"generation": g, "ours": ext[:, g].tolist(), "report": REPORT[name]}
             print(f"  {name:10s} generation {g:3d}: {ms(ext[:, g])} %   (report {REPORT[name]:.0f} %)")
     same = None
-    lock = Path(a.lockstep)
-    if lock.exists() and a.schedule == "figure3" and not a.case_base:
-        by_seed = {r["seed"]: r["external"] for r in json.loads(lock.read_text())["runs"]}
+    lock = Path(a.lockstep if a.schedule == "figure3" else Path(a.lockstep).with_name(f"{a.schedule}.json"))
+    if lock.exists() and (a.schedule == "figure3" and not a.case_base or a.schedule == "cyclic"):
+        held = json.loads(lock.read_text())["runs"]
+        if a.schedule == "cyclic":
+            held = held["case_base" if a.case_base else "restart"]
+        by_seed = {r["seed"]: r["external"] for r in held}
         same = [r["seed"] for r in runs if by_seed.get(r["seed"]) == r["external"]]
         print(f"  equal to the lockstep run of the same seed: {len(same)} of {len(runs)} (seeds {same})")
     det = [d for r in runs for d in r["detections"]]
