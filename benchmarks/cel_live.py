@@ -111,11 +111,16 @@ def main() -> None:
             "external_sd": ext.std(axis=0, ddof=1 if len(runs) > 1 else 0).round(2).tolist()}
     name = "live" if a.schedule == "figure3" and not a.case_base else f"live-{a.schedule}{'-cases' if a.case_base else ''}"
     (out / f"{name}.json").write_text(json.dumps(data, indent=1) + "\n")
-    _plot(out / f"{name}.png", data, event)
+    if a.schedule == "cyclic":
+        _plot(out / f"{name}.png", data, None, f"cyclic schedule, live service{', case base' if a.case_base else ''}",
+              ((25, "fail"), (50, "repair"), (75, "fail")))
+    else:
+        _plot(out / f"{name}.png", data, event)
     print(f"wrote {out / (name + '.json')} and {out / (name + '.png')}")
 
 
-def _plot(path: Path, data: dict[str, Any], event: int | None) -> None:
+def _plot(path: Path, data: dict[str, Any], event: int | None, title: str = "Figure 3 counterpart, live service (coevo cel)",
+          marks: tuple[tuple[int, str], ...] = ()) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -134,7 +139,10 @@ def _plot(path: Path, data: dict[str, Any], event: int | None) -> None:
     ax.set_xlabel("generation")
     ax.set_ylabel("external performance (% of 100 trials)")
     ax.set_ylim(0, 100)
-    ax.set_title("Figure 3 counterpart, live service (coevo cel)")
+    for g, what in marks:
+        ax.axvline(g, color="k", linestyle=":" if what == "repair" else "--", linewidth=1)
+        ax.text(g + 0.5, 3, what, fontsize=8)
+    ax.set_title(title)
     ax.legend(loc="lower right")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
