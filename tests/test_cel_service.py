@@ -196,3 +196,37 @@ def test_execution_refuses_a_run_that_is_not_a_cel_run(tmp_path: Path) -> None:
     r = subprocess.run([sys.executable, "-m", "coevo", "execution", "--settings", str(tmp_path / "run.json"),
                         "--connect-timeout", "0"], capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and "cel block" in r.stderr, r.stderr
+
+
+@pytest.mark.slow
+def test_a_killed_broker_loses_no_case_and_a_whole_run_killed_at_once_resumes(tmp_path: Path) -> None:
+    """The broker dies after the learner stored a case, and its store comes back without it (a write lost): the
+    learner puts its cases again when a broker appears.  Then the whole run dies at once, and coevo cel --resume
+    finishes it."""
+    ga = door_ga(generations=14, population=16, episodes=20, best_episodes=20)
+    settings = RunSettings.make(run="outage", task="door", regime="independent", seed=3, max_lead=0, ga=ga,
+                                cel={"schedule": [[3, list(FAILED)], [6, []], [9, list(FAILED)]], "case_base": True})
+    lr = CelRun(settings, root=tmp_path, log_level="INFO")
+    lr.create()
+    lr.start(resume=False)
+    cases = lr.paths.worker("door").cases
+    curve = lr.paths.worker("door").curve
+    n = lambda f: len(f.read_text().splitlines()) if f.exists() else 0  # noqa: E731
+    try:
+        poll(lambda: n(cases) >= 1, 120, "the learner's first case")
+        lr.broker.send_signal(signal.SIGKILL)
+        lr.broker.wait()
+        lr.paths.case_file("door").unlink()  # the store lost the case
+        time.sleep(1.0)
+        lr.start_broker()
+        poll(lambda: n(curve) >= 10, 120, "the learner past generation 10")
+    finally:
+        lr.end_all()  # the whole run at once (SIGTERM, as a machine shutting down would)
+    r = _cel(tmp_path, "--resume", str(lr.dir))
+    assert r.returncode == 0, r.stdout + r.stderr
+    summary = json.loads((lr.dir / "summary.json").read_text())
+    assert summary["resumed"] is True and not summary["interrupted"]
+    stored = read_cases(lr.paths.case_file("door"))
+    assert [c.version for c in stored] == sorted(c.version for c in stored) and len(stored) == 3, stored
+    check = check_run(lr.dir)  # every case in the store, every generation's trials once, replay exact
+    assert check.ok, check.problems
