@@ -25,15 +25,16 @@ keeps the logs instead.
 from __future__ import annotations
 
 import zlib
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import msgpack
 
-from coevo.errors import RunDirError
-from coevo.runs.layout import WorkerPaths, write_bytes
+from coevo.errors import ConfigError, RunDirError
+from coevo.runs.layout import WorkerPaths, read_json, write_bytes, write_json
 
-__all__ = ["FORMAT", "save_checkpoint", "load_checkpoint", "resume_state", "truncate_log"]
+__all__ = ["FORMAT", "save_checkpoint", "load_checkpoint", "resume_state", "truncate_log", "prepare_dir", "cut_logs"]
 
 FORMAT = "coevo-checkpoint/1"
 
@@ -94,6 +95,41 @@ def _keep_advice(paths: WorkerPaths) -> str:
                 "coevo run --settings RUN_DIR/run.json --run NEW_ID")
     return (f"{keep}. It has published no version yet, so it can start afresh elsewhere: move the directory "
             f"aside (its logs stay there) and --resume, or put back an intact {paths.checkpoint.name} and --resume")
+
+
+def prepare_dir(directory: Path, *, what: str, meta_file: Path, meta: dict[str, Any], logs: Sequence[Path],
+                checkpoint: Path, resume: bool, saved_defaults: Mapping[str, Any] | None = None, hint: str = "") -> None:
+    """Make a process's directory (a worker's, an execution module's: ``what``) with its settings file and empty
+    logs; a directory that already holds a run is refused (``hint``: where else to go).  With ``resume``, check
+    instead that its settings file says ``meta`` (``saved_defaults`` fill fields older files lack; the ``coevo``
+    version may differ): any other setting is a ConfigError naming each difference.  The caller then loads the
+    checkpoint and cuts the logs back to it (:func:`cut_logs`)."""
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RunDirError(f"cannot create the {what} directory {str(directory)!r}: {exc.strerror or exc}") from None
+    if not resume:
+        used = [f for f in (meta_file, checkpoint, *logs) if f.exists()]
+        if used:
+            raise RunDirError(f"{what} directory {str(directory)!r} already holds a {what}'s run ({used[0].name}); "
+                              f"add --resume to continue it{hint}")
+        write_json(meta_file, meta)
+        for f in logs:
+            f.touch()
+        return
+    if not meta_file.exists():
+        write_json(meta_file, meta)
+        return
+    saved = {**(saved_defaults or {}), **read_json(meta_file, what=f"{what} directory (its {meta_file.name})")}
+    diff = [f"{k} was {saved.get(k)!r}, now {meta[k]!r}" for k in meta if k != "coevo" and saved.get(k) != meta[k]]
+    if diff:
+        raise ConfigError(f"--resume of {str(directory)!r} with other settings: {'; '.join(diff)}")
+
+
+def cut_logs(logs: Sequence[Path], sizes: Mapping[str, int]) -> None:
+    """Cut each log back to the size its checkpoint saw (0 for one it does not name)."""
+    for f in logs:
+        truncate_log(f, int(sizes.get(f.name, 0)))
 
 
 def truncate_log(path: Path, size: int) -> None:

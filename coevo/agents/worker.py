@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from coevo import __version__
-from coevo.agents.checkpoint import resume_state, save_checkpoint, truncate_log
+from coevo.agents.checkpoint import cut_logs, prepare_dir, resume_state, save_checkpoint
 from coevo.agents.inbox import INBOX, Inbox
 from coevo.agents.models import PartnerModels
 from coevo.agents.outbox import BrokerWatch, Outbox
@@ -45,7 +45,7 @@ from coevo.bus.auth import RunKey
 from coevo.bus.messages import PolicyUpdate, Status
 from coevo.bus.rejections import Rejections
 from coevo.bus.session import open_session, sigterm_as_exit
-from coevo.errors import ConfigError, MessageError, RunDirError
+from coevo.errors import ConfigError, MessageError
 from coevo.ga import GA, GenerationReport
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
@@ -142,32 +142,14 @@ class Worker:
     def _prepare(self) -> dict[str, Any] | None:
         """Create the directory, or check it and cut its logs back to the checkpoint (``resume``)."""
         p = self.paths
-        try:
-            p.dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise RunDirError(f"cannot create the worker directory {str(p.dir)!r}: {exc.strerror or exc}") from None
-        meta, logs = self._meta(), [p.dir / n for n in self.logs]
+        logs = [p.dir / n for n in self.logs]
+        prepare_dir(p.dir, what="worker", meta_file=p.worker_json, meta=self._meta(), logs=logs, checkpoint=p.checkpoint,
+                    resume=self.resume, saved_defaults={"task": DEFAULT_TASK},  # written before tasks were named
+                    hint=", or choose another --out")
         if not self.resume:
-            used = [f for f in (p.worker_json, p.checkpoint, *logs) if f.exists()]
-            if used:
-                raise RunDirError(f"worker directory {str(p.dir)!r} already holds a worker's run ({used[0].name}); "
-                                  "add --resume to continue it, or choose another --out")
-            write_json(p.worker_json, meta)
-            for f in logs:
-                f.touch()
             return None
-        if p.worker_json.exists():
-            saved = json.loads(p.worker_json.read_text(encoding="utf-8"))
-            saved.setdefault("task", DEFAULT_TASK)  # written before tasks were named
-            diff = [f"{k} was {saved.get(k)!r}, now {meta[k]!r}" for k in meta if k != "coevo" and saved.get(k) != meta[k]]
-            if diff:
-                raise ConfigError(f"--resume of {str(p.dir)!r} with other settings: {'; '.join(diff)}")
-        else:
-            write_json(p.worker_json, meta)
         state = resume_state(p, self._ident())
-        sizes = state["worker"]["log_sizes"] if state else {n: 0 for n in self.logs}
-        for f in logs:
-            truncate_log(f, int(sizes[f.name]))
+        cut_logs(logs, state["worker"]["log_sizes"] if state else {})
         return state
 
     def _restore(self, ga: GA, state: dict[str, Any] | None) -> float:

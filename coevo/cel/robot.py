@@ -42,7 +42,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from coevo import __version__
-from coevo.agents.checkpoint import load_checkpoint, save_checkpoint, truncate_log
+from coevo.agents.checkpoint import cut_logs, load_checkpoint, prepare_dir, save_checkpoint
 from coevo.agents.outbox import BrokerWatch
 from coevo.agents.pacing import Pacer
 from coevo.bus import keys
@@ -55,7 +55,7 @@ from coevo.cel.monitor import Monitor
 from coevo.cel.settings import ROBOT_SEED_OFFSET
 from coevo.errors import ConfigError, MessageError, RunDirError, ServiceError
 from coevo.policy.rules import RuleSet
-from coevo.runs.layout import ExecutionPaths, read_json, read_jsonl, write_json
+from coevo.runs.layout import ExecutionPaths, read_jsonl, write_json
 from coevo.runs.settings import RunSettings
 from coevo.tasks.door import DOOR, default_ruleset
 from coevo.tasks.door.settings import SONARS, DoorConfig
@@ -153,39 +153,20 @@ class Execution:
                 "world": self.world.model_dump(mode="json"), "cel": self.cel.model_dump(mode="json")}
 
     def _prepare(self) -> None:
+        """Create the directory, or check it, cut its logs back to the checkpoint and restore the state (``resume``)."""
         p = self.paths
-        try:
-            p.dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise RunDirError(f"cannot create the execution directory {str(p.dir)!r}: {exc.strerror or exc}") from None
         logs = [p.dir / n for n in ExecutionPaths.LOGS]
-        meta = self._meta()
+        prepare_dir(p.dir, what="execution", meta_file=p.meta_json, meta=self._meta(), logs=logs, checkpoint=p.checkpoint,
+                    resume=self.resume)
         if not self.resume:
-            used = [f for f in (p.meta_json, p.checkpoint, *logs) if f.exists()]
-            if used:
-                raise RunDirError(f"execution directory {str(p.dir)!r} already holds a robot's run ({used[0].name}); "
-                                  "add --resume to continue it")
-            write_json(p.meta_json, meta)
-            for f in logs:
-                f.touch()
             return
-        if p.meta_json.exists():
-            saved = read_json(p.meta_json, what="execution directory (its execution.json)")
-            diff = [f"{k} was {saved.get(k)!r}, now {meta[k]!r}" for k in meta if k != "coevo" and saved.get(k) != meta[k]]
-            if diff:
-                raise ConfigError(f"--resume of {str(p.dir)!r} with other settings: {'; '.join(diff)}")
-        else:
-            write_json(p.meta_json, meta)
         state = load_checkpoint(p.checkpoint, self._ident(), advice=". Put back an intact checkpoint, or start the "
                                 "run again as a new run")
+        if state is None and any(f.exists() and f.stat().st_size for f in logs):
+            raise RunDirError(f"execution directory {str(p.dir)!r} holds logs but no checkpoint; it cannot be resumed")
+        cut_logs(logs, state["log_sizes"] if state else {})
         if state is None:
-            if any(f.exists() and f.stat().st_size for f in logs):
-                raise RunDirError(f"execution directory {str(p.dir)!r} holds logs but no checkpoint; it cannot be resumed")
-            for f in logs:
-                f.touch()
             return
-        for f in logs:
-            truncate_log(f, int(state["log_sizes"][f.name]))
         self.module.load_state(state["module"])
         self.changes, self.last_change = int(state["changes"]), state["last_change"]
         self.event_decisions = int(state["event_decisions"])
