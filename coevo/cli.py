@@ -22,6 +22,7 @@ from coevo.config import build
 from coevo.console import (
     ProgressBar,
     add_max_lead,
+    max_lead_of,
     add_settings,
     count_arg,
     ga_settings,
@@ -30,6 +31,7 @@ from coevo.console import (
     seed_arg,
     world_settings,
 )
+from coevo.agents.pacing import DEFAULT_MAX_LEAD
 from coevo.errors import CoevoError, ConfigError
 from coevo.policy.schema import registered
 
@@ -164,7 +166,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
             raise ConfigError("give --settings RUN/run.json (a run's settings), or --run and --regime")
         task = args.task or "fuel"
         settings = RunSettings.make(run=args.run, task=task, regime=args.regime, seed=args.seed or 0,
-                                    model=args.model or "best", max_lead=1 if args.max_lead is None else args.max_lead,
+                                    model=args.model or "best", max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
                                     world=world_settings(args, task), ga=ga_settings(args))
     return run_worker(settings, behaviour=args.behaviour, seed=args.seed, worker_id=args.worker_id,
                       out=Path(args.out) if args.out else None, conf=config_from_args(args), resume=args.resume,
@@ -190,7 +192,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             regime = args.regime or "independent"
             settings = RunSettings.make(run=args.run or default_run_id(regime), task=task, regime=regime,
                                         seed=args.seed or 0, model=args.model or "best",
-                                        max_lead=1 if args.max_lead is None else args.max_lead,
+                                        max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
                                         world=world_settings(args, task), ga=ga_settings(args))
         if settings.cel is not None:
             raise ConfigError(f"{args.settings} is a CEL run's settings: start it with coevo cel (its execution module "
@@ -307,7 +309,7 @@ def _add_run_settings(p: argparse.ArgumentParser, *, defaults_note: bool = True)
     p.add_argument("--task", choices=list(TASKS), help="the task (default fuel)")
     p.add_argument("--seed", type=seed_arg, help="default 0" + ("; worker i of the task's behaviours uses seed + i" if defaults_note else ""))
     p.add_argument("--model", choices=MODELS, help="how partners are modelled (default best so far)")
-    add_max_lead(p, default=None)
+    add_max_lead(p)
     add_settings(p)
 
 

@@ -11,13 +11,14 @@ import argparse
 import json
 import math
 import sys
+from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
 from coevo.config import GAConfig, build
 from coevo.errors import ConfigError
 
-__all__ = ["ProgressBar", "seed_arg", "count_arg", "positive_float_arg", "pairs", "ga_settings", "world_settings",
+__all__ = ["Lead", "max_lead_of", "ProgressBar", "seed_arg", "count_arg", "positive_float_arg", "pairs", "ga_settings", "world_settings",
            "add_settings", "add_max_lead", "max_lead_arg"]
 
 
@@ -156,16 +157,30 @@ def add_settings(p: argparse.ArgumentParser) -> None:
                    help="mutation model (default fm; the same as --ga mutation_model=...; parameters: see README)")
 
 
-def max_lead_arg(text: str) -> int | None:
+@dataclass(frozen=True)
+class Lead:
+    """A ``--max-lead`` that was given: ``value`` generations, or None for ``off`` (so "off" and "not given", which
+    falls back to the command's default, stay apart)."""
+
+    value: int | None
+
+
+def max_lead_arg(text: str) -> Lead:
     from coevo.agents.pacing import parse_max_lead
 
     try:
-        return parse_max_lead(text)
+        return Lead(parse_max_lead(text))
     except ConfigError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def add_max_lead(p: argparse.ArgumentParser, *, default: str | None = "1") -> None:
-    p.add_argument("--max-lead", default=None if default is None else max_lead_arg(default), type=max_lead_arg, metavar="N|off",
+def max_lead_of(given: Lead | None, default: int | None) -> int | None:
+    """The lead a command runs with: the flag's (None: off), else ``default``."""
+    return default if given is None else given.value
+
+
+def add_max_lead(p: argparse.ArgumentParser, *, default: int | None = 1) -> None:
+    """``--max-lead N|off``; not given, it is None, and the command uses ``max_lead_of(args.max_lead, default)``."""
+    p.add_argument("--max-lead", type=max_lead_arg, metavar="N|off",
                    help="pacing: start a generation only when every partner is at most N generations behind "
-                        f"(default {default or 1}; off = unpaced)")
+                        f"(default {'off' if default is None else default}; off = unpaced)")

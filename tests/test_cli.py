@@ -200,3 +200,15 @@ def test_status_as_plain_lines_one_per_worker_when_it_changes() -> None:
     assert "gen 420/500 best 0.412 picks-D=23% docked=40% QT=61% partners Dv123 Tv123" in first[0]
     assert plain.lines(_Board()) == []  # nothing changed, nothing printed
     assert len(plain.lines(_Board(generation=421))) == 3  # the workers moved on, the broker did not
+
+
+def test_max_lead_off_is_not_the_same_as_not_given() -> None:
+    """`coevo run --max-lead off` ran paced with a lead of 1: "off" parsed to None, which meant "not given"."""
+    from coevo.cli import build_parser
+    from coevo.console import max_lead_of
+
+    def lead(*argv: str, default: int | None = 1) -> int | None:
+        return max_lead_of(build_parser().parse_args(list(argv)).max_lead, default)
+
+    assert lead("run", "--max-lead", "off") is None and lead("run") == 1 and lead("run", "--max-lead", "3") == 3
+    assert lead("compare", "--max-lead", "off") is None and lead("cel", default=0) == 0

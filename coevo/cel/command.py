@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from coevo.console import add_max_lead, add_settings, count_arg, ga_settings, seed_arg, world_settings
+from coevo.console import add_max_lead, add_settings, count_arg, ga_settings, max_lead_of, seed_arg, world_settings
 from coevo.errors import ConfigError
 
 __all__ = ["add_parsers", "cmd_cel", "cmd_execution", "SCHEDULES"]
@@ -22,6 +22,11 @@ SCHEDULES: dict[str, tuple[tuple[int, tuple[str, ...]], ...]] = {
     "cyclic": ((25, ("front", "front_right", "right")), (50, ()), (75, ("front", "front_right", "right"))),
     "none": (),
 }
+
+
+#: The learner's lead over the robot (ours): 0, the lockstep order, so that a live run is the lockstep run of its seed
+#: (docs/cel.md, "The clock"); it costs the learner the robot's ~25 ms a generation.
+CEL_MAX_LEAD = 0
 
 
 def fail_arg(text: str) -> tuple[int, tuple[str, ...]]:
@@ -43,10 +48,13 @@ def _settings(args: argparse.Namespace) -> Any:
     from coevo.runs.local import default_run_id
     from coevo.runs.settings import RunSettings
 
-    schedule = tuple(args.fail) if args.fail else SCHEDULES[args.schedule]
-    cel = build(CelSettings, {"schedule": schedule, "trials_per_generation": args.trials_per_generation,
-                              "chunk": args.chunk or args.trials_per_generation, "zero_run": args.zero_run,
-                              "repair_run": args.repair_run, "case_base": args.case_base or bool(args.cases_from)})
+    if args.fail and args.schedule:
+        raise ConfigError("give --schedule or --fail events, not both")
+    schedule = tuple(args.fail) if args.fail else SCHEDULES[args.schedule or "figure3"]
+    given = {k: getattr(args, k) for k in ("trials_per_generation", "chunk", "zero_run", "repair_run")
+             if getattr(args, k) is not None}
+    given.setdefault("chunk", given.get("trials_per_generation", CelSettings().trials_per_generation))  # a generation's trials at once
+    cel = build(CelSettings, {"schedule": schedule, "case_base": args.case_base or bool(args.cases_from), **given})
     ga = ga_settings(args)
     if args.generations is None:
         ga = ga.model_copy(update={"generations": 100})  # the issue's run: 100 generations, the failure at 50
@@ -54,8 +62,8 @@ def _settings(args: argparse.Namespace) -> Any:
     if last > ga.generations:
         raise ConfigError(f"the failure schedule's last event is at generation {last}, after the run's "
                           f"{ga.generations} generations")
-    return RunSettings.make(run=args.run or default_run_id("cel"), task="door", regime="independent", seed=args.seed,
-                            max_lead=args.max_lead, world=world_settings(args, "door"), ga=ga, cel=cel)
+    return RunSettings.make(run=args.run or default_run_id("cel"), task="door", regime="independent", seed=args.seed or 0,
+                            max_lead=max_lead_of(args.max_lead, CEL_MAX_LEAD), world=world_settings(args, "door"), ga=ga, cel=cel)
 
 
 def cmd_cel(args: argparse.Namespace) -> int:
@@ -66,11 +74,12 @@ def cmd_cel(args: argparse.Namespace) -> int:
     from coevo.runs.settings import RunSettings
 
     if args.resume:
-        given = [f for f in ("run", "fail", "cases_from", "generations", "population", "episodes", "world", "ga")
-                 if getattr(args, f, None)]
-        if given or args.case_base or args.schedule != "figure3":
+        given = [f for f in ("run", "seed", "fail", "schedule", "case_base", "cases_from", "trials_per_generation", "chunk",
+                             "zero_run", "repair_run", "max_lead", "generations", "population", "episodes", "world", "ga")
+                 if getattr(args, f, None) is not None and getattr(args, f) is not False]
+        if given:
             raise ConfigError("--resume takes every setting from the run's run.json; drop " +
-                              ", ".join(f"--{f.replace('_', '-')}" for f in given or ["the other settings"]))
+                              ", ".join(f"--{f.replace('_', '-')}" for f in given))
         lr: CelRun = CelRun.resume(Path(args.resume), log_level=args.log_level)  # type: ignore[assignment]
         if lr.settings.cel is None:
             raise ConfigError(f"{args.resume} is not a CEL run (its run.json has no cel block); use coevo run --resume")
@@ -128,8 +137,8 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--run", help="run id (default cel-TIME)")
     p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
     p.add_argument("--resume", metavar="RUN_DIR", help="continue this run from its processes' checkpoints")
-    p.add_argument("--seed", type=seed_arg, default=0, help="the learner's seed; the robot's world uses seed + 1000003")
-    p.add_argument("--schedule", choices=list(SCHEDULES), default="figure3",
+    p.add_argument("--seed", type=seed_arg, help="the learner's seed (default 0); the robot's world uses seed + 1000003")
+    p.add_argument("--schedule", choices=list(SCHEDULES),
                    help="figure3: front, front-right and right fail at generation 50 (default); cyclic: fail at 25, "
                         "repaired at 50, fail again at 75; none")
     p.add_argument("--fail", type=fail_arg, action="append", metavar="GEN:SONARS",
@@ -137,16 +146,16 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--case-base", action="store_true",
                    help="restart from the case base's nearest earlier strategies (kept in the broker's store)")
     p.add_argument("--cases-from", metavar="RUN_DIR", help="start the case base with an earlier run's (implies --case-base)")
-    p.add_argument("--trials-per-generation", type=count_arg(1, 100_000), default=100,
+    p.add_argument("--trials-per-generation", type=count_arg(1, 100_000),
                    help="K: the robot's trials per learner generation (default 100, Figure 3's y-axis)")
     p.add_argument("--chunk", type=count_arg(1, 100_000), help="trials per stretch of the robot (default K)")
-    p.add_argument("--zero-run", type=count_arg(1, 10_000), default=8,
+    p.add_argument("--zero-run", type=count_arg(1, 10_000),
                    help="the monitor: zero readings in a row while moving forward to mark a sonar defective (default 8)")
-    p.add_argument("--repair-run", type=count_arg(1, 10_000), default=3,
+    p.add_argument("--repair-run", type=count_arg(1, 10_000),
                    help="the monitor: non-zero readings in a row to mark it working again (default 3)")
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--open", action="store_true", help="make no key: messages unauthenticated (local experiments only)")
-    add_max_lead(p, default="0")
+    add_max_lead(p, default=CEL_MAX_LEAD)
     add_settings(p)
     p.set_defaults(func=cmd_cel)
 

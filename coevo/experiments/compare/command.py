@@ -14,6 +14,7 @@ from typing import Any
 from coevo.console import (
     ProgressBar,
     add_max_lead,
+    max_lead_of,
     add_settings,
     count_arg,
     ga_settings,
@@ -21,6 +22,7 @@ from coevo.console import (
     positive_float_arg,
     seed_arg,
 )
+from coevo.agents.pacing import DEFAULT_MAX_LEAD
 from coevo.errors import ConfigError
 
 __all__ = ["add_parser", "cmd_compare"]
@@ -34,7 +36,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     rates = {} if args.rates is None else {"rates": tuple(args.rates)}
     spec = CompareSpec.make(regimes=tuple(args.regimes), **rates, runs=args.runs, seed=args.seed, model=args.model,
-                            max_lead=args.max_lead, measure_epochs=args.measure_epochs,
+                            max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD), measure_epochs=args.measure_epochs,
                             world=build(WorldConfig, pairs(args.world, "world")), ga=ga_settings(args))
     jobs = default_jobs() if args.jobs is None else args.jobs
     out = Path(args.out) if args.out else Path("runs") / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"
