@@ -154,6 +154,7 @@ def _run_key(flag: str | None, settings: Any, base: Path | None) -> Any:
 def cmd_worker(args: argparse.Namespace) -> int:
     from coevo.agents.worker import run_worker
     from coevo.bus.session import config_from_args
+    from coevo.runs.layout import RunPaths
     from coevo.runs.settings import RunSettings
 
     if args.settings:
@@ -169,7 +170,8 @@ def cmd_worker(args: argparse.Namespace) -> int:
                                     model=args.model or "best", max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
                                     world=world_settings(args, task), ga=ga_settings(args))
     return run_worker(settings, behaviour=args.behaviour, seed=args.seed, worker_id=args.worker_id,
-                      out=Path(args.out) if args.out else None, conf=config_from_args(args), resume=args.resume,
+                      out=Path(args.out) if args.out else (RunPaths(base).worker(args.behaviour).dir if base else None),
+                      conf=config_from_args(args), resume=args.resume,
                       final_sync=args.final_sync, run_key=_run_key(args.key_file, settings, base))
 
 
@@ -381,7 +383,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--regime", help="without --settings: mutual or independent (the task's regimes)")
     p.add_argument("--run", help="without --settings: run id (letters, digits, _ - .)")
     p.add_argument("--worker-id", help="default BEHAVIOUR-SEED")
-    p.add_argument("--out", help="worker directory (default runs/RUN/workers/BEHAVIOUR)")
+    p.add_argument("--out", help="worker directory (default: workers/BEHAVIOUR beside --settings' run.json, else "
+                                 "runs/RUN/workers/BEHAVIOUR)")
     p.add_argument("--resume", action="store_true",
                    help="continue from the checkpoint in --out (or start afresh if there is none yet)")
     p.add_argument("--final-sync", type=positive_float_arg(allow_zero=True, maximum=86400), default=30.0, metavar="SECONDS",

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 import pytest
-from procs import poll
+from procs import coevo_proc, poll, stop
 
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
@@ -32,6 +32,7 @@ from coevo.cel.service import CelRun
 from coevo.errors import MessageError
 from coevo.runs.check import check_run
 from coevo.runs.layout import read_cases, read_jsonl
+from coevo.runs.local import free_port
 from coevo.runs.replay import replay
 from coevo.runs.settings import RunSettings
 from coevo.tasks.door import default_ruleset, door_ga
@@ -230,3 +231,27 @@ def test_a_killed_broker_loses_no_case_and_a_whole_run_killed_at_once_resumes(tm
     assert [c.version for c in stored] == sorted(c.version for c in stored) and len(stored) == 3, stored
     check = check_run(lr.dir)  # every case in the store, every generation's trials once, replay exact
     assert check.ok, check.problems
+
+
+def test_prepare_then_three_processes_started_by_hand_make_a_complete_run(tmp_path: Path) -> None:
+    """coevo cel --prepare, then the broker, the robot and the learner started as on three hosts (deploy/README.md):
+    each process finds its key and its directory beside run.json."""
+    r = _cel(tmp_path, "--run", "p1", "--prepare", "--generations", "4", "--fail", "2:front", *SMALL, timeout=60)
+    assert r.returncode == 0, r.stderr
+    run = tmp_path / "p1"
+    settings = RunSettings.load(run / "run.json")
+    assert settings.cel is not None and settings.roster == {"door": "door-0"} and (run / "secret.key").exists()
+    assert "coevo execution --settings" in r.stdout and "coevo worker --behaviour door --settings" in r.stdout
+    assert not (run / "logs").exists()  # nothing started
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    broker = coevo_proc("broker", "--data-dir", str(tmp_path), "--listen", endpoint, log=tmp_path / "broker.log")
+    try:
+        robot = coevo_proc("execution", "--settings", str(run / "run.json"), "--connect", endpoint,
+                           log=tmp_path / "robot.log")
+        learner = coevo_proc("worker", "--behaviour", "door", "--settings", str(run / "run.json"), "--connect", endpoint,
+                             log=tmp_path / "learner.log")
+        assert learner.wait(timeout=120) == 0 and robot.wait(timeout=60) == 0, (tmp_path / "robot.log").read_text()
+    finally:
+        stop(broker)
+    check = check_run(run)
+    assert check.ok and check.facts["execution"]["generations"] == 5, check.problems

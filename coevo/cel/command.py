@@ -74,7 +74,7 @@ def cmd_cel(args: argparse.Namespace) -> int:
     from coevo.runs.settings import RunSettings
 
     if args.resume:
-        given = [f for f in ("run", "seed", "fail", "schedule", "case_base", "cases_from", "trials_per_generation", "chunk",
+        given = [f for f in ("run", "prepare", "seed", "fail", "schedule", "case_base", "cases_from", "trials_per_generation", "chunk",
                              "zero_run", "repair_run", "max_lead", "generations", "population", "episodes", "world", "ga")
                  if getattr(args, f, None) is not None and getattr(args, f) is not False]
         if given:
@@ -94,6 +94,15 @@ def cmd_cel(args: argparse.Namespace) -> int:
             print(f"case base: {n} cases from {args.cases_from}")
     cel = lr.settings.cel
     assert cel is not None
+    if args.prepare:
+        run_json = lr.paths.run_json
+        print(f"CEL run {lr.run} prepared in {lr.dir} (run.json{', secret.key' if not lr.open else ''}); start its "
+              "processes, each host holding a copy of run.json and secret.key side by side (mode 0600):\n"
+              f"  broker host:  coevo broker --data-dir {lr.dir.parent} --listen tcp/0.0.0.0:7447\n"
+              f"  learner:      coevo worker --behaviour door --settings {run_json} --connect BROKER_ENDPOINT\n"
+              f"  robot:        coevo execution --settings {run_json} --connect BROKER_ENDPOINT\n"
+              f"then: coevo status --run {lr.run} --key-file {lr.paths.key_file} --connect BROKER_ENDPOINT")
+        return 0
     events = "; ".join(f"gen {g}: {','.join(f) or 'repair'}" for g, f in cel.schedule) or "no failures"
     title = (f"CEL run {lr.run}: {lr.settings.ga.generations} generations, {events}"
              + (", case base" if cel.case_base else "") + (" OPEN" if lr.open else ""))
@@ -122,10 +131,12 @@ def cmd_execution(args: argparse.Namespace) -> int:
     from coevo.bus.session import config_from_args
     from coevo.cel.robot import run_execution
     from coevo.cli import _run_key
+    from coevo.runs.layout import RunPaths
     from coevo.runs.settings import RunSettings
 
     settings = RunSettings.load(Path(args.settings))
-    return run_execution(settings, out=Path(args.out) if args.out else None, conf=config_from_args(args),
+    out = Path(args.out) if args.out else RunPaths(Path(args.settings).parent).execution.dir  # beside run.json
+    return run_execution(settings, out=out, conf=config_from_args(args),
                          resume=args.resume, run_key=_run_key(args.key_file, settings, Path(args.settings).parent))
 
 
@@ -155,13 +166,16 @@ def add_parsers(sub: Any) -> None:
                    help="the monitor: non-zero readings in a row to mark it working again (default 3)")
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--open", action="store_true", help="make no key: messages unauthenticated (local experiments only)")
+    p.add_argument("--prepare", action="store_true",
+                   help="only make the run directory (run.json, key, cases) and print how to start its three processes, "
+                        "e.g. on several hosts (deploy/README.md)")
     add_max_lead(p, default=CEL_MAX_LEAD)
     add_settings(p)
     p.set_defaults(func=cmd_cel)
 
     p = sub.add_parser("execution", help="a CEL run's execution module (the robot, with its monitor) as its own process")
     p.add_argument("--settings", required=True, metavar="RUN_JSON", help="the run's settings (its run.json, made by coevo cel)")
-    p.add_argument("--out", help="its directory (default runs/RUN/execution)")
+    p.add_argument("--out", help="its directory (default: execution/ beside run.json)")
     p.add_argument("--resume", action="store_true", help="continue from the checkpoint in --out")
     p.add_argument("--key-file", metavar="FILE", help="the run's secret key (default: the key_file run.json names)")
     add_connection_args(p)

@@ -7,8 +7,9 @@ store sync, checkpoints, heartbeats, resume; :mod:`coevo.agents.worker`) around 
 
 * **Capabilities in.**  It subscribes to the execution module's capability lists
   (:class:`~coevo.bus.messages.CapabilityUpdate`, key ``coevo/RUN/capabilities/ROBOT``)
-  and, between generations, takes the newest (by the monitor's change number).  A
-  list other than its model's makes it remodel and restart (report §6).  Each change
+  and, between generations, takes every one with a newer change number, in the
+  monitor's order (as the lockstep run does).  A list other than its model's makes it
+  remodel and restart (report §6).  Each change
   it takes goes to ``changes.jsonl``: after how many generations, which list, the case
   it stored and the cases it restarted from, which is all ``coevo replay`` needs.
 * **Best since the last change out.**  It publishes a policy when a generation beats

@@ -361,10 +361,8 @@ class Execution:
                 "policies": len(lat), "latency_ms_median": statistics.median(lat) if lat else None}
 
 
-def run_execution(settings: RunSettings, *, out: Path | None, conf: Any, resume: bool,
-                  run_key: RunKey | None = None) -> int:
+def run_execution(settings: RunSettings, *, out: Path, conf: Any, resume: bool, run_key: RunKey | None = None) -> int:
     """``coevo execution``: run the robot to its last trial (exit 0), or until SIGINT/SIGTERM (130)."""
-    out = out if out is not None else settings.paths(Path("runs")).execution.dir
     sigterm_as_exit()
     ex = Execution(settings, out_dir=out, conf=conf, resume=resume, run_key=run_key)
     try:
