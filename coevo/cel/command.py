@@ -25,7 +25,7 @@ SCHEDULES: dict[str, tuple[tuple[int, tuple[str, ...]], ...]] = {
 
 
 #: The learner's lead over the robot (ours): 0, the lockstep order, so that a live run is the lockstep run of its seed
-#: (docs/cel.md, "The clock"); it costs the learner the robot's ~25 ms a generation.
+#: (docs/cel.md, "The clock"); it costs the learner ~50 ms of waiting a generation (measured, docs/cel.md).
 CEL_MAX_LEAD = 0
 
 
