@@ -250,9 +250,19 @@ def cmd_chaos(args: argparse.Namespace) -> int:
     from coevo.runs.settings import RunSettings
 
     plan = ChaosPlan(faults=args.faults, kinds=tuple(args.kinds), gap=tuple(args.gap), down=tuple(args.down), seed=args.seed)
-    task = args.task or "fuel"
-    settings = RunSettings.make(run=args.run or default_run_id(f"chaos-{args.regime}"), task=task, regime=args.regime,
-                                seed=args.seed, model=args.model, world=world_settings(args, task), ga=ga_settings(args))
+    task = args.task or ("door" if args.cel else "fuel")
+    regime = args.regime or ("independent" if task == "door" else "mutual")
+    ga = ga_settings(args)
+    cel = None
+    if args.cel:  # a CEL run: the Figure 3 failure halfway through, the learner in lockstep with the robot
+        if task != "door":
+            raise ConfigError(f"--cel is a door-task run; drop --task {task}")
+        from coevo.cel.settings import FIGURE3_SCHEDULE
+
+        cel = {"schedule": [[ga.generations // 2, list(FIGURE3_SCHEDULE[0][1])]]}
+    settings = RunSettings.make(run=args.run or default_run_id(f"chaos-{'cel' if cel else regime}"), task=task,
+                                regime=regime, seed=args.seed, model=args.model, world=world_settings(args, task), ga=ga, cel=cel,
+                                **({"max_lead": 0} if cel else {}))
 
     def say(text: str) -> None:
         if not args.quiet:
@@ -437,8 +447,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("chaos", help="a whole run while random processes are killed and restarted; then check it")
-    p.add_argument("--regime", default="mutual", help="mutual or independent (default mutual)")
+    p.add_argument("--regime", help="mutual or independent (default mutual; the door task's: independent)")
     p.add_argument("--run", help="run id (default chaos-REGIME-TIME)")
+    p.add_argument("--cel", action="store_true",
+                   help="a CEL run (coevo cel, door task): its execution module is killed and paused too; front, "
+                        "front-right and right fail halfway")
     p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
     p.add_argument("--task", help="the task (default fuel)")
     p.add_argument("--seed", type=seed_arg, default=0, help="seeds the workers and the choice of faults")

@@ -255,3 +255,15 @@ def test_prepare_then_three_processes_started_by_hand_make_a_complete_run(tmp_pa
         stop(broker)
     check = check_run(run)
     assert check.ok and check.facts["execution"]["generations"] == 5, check.problems
+
+
+@pytest.mark.slow
+def test_coevo_chaos_on_a_cel_run_kills_either_module_and_the_run_comes_out_complete(tmp_path: Path) -> None:
+    r = subprocess.run([sys.executable, "-m", "coevo", "chaos", "--cel", "--run", "cc", "--root", str(tmp_path), "--seed",
+                        "5", "--generations", "16", *SMALL, "--faults", "4", "--kinds", "kill-worker", "kill-broker",
+                        "--gap", "0.3", "1.0", "--down", "0.3", "1.0", "--measure-epochs", "1"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stdout + r.stderr
+    report = json.loads((tmp_path / "cc" / "chaos.json").read_text())
+    assert report["complete"] and sum(report["faults"].values()) >= 2, report
+    assert report["facts"]["execution"]["generations"] == 17 and report["facts"]["door"]["generations"] == 16

@@ -23,9 +23,9 @@ store sync, checkpoints, heartbeats, resume; :mod:`coevo.agents.worker`) around 
 * **Paced by the robot.**  It starts generation g + 1 only once the robot has played
   the trials of generation ``g - max_lead`` (:class:`RobotPacer`; ``max_lead`` 0: the
   lockstep order of docs/cel.md, so a change seen during generation g's trials is
-  learned from before generation g + 1).  A dead execution module is not waited for
-  (as a co-evolution worker does not wait for a dead partner): the learner keeps
-  learning on its model, and the robot, once resumed, catches up.
+  learned from before generation g + 1).  An execution module whose token went is
+  waited for ``cel.patience`` (30) seconds, a restart's time; after that the learner
+  learns on with the model it has, and the robot, once back, catches up.
 """
 
 from __future__ import annotations
@@ -65,9 +65,10 @@ class RobotPacer(Pacer):
     """A learner's pacing by its execution module: the robot has completed generation j's trials when it has
     played ``K (j + 1)`` trials (generation 0's are played with the initial rules)."""
 
-    def __init__(self, session: Any, run: str, robot: str, *, trials_per_generation: int, max_lead: int | None) -> None:
+    def __init__(self, session: Any, run: str, robot: str, *, trials_per_generation: int, max_lead: int | None,
+                 patience: float) -> None:
         self.K = trials_per_generation
-        super().__init__(session, run, (robot,), max_lead=max_lead)
+        super().__init__(session, run, (robot,), max_lead=max_lead, patience=patience)
         self._progress[robot] = -1  # not even generation 0's trials played yet
 
     def _status_key(self, partner: str) -> str:
@@ -174,7 +175,7 @@ class CelLearner(Worker):
 
     def _pacer(self, session: Any) -> Pacer:
         return RobotPacer(session, self.run_id, self.cel.robot, trials_per_generation=self.cel.trials_per_generation,
-                          max_lead=self.max_lead)
+                          max_lead=self.max_lead, patience=self.cel.patience)
 
     def _services(self, session: Any, broker: BrokerWatch) -> list[Any]:
         self._session, self._broker = session, broker

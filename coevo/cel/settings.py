@@ -16,7 +16,10 @@ turn waits when it is more than ``RunSettings.max_lead`` generations ahead of th
 robot, so the two stay together as in Figure 3 while each runs on its own.  A
 schedule event ``(g, failed)`` fails those sonars of the robot's world from the
 first trial of generation g on (report §7: "at the beginning of generation 50, the
-three sonars fail").
+three sonars fail").  When one of the two is gone (its liveliness token went: killed, crashed, or
+finished before the other was restarted), the other waits ``patience`` (30) seconds for
+it to come back, then goes on without it and waits for it again once it is back: the
+robot plays on with the rules it has, the learner learns on with the model it has.
 """
 
 from __future__ import annotations
@@ -53,6 +56,8 @@ class CelSettings(Settings):
     case_base: bool = Field(False, description="restart from the case base's nearest cases (else copies of the initial rules)")
     keep: float = Field(KEEP, ge=0, le=1, description="the share of the population a restart keeps")
     cases: int = Field(CASES, ge=1, le=1_000, description="how many nearest cases fill the replaced half")
+    patience: float = Field(30.0, gt=0, le=86400, description="(ours) seconds either module waits for the other once its "
+                            "token is gone (a restart), before going on without it")
     robot: str = Field("robot", pattern=r"^[A-Za-z0-9_.-]{1,64}$", description="the execution module's id")
 
     @field_validator("schedule", mode="before")

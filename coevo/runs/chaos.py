@@ -10,7 +10,9 @@ One fault at a time, at random (seeded) moments while the workers evolve:
 * ``pause-worker``: SIGSTOP a worker for a moment, then SIGCONT (a frozen process).
 
 For every worker kill it measures how long the status board took to show the
-worker dead.  At the end it checks the run directory (:mod:`coevo.runs.check`: every
+worker dead.  A CEL run (``settings.cel``: ``coevo chaos --cel``) has a third kind of
+process among the workers, its execution module (``execution``), killed, paused and
+restarted like a worker.  At the end it checks the run directory (:mod:`coevo.runs.check`: every
 generation, every published version in the store, replay exact) and writes
 ``chaos.json`` beside the run's other files.
 """
@@ -81,7 +83,12 @@ def run_chaos(settings: RunSettings, *, root: Path, plan: ChaosPlan, measure_epo
     """A whole run of ``settings`` under ``root`` while ``plan``'s faults strike; then checked (chaos.json)."""
     if measure_epochs < 1:
         raise ConfigError(f"--measure-epochs must be at least 1, got {measure_epochs}")
-    lr = LocalRun(settings, root=root, log_level=log_level)
+    if settings.cel is not None:
+        from coevo.cel.service import CelRun
+
+        lr: LocalRun = CelRun(settings, root=root, log_level=log_level)
+    else:
+        lr = LocalRun(settings, root=root, log_level=log_level)
     lr.create()
     run = lr.run
     rng = np.random.default_rng([plan.seed, 4242])
@@ -124,6 +131,13 @@ def run_chaos(settings: RunSettings, *, root: Path, plan: ChaosPlan, measure_epo
     return report
 
 
+def _view(board: StatusBoard, name: str) -> dict[str, Any]:
+    """What the board shows of a worker (by behaviour) or of a CEL run's execution module ("execution")."""
+    if name == "execution":
+        return next(iter(board.robots_view()), {"state": "unknown", "generation": None})
+    return next((w for w in board.snapshot() if w["behaviour"] == name), {"state": "unknown", "generation": None})
+
+
 def _running_workers(lr: LocalRun) -> list[str]:
     return [b for b, p in lr.workers.items() if p.poll() is None]
 
@@ -161,10 +175,11 @@ def _inject(lr: LocalRun, board: StatusBoard, rng: np.random.Generator, plan: Ch
         return
     b = running[int(rng.integers(len(running)))]
     p = lr.workers[b]
-    gen = next((w["generation"] for w in board.snapshot() if w["behaviour"] == b), None)
+    who = "execution module" if b == "execution" else f"{b} worker"
+    gen = _view(board, b)["generation"]
     if kind == "pause-worker":
         p.send_signal(signal.SIGSTOP)
-        say(f"paused the {b} worker at generation {gen} for {down:.1f} s")
+        say(f"paused the {who} at generation {gen} for {down:.1f} s")
         time.sleep(down)
         p.send_signal(signal.SIGCONT)
         chaos.add(kind, behaviour=b, generation=gen, down=round(down, 2))
@@ -173,16 +188,15 @@ def _inject(lr: LocalRun, board: StatusBoard, rng: np.random.Generator, plan: Ch
     os.kill(p.pid, signal.SIGKILL)
     p.wait()
     try:
-        wait_until(lambda: any(w["behaviour"] == b and w["state"] == "dead" for w in board.snapshot()), 10, "dead")
+        wait_until(lambda: _view(board, b)["state"] == "dead", 10, "dead")
         seen = time.monotonic() - t_kill
     except RunDirError:
         seen = None  # the broker was restarting, or the board missed it: reported as not seen
-    say(f"killed the {b} worker at generation {gen} (status showed it dead after "
+    say(f"killed the {who} at generation {gen} (status showed it dead after "
         f"{'-' if seen is None else f'{seen * 1000:.0f} ms'}); down for {down:.1f} s")
     time.sleep(down)
     lr.start_worker(b, resume=True)
-    wait_until(lambda: any(w["behaviour"] == b and w["state"] in ("alive", "done") for w in board.snapshot()), 60,
-               f"the restarted {b} worker")
+    wait_until(lambda: _view(board, b)["state"] in ("alive", "done"), 60, f"the restarted {who}")
     chaos.add(kind, behaviour=b, generation=gen, down=round(down, 2),
               dead_seen_ms=None if seen is None else round(seen * 1000, 1))
 
