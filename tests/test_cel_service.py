@@ -267,3 +267,29 @@ def test_coevo_chaos_on_a_cel_run_kills_either_module_and_the_run_comes_out_comp
     report = json.loads((tmp_path / "cc" / "chaos.json").read_text())
     assert report["complete"] and sum(report["faults"].values()) >= 2, report
     assert report["facts"]["execution"]["generations"] == 17 and report["facts"]["door"]["generations"] == 16
+
+
+@pytest.mark.slow
+def test_a_robot_resumed_after_its_learner_finished_plays_out_its_trials(tmp_path: Path) -> None:
+    """Found by coevo chaos --cel: the robot waited for ever for a learner that had finished while it was down."""
+    ga = door_ga(generations=10, population=16, episodes=20, best_episodes=20)
+    settings = RunSettings.make(run="late", task="door", regime="independent", seed=4, max_lead=0, ga=ga,
+                                cel={"schedule": [[5, list(FAILED)]], "patience": 1.5})
+    lr = CelRun(settings, root=tmp_path, log_level="INFO")
+    lr.create()
+    lr.start(resume=False)
+    perf = lr.paths.execution.performance
+    try:
+        poll(lambda: perf.exists() and len(perf.read_text().splitlines()) >= 3, 120, "the robot's third generation")
+        os.kill(lr.workers["execution"].pid, signal.SIGKILL)
+        lr.workers["execution"].wait()
+        assert lr.workers["door"].wait(timeout=120) == 0  # the learner waited 1.5 s for it, then learned on alone
+        t0 = time.monotonic()
+        lr.start_worker("execution", resume=True)
+        assert lr.workers["execution"].wait(timeout=120) == 0
+        assert time.monotonic() - t0 < 60
+    finally:
+        lr.end_all()
+    assert [r["generation"] for r in read_jsonl(perf)] == list(range(11))
+    check = check_run(lr.dir)
+    assert check.ok, check.problems

@@ -24,10 +24,9 @@ broker was seen and none is present now (neither ``coevo/_broker`` nor
 ``coevo/_broker/degraded``), partners whose tokens went are *unknown*, not gone:
 the worker keeps to ``max_lead`` and waits for them, up to ``wait_limit``, as for
 any partner that stopped reporting.  ``settle`` covers the moment between the
-partners' tokens and the broker's going, which arrive in either order.  With
-``patience`` (seconds) a partner whose token went, or that has not shown up, is
-waited for that long instead of ``settle`` and ``grace``: the two modules of a CEL run
-wait so for each other across a restart (:mod:`coevo.cel.robot`, :mod:`coevo.cel.learner`).  Progress is read from the partners' status
+partners' tokens and the broker's going, which arrive in either order.  The two
+modules of a CEL run give each other a longer ``settle`` and ``grace``, a restart's time
+(:mod:`coevo.cel.robot`, :mod:`coevo.cel.learner`).  Progress is read from the partners' status
 heartbeats, kept in rings inside Zenoh (no Python runs per heartbeat, so a flood
 on the status keys cannot slow the worker), so pacing needs nothing beyond what
 status already publishes.  While it waits, the worker
@@ -73,14 +72,11 @@ class Pacer:
     """Follows the partners' heartbeats and liveliness and holds a worker back when it is too far ahead."""
 
     def __init__(self, session: Any, run: str, partners: Iterable[str], *, max_lead: int | None,
-                 wait_limit: float = 120.0, grace: float = 10.0, settle: float = 0.5, patience: float | None = None) -> None:
+                 wait_limit: float = 120.0, grace: float = 10.0, settle: float = 0.5) -> None:
         self.run = run
         self.partners = tuple(partners)
         self.max_lead = max_lead
         self.wait_limit = wait_limit
-        if patience is not None:
-            grace = settle = patience
-        self.patience = patience
         self.grace = grace
         self.settle = settle
         self.waited = 0.0

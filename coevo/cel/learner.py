@@ -25,13 +25,15 @@ store sync, checkpoints, heartbeats, resume; :mod:`coevo.agents.worker`) around 
   lockstep order of docs/cel.md, so a change seen during generation g's trials is
   learned from before generation g + 1).  An execution module whose token went is
   waited for ``cel.patience`` (30) seconds, a restart's time; after that the learner
-  learns on with the model it has, and the robot, once back, catches up.
+  learns on with the model it has, and the robot, once back, catches up.  A fresh
+  learner waits for its robot to show up for as long as it takes.
 """
 
 from __future__ import annotations
 
 import json
 import logging
+import math
 import os
 import time
 from typing import IO, Any
@@ -66,9 +68,9 @@ class RobotPacer(Pacer):
     played ``K (j + 1)`` trials (generation 0's are played with the initial rules)."""
 
     def __init__(self, session: Any, run: str, robot: str, *, trials_per_generation: int, max_lead: int | None,
-                 patience: float) -> None:
+                 patience: float, grace: float) -> None:
         self.K = trials_per_generation
-        super().__init__(session, run, (robot,), max_lead=max_lead, patience=patience)
+        super().__init__(session, run, (robot,), max_lead=max_lead, grace=grace, settle=patience)
         self._progress[robot] = -1  # not even generation 0's trials played yet
 
     def _status_key(self, partner: str) -> str:
@@ -175,7 +177,8 @@ class CelLearner(Worker):
 
     def _pacer(self, session: Any) -> Pacer:
         return RobotPacer(session, self.run_id, self.cel.robot, trials_per_generation=self.cel.trials_per_generation,
-                          max_lead=self.max_lead, patience=self.cel.patience)
+                          max_lead=self.max_lead, patience=self.cel.patience,
+                          grace=self.cel.patience if self._m.generation_no else math.inf)  # a fresh learner: start order free
 
     def _services(self, session: Any, broker: BrokerWatch) -> list[Any]:
         self._session, self._broker = session, broker

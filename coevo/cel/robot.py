@@ -11,8 +11,10 @@ one stretch of trials after another:
   took from the learner's put to here.
 * **The clock** (:mod:`coevo.cel.settings`): generation j's ``K`` trials are played
   once the learner has reported finishing j generations (0: the initial rules); the
-  robot waits for its learner however slow it is, and for ``patience`` seconds once its
-  token is gone (a restart), then plays on with the rules it has.  A stretch is ``chunk`` trials (default K: a generation's trials as one batch,
+  robot waits for its learner however slow it is, and for as long as it takes to show up
+  at the start; once the learner's token is gone (a restart), or when a resumed robot
+  does not see it, for ``patience`` seconds, then it plays on with the rules it has (a
+  learner that finished while the robot was down never comes back).  A stretch is ``chunk`` trials (default K: a generation's trials as one batch,
   as the lockstep experiment plays them).
 * **Capabilities out.**  Each change of the monitor's list is put on
   ``coevo/RUN/capabilities/ROBOT`` at once and logged (``changes.jsonl``, with the
@@ -206,7 +208,8 @@ class Execution:
     def _loop(self) -> None:
         with open_session(self.conf, what="execution module session", gate=self.gate) as s, \
                 BrokerWatch(s) as broker, \
-                Pacer(s, self.run_id, (DOOR,), max_lead=0, wait_limit=math.inf, patience=self.cel.patience) as clock:
+                Pacer(s, self.run_id, (DOOR,), max_lead=0, wait_limit=math.inf, settle=self.cel.patience,
+                      grace=self.cel.patience if self.module.trial else math.inf) as clock:
             self._session = s
             policies = ring_subscriber(s, keys.policy(self.run_id, DOOR), 32)
             control = ring_subscriber(s, keys.control(self.run_id), 16)

@@ -19,7 +19,9 @@ first trial of generation g on (report §7: "at the beginning of generation 50, 
 three sonars fail").  When one of the two is gone (its liveliness token went: killed, crashed, or
 finished before the other was restarted), the other waits ``patience`` (30) seconds for
 it to come back, then goes on without it and waits for it again once it is back: the
-robot plays on with the rules it has, the learner learns on with the model it has.
+robot plays on with the rules it has, the learner learns on with the model it has.  At
+the start a robot waits for its learner to show up for as long as it takes (start
+order does not matter); a resumed one waits ``patience``.
 """
 
 from __future__ import annotations
