@@ -65,8 +65,14 @@ def test_a_live_run_is_the_lockstep_run_exactly_and_replays(tmp_path: Path) -> N
     assert report["detections"][0]["detected"] and report["detections"][0]["generations"] == 0
     assert report["latency_ms"]["median"] > 0
     assert (run / "performance.csv").read_text().count("\n") == 8  # header + generations 0..6
-    assert [w.reproduced for w in replay(run)] == [True]
+    assert [(w.behaviour, w.reproduced) for w in replay(run)] == [("door", True), ("execution", True)]
     assert check_run(run).ok
+    # The robot's log is its replay: take a rule set a generation later than it did, and replay says where it differs.
+    taken = read_jsonl(run / "execution" / "policies.jsonl")
+    taken[-1]["first_trial"] += 100
+    (run / "execution" / "policies.jsonl").write_text("".join(json.dumps(p) + "\n" for p in taken))
+    differs = next(w for w in replay(run) if w.behaviour == "execution")
+    assert not differs.reproduced and differs.first_mismatch == taken[-1]["first_trial"] // 100 - 1, differs
 
 
 @pytest.mark.slow
@@ -105,7 +111,7 @@ def test_either_process_killed_and_resumed_loses_nothing(tmp_path: Path) -> None
     changes = read_jsonl(lr.paths.execution.changes)
     assert changes and changes[0]["matches_world"] and changes[0]["trial"] >= 1000
     assert read_jsonl(lr.paths.worker("door").changes), "the learner took the change"
-    assert [w.reproduced for w in replay(lr.dir)] == [True]
+    assert [(w.behaviour, w.reproduced) for w in replay(lr.dir)] == [("door", True), ("execution", True)]
     check = check_run(lr.dir)
     assert check.ok, check.problems
 
@@ -123,7 +129,7 @@ def test_the_case_base_is_in_the_store_and_a_later_run_starts_from_it(tmp_path: 
     assert [c.capabilities for c in stored][1] == ["far_left", "left", "front_left", "far_right"]
     restarts = read_jsonl(first / "workers" / "door" / "changes.jsonl")
     assert restarts[-1]["restart_cases"][0]["capabilities"] == ["far_left", "left", "front_left", "far_right"]
-    assert [w.reproduced for w in replay(first)] == [True]
+    assert [(w.behaviour, w.reproduced) for w in replay(first)] == [("door", True), ("execution", True)]
 
     r = _cel(tmp_path, "--run", "second", "--generations", "3", "--fail", "1:front,front_right,right",
              "--cases-from", str(first), *SMALL)
@@ -134,7 +140,7 @@ def test_the_case_base_is_in_the_store_and_a_later_run_starts_from_it(tmp_path: 
     restart = read_jsonl(tmp_path / "second" / "workers" / "door" / "changes.jsonl")[0]
     assert restart["restart_cases"][0]["rules"] == stored[0].rules or \
         restart["restart_cases"][0]["capabilities"] == ["far_left", "left", "front_left", "far_right"]
-    assert [w.reproduced for w in replay(tmp_path / "second")] == [True]
+    assert [(w.behaviour, w.reproduced) for w in replay(tmp_path / "second")] == [("door", True), ("execution", True)]
 
 
 def test_the_wire_refuses_foreign_and_malformed_cel_messages(tmp_path: Path) -> None:

@@ -10,7 +10,7 @@ what the run did: ``performance.csv`` (Figure 3's curve, one row per generation)
 ``cel.json`` (the changes the monitor detected and when, the detection delays, the
 learner's restarts, how fast new rules reached the robot) and ``summary.json``.
 ``coevo cel --resume RUN_DIR`` continues a run from its processes' checkpoints;
-``coevo replay RUN_DIR`` reproduces the learner.
+``coevo replay RUN_DIR`` reproduces the learner and the robot.
 
 ``--cases-from EARLIER_RUN`` starts the run's case base with the cases an earlier run's
 broker stored (``EARLIER_RUN/store/cases/door.jsonl``): they are written into the new

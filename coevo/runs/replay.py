@@ -7,7 +7,8 @@ generations a worker took which version), and the store holds every version, so
 replaying feeds each GA the same partners at the same points and must reproduce
 its learning curve bit for bit.  A CEL learner (:mod:`coevo.cel.learner`) is replayed
 the same way from its ``changes.jsonl``: after how many generations it took which
-capability list, and the cases it restarted from.
+capability list, and the cases it restarted from; a CEL run's execution module from
+its ``policies.jsonl`` (which rule set from which trial): its world is its own seed's.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from coevo.config import GAConfig, build
 from coevo.errors import RunDirError
 from coevo.ga import GA
 from coevo.policy.rules import RuleSet
-from coevo.runs.layout import RunPaths, WorkerPaths, read_jsonl, read_store
+from coevo.runs.layout import RunPaths, WorkerPaths, read_json, read_jsonl, read_store
 from coevo.tasks import DEFAULT_TASK, Task, get_task
 
 __all__ = ["WorkerReplay", "replay"]
@@ -38,7 +39,7 @@ class WorkerReplay:
     behaviour: str
     generations: int
     reproduced: bool
-    first_mismatch: int | None  # 1-based generation
+    first_mismatch: int | None  # 1-based generation (the execution module's: its generation, from 0)
     detail: str
 
 
@@ -133,4 +134,48 @@ def replay(run_dir: Path) -> list[WorkerReplay]:
     run = RunPaths(Path(run_dir))
     workers = run.workers()
     store = _store(run)
-    return [replay_worker(w.dir, store) for w in workers]
+    out = [replay_worker(w.dir, store) for w in workers]
+    if run.execution.meta_json.exists():
+        out.append(replay_execution(run))
+    return out
+
+
+def replay_execution(run: RunPaths) -> WorkerReplay:
+    """A CEL run's execution module, again: its seed, its schedule, and the rule sets it took at the trials it
+    took them (``policies.jsonl``), in the same stretches; every generation's outcomes and every change the
+    monitor reported must come out the same."""
+    from coevo.cel.execution import ExecutionModule
+    from coevo.cel.monitor import Monitor
+    from coevo.cel.settings import CelSettings
+    from coevo.tasks.door import default_ruleset
+    from coevo.tasks.door.settings import DoorConfig
+
+    ex = run.execution
+    meta = read_json(ex.meta_json, what="execution directory (its execution.json)")
+    cel, world = build(CelSettings, meta["cel"]), build(DoorConfig, meta["world"])
+    module = ExecutionModule(world, default_ruleset(), seed=int(meta["seed"]), schedule=cel.failure_schedule(),
+                             monitor=Monitor(zero_run=cel.zero_run, repair_run=cel.repair_run, capabilities=world.capabilities),
+                             window=cel.window)
+    taken = {int(p["first_trial"]): p for p in read_jsonl(ex.policies)}
+    rows, logged = read_jsonl(ex.performance), read_jsonl(ex.changes)
+    K, found = cel.trials_per_generation, []
+    for g, row in enumerate(rows):
+        while module.trial < K * (g + 1):
+            p = taken.get(module.trial)
+            if p is not None:
+                module.receive(RuleSet.from_dict(p["rules"]))
+                module.version = int(p["version"])
+            st = module.run(min(cel.chunk, K * (g + 1) - module.trial))
+            found += [{"trial": c.trial, "decision": c.decision, "capabilities": list(c.capabilities)} for c in st.changes]
+        again = {"external": module.performance, "capabilities": list(module.capabilities)}
+        for k, v in again.items():
+            if row.get(k) != v:
+                return WorkerReplay("execution", len(rows), False, g, f"{k}: recorded {row.get(k)!r}, replayed {v!r}")
+    want = [{k: c[k] for k in ("trial", "decision", "capabilities")} for c in logged]
+    if found != want:
+        first = next((i for i, (a, b) in enumerate(zip(found, want)) if a != b), min(len(found), len(want)))
+        trial = (want[first] if first < len(want) else found[first])["trial"]
+        return WorkerReplay("execution", len(rows), False, trial // K,
+                            f"monitor change {first + 1}: recorded {want[first] if first < len(want) else None}, "
+                            f"replayed {found[first] if first < len(found) else None}")
+    return WorkerReplay("execution", len(rows), True, None, "identical")
