@@ -1,6 +1,6 @@
 """Figure 3 with the live service (issue 17 items 6 and 8): ``coevo cel`` runs, each three processes on the bus.
 
-    .venv/bin/python benchmarks/cel_live.py [--runs 10] [--jobs 2] [--root /tmp/cel-live] [--out docs/cel]
+    .venv/bin/python benchmarks/cel_live.py [--runs 10] [--first-seed 0] [--jobs 2] [--root /tmp/cel-live] [--out docs/cel]
                                             [--lockstep docs/cel/figure3.json] [--case-base] [--schedule figure3|cyclic]
 
 Runs ``coevo cel --seed S`` for S = 0 .. runs-1 (``--jobs`` at a time; the default settings: 100
@@ -61,6 +61,7 @@ def ms(a: Any) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=10)
+    ap.add_argument("--first-seed", type=int, default=0, help="seeds first-seed .. first-seed + runs - 1")
     ap.add_argument("--jobs", type=int, default=2, help="runs at a time (each is a broker, a learner and a robot)")
     ap.add_argument("--root", default="/tmp/cel-live", help="where the run directories go (not the repository)")
     ap.add_argument("--out", default="docs/cel")
@@ -74,7 +75,7 @@ def main() -> None:
     extra = ["--schedule", a.schedule] + (["--case-base"] if a.case_base else [])
     t0 = time.time()
     with ThreadPoolExecutor(a.jobs) as pool:
-        runs = list(pool.map(lambda s: one(s, root, extra), range(a.runs)))
+        runs = list(pool.map(lambda s: one(s, root, extra), range(a.first_seed, a.first_seed + a.runs)))
     wall = time.time() - t0
     ext = np.array([r["external"] for r in runs])
     event = 50 if a.schedule == "figure3" else None
@@ -92,8 +93,13 @@ def main() -> None:
         if a.schedule == "cyclic":
             held = held["case_base" if a.case_base else "restart"]
         by_seed = {r["seed"]: r["external"] for r in held}
-        same = [r["seed"] for r in runs if by_seed.get(r["seed"]) == r["external"]]
-        print(f"  equal to the lockstep run of the same seed: {len(same)} of {len(runs)} (seeds {same})")
+        held_seeds = [r["seed"] for r in runs if r["seed"] in by_seed]
+        same = [r["seed"] for r in runs if r["seed"] in by_seed and by_seed[r["seed"]] == r["external"]]
+        if held_seeds:
+            print(f"  equal to the lockstep run of the same seed: {len(same)} of {len(held_seeds)} (seeds {same})")
+        else:
+            same = None
+            print(f"  no lockstep runs of these seeds in {lock}: not compared")
     det = [d for r in runs for d in r["detections"]]
     found = [d for d in det if d["detected"]]
     print(f"  detected {len(found)}/{len(det)}: trials {[d['trials'] for d in found]}, decisions "
@@ -110,6 +116,7 @@ def main() -> None:
             "external_mean": ext.mean(axis=0).round(2).tolist(),
             "external_sd": ext.std(axis=0, ddof=1 if len(runs) > 1 else 0).round(2).tolist()}
     name = "live" if a.schedule == "figure3" and not a.case_base else f"live-{a.schedule}{'-cases' if a.case_base else ''}"
+    name += f"-seeds{a.first_seed}" if a.first_seed else ""
     (out / f"{name}.json").write_text(json.dumps(data, indent=1) + "\n")
     if a.schedule == "cyclic":
         _plot(out / f"{name}.png", data, None, f"cyclic schedule, live service{', case base' if a.case_base else ''}",

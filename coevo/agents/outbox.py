@@ -11,10 +11,8 @@ history complete once the broker is back.
 
 from __future__ import annotations
 
-import json
 import logging
 import math
-import os
 import threading
 import time
 from pathlib import Path
@@ -27,7 +25,7 @@ from coevo.bus.messages import PolicyUpdate
 from coevo.bus.session import is_put, query
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import MessageError
-from coevo.runs.layout import read_store
+from coevo.runs.layout import append_durably, read_store
 
 __all__ = ["BrokerWatch", "Outbox"]
 
@@ -128,9 +126,7 @@ class Outbox:
         """Log a new version (fsynced) before anything of it leaves: the outbox survives a crash."""
         if self._log is None:
             raise RuntimeError("the outbox is closed")
-        self._log.write(json.dumps(msg.model_dump(mode="json")) + "\n")
-        self._log.flush()
-        os.fsync(self._log.fileno())
+        append_durably(self._log, msg.model_dump(mode="json"))
         self.published[msg.version] = self.gate.seal(msg, self._policy_key)
 
     def put_current(self, msg: PolicyUpdate) -> None:

@@ -35,7 +35,7 @@ from coevo.errors import ConfigError, MessageError, ServiceError
 
 __all__ = ["DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
            "drain", "drain_messages", "is_put", "make_config", "open_session", "query", "ring_subscriber", "sigterm_as_exit",
-           "GatedSession", "Ring"]
+           "GatedSession", "Ring", "query_messages"]
 
 log = logging.getLogger(__name__)
 
@@ -315,6 +315,22 @@ def query(session: Any, key: str, *, timeout: float, what: str) -> list[tuple[st
                 for r in session.get(key, timeout=timeout, consolidation=zenoh.ConsolidationMode.NONE) if r.ok is not None]
     except zenoh.ZError as exc:
         raise ServiceError(f"query for {what} on {key!r} failed: {exc}") from exc
+
+
+def query_messages(session: Any, key: str, *, timeout: float, what: str, gate: Gate | None = None) -> list[Message]:
+    """The replies to a get on ``key`` that pass ``gate`` (default: the session's), decoded; a reply that does not
+    goes to the gate's ``reject`` (else the log).  Errors as :func:`query`."""
+    gate = gate if gate is not None else getattr(session, "gate", OPEN)
+    out = []
+    for k, payload in query(session, key, timeout=timeout, what=what):
+        try:
+            out.append(gate.decode(k, payload))
+        except MessageError as err:
+            if gate.reject is not None:
+                gate.reject(err, k)
+            else:
+                log.warning("reply on %s rejected: %s", k, err)
+    return out
 
 
 class Ring:

@@ -58,17 +58,13 @@ def _settings(args: argparse.Namespace) -> Any:
     ga = ga_settings(args)
     if args.generations is None:
         ga = ga.model_copy(update={"generations": 100})  # the run: 100 generations, the failure at 50
-    last = max((g for g, _ in schedule), default=0)
-    if last > ga.generations:
-        raise ConfigError(f"the failure schedule's last event is at generation {last}, after the run's "
-                          f"{ga.generations} generations")
     return RunSettings.make(run=args.run or default_run_id("cel"), task="door", regime="independent", seed=args.seed or 0,
                             max_lead=max_lead_of(args.max_lead, CEL_MAX_LEAD), world=world_settings(args, "door"), ga=ga, cel=cel)
 
 
 def cmd_cel(args: argparse.Namespace) -> int:
     from coevo.bus.status import StatusDisplay
-    from coevo.cel.service import CelRun, import_cases
+    from coevo.cel.service import CelRun, cases_of_run, import_cases
     from coevo.cel.status import CelPlain, cel_table
     from coevo.runs.local import run_local
     from coevo.runs.settings import RunSettings
@@ -86,12 +82,11 @@ def cmd_cel(args: argparse.Namespace) -> int:
     else:
         settings: RunSettings = _settings(args)
         lr = CelRun(settings, root=Path(args.root), log_level=args.log_level, open_run=args.open)
-        if args.cases_from and not Path(args.cases_from).is_dir():
-            raise ConfigError(f"--cases-from {args.cases_from!r} is not a run directory")
+        cases = cases_of_run(Path(args.cases_from)) if args.cases_from else None  # checked before anything is made
         lr.create()
-        if args.cases_from:
-            n = import_cases(lr.paths, Path(args.cases_from), worker=lr.settings.roster["door"])  # type: ignore[index]
-            print(f"case base: {n} cases from {args.cases_from}")
+        if cases is not None:
+            import_cases(lr.paths, cases, worker=lr.settings.roster["door"])  # type: ignore[index]
+            print(f"case base: {len(cases)} cases from {args.cases_from}")
     cel = lr.settings.cel
     assert cel is not None
     if args.prepare:

@@ -34,7 +34,6 @@ from __future__ import annotations
 import json
 import logging
 import math
-import os
 import time
 from typing import IO, Any
 
@@ -44,7 +43,7 @@ from coevo.agents.pacing import Pacer
 from coevo.agents.worker import Worker
 from coevo.bus import keys
 from coevo.bus.messages import CapabilityUpdate, CaseUpdate, ExecutionStatus
-from coevo.bus.session import drain_messages, query, ring_subscriber
+from coevo.bus.session import drain_messages, query_messages, ring_subscriber
 from coevo.cel.casebase import Case, CaseBase
 from coevo.cel.learning import LearningModule
 from coevo.cel.settings import CelSettings
@@ -52,7 +51,7 @@ from coevo.errors import ConfigError, MessageError, ServiceError
 from coevo.ga import GA, GenerationReport
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
-from coevo.runs.layout import WorkerPaths, read_cases, write_text
+from coevo.runs.layout import WorkerPaths, append_durably, read_cases, write_text
 
 __all__ = ["CelLearner", "RobotPacer", "case_of"]
 
@@ -225,20 +224,12 @@ class CelLearner(Worker):
         if self._m.case_base is None or not self._broker.up.is_set():
             return
         try:
-            replies = query(self._session, keys.store_cases(self.run_id, self.behaviour), timeout=self.store_timeout,
-                            what="the store's cases")
+            found = [m for m in query_messages(self._session, keys.store_cases(self.run_id, self.behaviour),
+                                               timeout=self.store_timeout, what="the store's cases", gate=self.gate)
+                     if isinstance(m, CaseUpdate)]
         except ServiceError as exc:
             log.warning("%s: %s; starting with an empty case base", self.worker_id, exc)
             return
-        found = []
-        for key, payload in replies:
-            try:
-                msg = self.gate.decode(key, payload)
-            except MessageError as err:
-                self._reject(err, key)
-                continue
-            if isinstance(msg, CaseUpdate):
-                found.append(msg)
         self.cases_put = max((m.version for m in found if m.worker == self.worker_id), default=0)  # imported ones
         for msg in found:
             self._log_case(msg)
@@ -249,9 +240,7 @@ class CelLearner(Worker):
     def _log_case(self, msg: CaseUpdate) -> None:
         if self._case_log is None:
             raise RuntimeError("the case log is closed")
-        self._case_log.write(json.dumps(msg.model_dump(mode="json")) + "\n")
-        self._case_log.flush()
-        os.fsync(self._case_log.fileno())
+        append_durably(self._case_log, msg.model_dump(mode="json"))
 
     def _store_case(self, case: Case) -> None:
         """Log a case this learner stored (fsynced), then put it for the broker's store."""

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from coevo.errors import ConfigError
-from coevo.tasks.door.settings import SONARS, canonical_sonar
+from coevo.tasks.door.settings import SONARS, sonar_names
 
 __all__ = ["Monitor", "ZERO_RUN", "REPAIR_RUN", "check_capabilities"]
 
@@ -41,15 +41,10 @@ REPAIR_RUN = 3
 
 def check_capabilities(capabilities: Sequence[str]) -> tuple[str, ...]:
     """A capability list (the working sonars) in canonical left-to-right order; unknown names are refused."""
-    if isinstance(capabilities, str):
-        capabilities = [c for c in capabilities.split(",") if c.strip()]
-    names = []
-    for c in capabilities:
-        name = canonical_sonar(c) if isinstance(c, str) else None
-        if name is None:
-            raise ConfigError(f"unknown sonar {c!r} in the capability list (the sonars: {', '.join(SONARS)})")
-        names.append(name)
-    return tuple(s for s in SONARS if s in names)
+    try:
+        return sonar_names(capabilities)
+    except ValueError as exc:
+        raise ConfigError(f"{exc} in the capability list") from None
 
 
 class Monitor:

@@ -51,12 +51,13 @@ from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.messages import CapabilityUpdate, Control, ExecutionStatus, PolicyUpdate
 from coevo.bus.rejections import Rejections
-from coevo.bus.session import drain_messages, open_session, query, ring_subscriber, sigterm_as_exit
+from coevo.bus.session import drain_messages, open_session, ring_subscriber, sigterm_as_exit
 from coevo.cel.execution import CapabilityChange, ExecutionModule, Stretch
 from coevo.cel.monitor import Monitor
 from coevo.cel.settings import ROBOT_SEED_OFFSET
 from coevo.errors import ConfigError, MessageError, RunDirError, ServiceError
 from coevo.policy.rules import RuleSet
+from coevo.runs.local import fetch_latest
 from coevo.runs.layout import ExecutionPaths, read_jsonl, write_json
 from coevo.runs.settings import RunSettings
 from coevo.tasks.door import DOOR, default_ruleset
@@ -116,7 +117,7 @@ class Execution:
             raise ConfigError("the execution module needs a CEL run's run.json (one with a cel block, made by coevo cel)")
         if run_key is not None and run_key.run != settings.run:
             raise ConfigError(f"the key is run {run_key.run!r}'s, not run {settings.run!r}'s")
-        self.settings, self.cel = settings, settings.cel
+        self.cel = settings.cel
         self.run_id, self.robot = settings.run, settings.cel.robot
         self.world: DoorConfig = settings.world_config()  # type: ignore[assignment]
         self.K = self.cel.trials_per_generation
@@ -141,7 +142,6 @@ class Execution:
         self._session: Any = None
         self._pubs: dict[str, Any] = {}
         self._logs: dict[str, IO[str]] = {}
-        self._last_beat = 0.0
 
     def _reject(self, err: MessageError, key: str) -> None:
         self.rejected.note(err, key)
@@ -232,7 +232,7 @@ class Execution:
                     if broker.back.is_set():
                         broker.back.clear()
                         self._fetch_latest()
-                    self._take([], policies)
+                    self._take([m for _, m in drain_messages(policies, 32, self._reject)])
                     self._play(min(self.cel.chunk, self.K * (generation + 1) - self.module.trial))
                     # Checkpoint before anything of the stretch leaves: a change put on the bus is always in a
                     # checkpoint, so a resumed robot never numbers a different change the same (the learner skips it).
@@ -259,25 +259,17 @@ class Execution:
     def _fetch_latest(self) -> None:
         """The store's latest policy (a robot that starts late, or was restarted)."""
         try:
-            replies = query(self._session, keys.store_latest(self.run_id, DOOR), timeout=self.store_timeout,
-                            what="the store's latest door policy")
+            latest = fetch_latest(self._session, self.run_id, timeout=self.store_timeout, gate=self.gate).get(DOOR)
         except ServiceError as exc:
             log.info("%s", exc)
             return
-        self._take(replies, None)
+        self._take([] if latest is None else [latest])
 
-    def _take(self, fetched: list[tuple[str, bytes]], ring: Any) -> None:
-        msgs: list[tuple[str, Any]] = []
-        for key, payload in fetched:
-            try:
-                msgs.append((key, self.gate.decode(key, payload)))
-            except MessageError as err:
-                self._reject(err, key)
-        if ring is not None:
-            msgs += drain_messages(ring, 32, self._reject)
+    def _take(self, msgs: list[Any]) -> None:
+        """Use the newest policy among ``msgs`` if it is newer than the one in use; log it."""
         got = time.time()
         newest: PolicyUpdate | None = None
-        for key, msg in msgs:
+        for msg in msgs:
             if isinstance(msg, PolicyUpdate) and msg.version > self.module.version and \
                     (newest is None or msg.version > newest.version):
                 newest = msg
@@ -354,7 +346,6 @@ class Execution:
                               open=self.gate.open, sent_at=time.time())
         self._put_capabilities()  # again: a learner that missed the change, or started later, catches up
         self._pubs["status"].put(self.gate.seal(msg, keys.execution(self.run_id, self.robot)))
-        self._last_beat = time.monotonic()
 
     def _done(self) -> dict[str, Any]:
         lat = [r["latency_ms"] for r in read_jsonl(self.paths.policies)]

@@ -32,7 +32,7 @@ from coevo.runs.layout import ExecutionPaths, RunPaths, read_cases, read_json, r
 from coevo.runs.local import LocalRun
 from coevo.tasks.door import DOOR
 
-__all__ = ["CelRun", "EXECUTION", "cel_report", "import_cases"]
+__all__ = ["CelRun", "EXECUTION", "cel_report", "cases_of_run", "import_cases"]
 
 EXECUTION = "execution"  # the execution module's process name (beside the behaviours' workers)
 
@@ -80,8 +80,8 @@ class CelRun(LocalRun):
                               extra={**(extra or {}), "cel": {k: v for k, v in report.items() if k != "changes"}})
 
 
-def import_cases(run: RunPaths, source: Path, *, worker: str) -> int:
-    """Write the cases an earlier run's store holds into ``run``'s store, as ``worker``'s; how many."""
+def cases_of_run(source: Path) -> list[CaseUpdate]:
+    """The case base an earlier run's broker stored (``SOURCE/store/cases/door.jsonl``); a ConfigError if there is none."""
     src = RunPaths(Path(source))
     f = src.case_file(DOOR)
     if not src.dir.is_dir():
@@ -89,14 +89,20 @@ def import_cases(run: RunPaths, source: Path, *, worker: str) -> int:
     if not f.exists():
         raise ConfigError(f"--cases-from {str(source)!r}: its store holds no case base ({f} does not exist; a run with "
                           "--case-base stores one)")
-    cases = read_cases(f)
+    try:
+        return read_cases(f)
+    except RunDirError as exc:
+        raise ConfigError(f"--cases-from {str(source)!r}: {exc}") from None
+
+
+def import_cases(run: RunPaths, cases: list[CaseUpdate], *, worker: str) -> None:
+    """Write ``cases`` (an earlier run's) into ``run``'s store as ``worker``'s, renumbered, their run in ``origin``."""
     out = run.case_file(DOOR)
     out.parent.mkdir(parents=True, exist_ok=True)
     now = time.time()
     lines = [CaseUpdate(**{**c.model_dump(), "run": run.name, "worker": worker, "version": i, "sent_at": now,
                            "origin": c.origin or c.run}).model_dump_json() + "\n" for i, c in enumerate(cases, 1)]
     out.write_text("".join(lines), encoding="utf-8")
-    return len(lines)
 
 
 def _detections(changes: list[dict[str, Any]], schedule: tuple[tuple[int, tuple[str, ...]], ...], K: int,

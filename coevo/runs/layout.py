@@ -29,7 +29,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any
 
 from coevo.errors import RunDirError
 
@@ -37,7 +37,7 @@ if TYPE_CHECKING:
     from pydantic import BaseModel
 
 
-__all__ = ["RunPaths", "WorkerPaths", "ExecutionPaths", "LearnPaths", "read_store", "read_cases", "staged_dir", "ensure_dir", "read_jsonl", "read_json", "write_bytes",
+__all__ = ["RunPaths", "WorkerPaths", "ExecutionPaths", "LearnPaths", "read_store", "read_cases", "append_durably", "staged_dir", "ensure_dir", "read_jsonl", "read_json", "write_bytes",
            "write_json",
            "write_text", "write_csv"]
 
@@ -389,6 +389,14 @@ def write_text(path: Path, text: str) -> None:
 
 def write_json(path: Path, data: Any) -> None:
     write_text(path, json.dumps(data, indent=2, sort_keys=True) + "\n")
+
+
+def append_durably(log: IO[str], row: dict[str, Any]) -> None:
+    """One JSON line on an append-only log, flushed and fsynced: it is on disk before anything of it leaves
+    the process (a worker's publications, a CEL learner's cases)."""
+    log.write(json.dumps(row) + "\n")
+    log.flush()
+    os.fsync(log.fileno())
 
 
 def write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:

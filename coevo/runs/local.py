@@ -39,10 +39,10 @@ from typing import Any
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.messages import Control, PolicyUpdate
-from coevo.bus.session import make_config, open_session, query, sigterm_as_exit
+from coevo.bus.session import make_config, open_session, query_messages, sigterm_as_exit
 from coevo.bus.status import StatusBoard
-from coevo.bus.trust import OPEN, Gate
-from coevo.errors import ConfigError, MessageError, RunDirError, ServiceError
+from coevo.bus.trust import Gate
+from coevo.errors import ConfigError, RunDirError, ServiceError
 from coevo.runs.layout import RunPaths, read_json, read_jsonl, write_csv, write_json
 from coevo.runs.settings import RunSettings
 
@@ -75,17 +75,8 @@ def wait_until(check: Callable[[], Any], timeout: float, what: str | Callable[[]
 
 def fetch_latest(session: Any, run: str, timeout: float = 5.0, gate: Gate | None = None) -> dict[str, PolicyUpdate]:
     """The store's latest policy of each behaviour of ``run`` that passes ``gate`` (default: the session's)."""
-    gate = gate if gate is not None else getattr(session, "gate", OPEN)
-    out: dict[str, PolicyUpdate] = {}
-    for key, payload in query(session, keys.store_latest(run), timeout=timeout, what="the store's latest policies"):
-        try:
-            msg = gate.decode(key, payload)
-        except MessageError as err:
-            log.warning("store reply on %s rejected: %s", key, err)
-            continue
-        if isinstance(msg, PolicyUpdate) and msg.run == run:
-            out[msg.behaviour] = msg
-    return out
+    msgs = query_messages(session, keys.store_latest(run), timeout=timeout, what="the store's latest policies", gate=gate)
+    return {m.behaviour: m for m in msgs if isinstance(m, PolicyUpdate) and m.run == run}
 
 
 class LocalRun:

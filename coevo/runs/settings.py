@@ -69,6 +69,10 @@ class RunSettings(Settings):
                 check_id(f"roster worker id for {b}", w)
         if self.cel is not None and self.task != "door":
             raise ValueError(f"a CEL run (cel settings) is a door-task run, not a {self.task!r} one")
+        last = max((g for g, _ in self.cel.schedule), default=0) if self.cel is not None else 0
+        if last > self.ga.generations:
+            raise ValueError(f"the failure schedule's last event is at generation {last}, after the run's "
+                             f"{self.ga.generations} generations")
         if self.cel is not None and self.roster is not None and self.cel.robot in self.roster.values():
             raise ValueError(f"the robot id {self.cel.robot!r} is also a worker id of the roster")
         full = build(task.world_settings, self.world).model_dump(mode="json")

@@ -15,7 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from coevo.config import GAConfig
 
-__all__ = ["DoorConfig", "SONARS", "SONAR_ANGLES", "canonical_sonar", "capability_label", "door_ga"]
+__all__ = ["DoorConfig", "SONARS", "SONAR_ANGLES", "canonical_sonar", "sonar_names", "capability_label", "door_ga"]
 
 #: The seven front-most sonars of a Nomad 200, left to right, as rule sensors name them.  The report
 #: writes them far-left ... far-right; either spelling is accepted wherever a sonar is named.
@@ -28,6 +28,24 @@ def canonical_sonar(name: str) -> str | None:
     """``front-right``, ``Front_Right`` or ``front right`` -> ``front_right``; None for no sonar."""
     key = "_".join(str(name).strip().lower().replace("-", " ").replace("_", " ").split())
     return key if key in SONARS else None
+
+
+def sonar_names(value: Any) -> tuple[str, ...]:
+    """Sonar names (a list, or a comma-separated string; any spelling :func:`canonical_sonar` takes) in canonical
+    left-to-right order, each once; anything else is a ValueError naming it."""
+    if value is None:
+        return ()
+    if isinstance(value, str):
+        value = [v for v in value.split(",") if v.strip()]
+    if not isinstance(value, (list, tuple, set, frozenset)):
+        raise ValueError(f"give sonar names as a list or a comma-separated string, got {value!r}")
+    names = []
+    for v in value:
+        c = canonical_sonar(v) if isinstance(v, str) else None
+        if c is None:
+            raise ValueError(f"unknown sonar {v!r} (the sonars: {', '.join(SONARS)})")
+        names.append(c)
+    return tuple(s for s in SONARS if s in names)
 
 
 class DoorConfig(BaseModel):
@@ -87,19 +105,7 @@ class DoorConfig(BaseModel):
     @field_validator("failed", mode="before")
     @classmethod
     def _sonar_names(cls, value: Any) -> tuple[str, ...]:
-        if value is None:
-            return ()
-        if isinstance(value, str):
-            value = [v for v in value.split(",") if v.strip()]
-        if not isinstance(value, (list, tuple, set, frozenset)):
-            raise ValueError(f"give sonar names as a list or a comma-separated string, got {value!r}")
-        names = []
-        for v in value:
-            c = canonical_sonar(v) if isinstance(v, str) else None
-            if c is None:
-                raise ValueError(f"unknown sonar {v!r} (the sonars: {', '.join(SONARS)})")
-            names.append(c)
-        return tuple(s for s in SONARS if s in names)  # canonical order, each once
+        return sonar_names(value)
 
     @model_validator(mode="after")
     def _geometry(self) -> DoorConfig:
