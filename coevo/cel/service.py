@@ -40,6 +40,8 @@ EXECUTION = "execution"  # the execution module's process name (beside the behav
 class CelRun(LocalRun):
     """The broker, learner and execution module of one CEL run directory."""
 
+    COMMAND = "coevo cel"
+
     def __init__(self, settings: Any, **kwargs: Any) -> None:
         if settings.cel is None:
             raise ConfigError("a CEL run needs cel settings (coevo cel makes them)")

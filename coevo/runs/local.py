@@ -82,6 +82,8 @@ def fetch_latest(session: Any, run: str, timeout: float = 5.0, gate: Gate | None
 class LocalRun:
     """The broker and worker processes of one run directory on this machine."""
 
+    COMMAND = "coevo run"  # what starts (and resumes) such a run
+
     def __init__(self, settings: RunSettings, *, root: Path, log_level: str = "WARNING",
                  worker_env: dict[str, str] | None = None, open_run: bool = False) -> None:
         """``open_run``: make no key (the run accepts unauthenticated messages; for local experiments only)."""
@@ -137,7 +139,7 @@ class LocalRun:
             raise RunDirError(f"{str(self.dir)!r} is a file, not a run directory; choose another --run or --root")
         if self.dir.exists() and any(self.dir.iterdir()):
             raise RunDirError(f"run directory {str(self.dir)!r} already exists; choose another --run or --root, "
-                              f"or continue it with coevo run --resume {self.dir}")
+                              f"or continue it with {self.COMMAND} --resume {self.dir}")
         try:
             self.dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -270,7 +272,7 @@ def run_local(
             latest = fetch_latest(s, run)
         failed = {b: p.returncode for b, p in lr.workers.items() if p.returncode not in (0, None)}
         if failed and not interrupted:
-            raise RunDirError(f"workers failed {failed}; see {lr.paths.logs_dir} (continue with --resume {lr.dir})")
+            raise RunDirError(f"workers failed {failed}; see {lr.paths.logs_dir} (continue with {lr.COMMAND} --resume {lr.dir})")
     finally:
         signal.signal(signal.SIGTERM, previous)
         lr.end_all()
