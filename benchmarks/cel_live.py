@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from coevo.runs.layout import read_jsonl
+from coevo.rundir.layout import read_jsonl
 
 REPORT = {"default": 25.0, "all_sonars": 63.0, "drop": 37.0, "adapted": 60.0}
 

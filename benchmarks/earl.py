@@ -18,7 +18,7 @@ from pathlib import Path
 
 from coevo.experiments.earl.experiment import EarlSpec, run_grid, run_hidden
 from coevo.experiments.earl.report import write_report
-from coevo.runs.layout import staged_dir
+from coevo.rundir.layout import staged_dir
 
 
 def main() -> None:

@@ -20,7 +20,7 @@ import numpy as np
 from coevo.errors import CoevoError
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.text import parse_ruleset
-from coevo.runs.settings import RunSettings
+from coevo.rundir.settings import RunSettings
 from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK, Behaviour
 from coevo.tasks.fuel.recorder import Recorder
 from coevo.tasks.fuel.runner import Rules, run_lanes

@@ -21,7 +21,7 @@ from pathlib import Path
 from coevo.experiments.earl.td_command import add_td_arguments, specs_from_args
 from coevo.experiments.earl.td_report import read_results, summarise, write_report
 from coevo.experiments.earl.td_tasks import run_task
-from coevo.runs.layout import staged_dir
+from coevo.rundir.layout import staged_dir
 
 TARGET_SECONDS = 300
 

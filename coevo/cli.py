@@ -31,7 +31,7 @@ from coevo.console import (
     seed_arg,
     world_settings,
 )
-from coevo.agents.pacing import DEFAULT_MAX_LEAD
+from coevo.rundir.settings import DEFAULT_MAX_LEAD
 from coevo.errors import CoevoError, ConfigError
 from coevo.policy.schema import registered
 
@@ -74,7 +74,7 @@ def cmd_learn(args: argparse.Namespace) -> int:
     if args.task is not None and args.task != task.name:
         raise ConfigError(f"--behaviour {args.behaviour} belongs to task {task.name!r}, not {args.task!r}")
     if args.settings:  # a run's settings (coevo compare's offline Executive): world, GA and seed from there
-        from coevo.runs.settings import RunSettings
+        from coevo.rundir.settings import RunSettings
 
         _refuse(args, (*GA_FLAGS, "fail", "seed"), "--settings gives the world, GA and seed")
         settings = RunSettings.load(Path(args.settings))
@@ -141,21 +141,11 @@ def cmd_broker(args: argparse.Namespace) -> int:
                         quota=Quota(runs=args.quota_runs, policies=args.quota_policies, bytes=int(args.quota_mb * (1 << 20))))
 
 
-def _run_key(flag: str | None, settings: Any, base: Path | None) -> Any:
-    """The run's key: ``--key-file``, else ``$COEVO_RUN_KEY_FILE``, else the key file run.json names; None: open."""
-    import os
-
-    from coevo.bus.auth import KEY_ENV, RunKey
-
-    path = flag or os.environ.get(KEY_ENV) or (settings.key_path(base) if base is not None else None)
-    return None if path is None else RunKey.load(Path(path), run=settings.run)
-
-
 def cmd_worker(args: argparse.Namespace) -> int:
-    from coevo.agents.worker import run_worker
+    from coevo.agents.worker import Worker, run_worker
     from coevo.bus.session import config_from_args
-    from coevo.runs.layout import RunPaths
-    from coevo.runs.settings import RunSettings
+    from coevo.rundir.layout import RunPaths
+    from coevo.rundir.settings import RunSettings, find_run_key
 
     if args.settings:
         _refuse(args, ("task", "regime", "run", "model", "max_lead", *GA_FLAGS), "--settings gives every run setting")
@@ -169,16 +159,21 @@ def cmd_worker(args: argparse.Namespace) -> int:
         settings = RunSettings.make(run=args.run, task=task, regime=args.regime, seed=args.seed or 0,
                                     model=args.model or "best", max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
                                     world=world_settings(args, task), ga=ga_settings(args))
-    return run_worker(settings, behaviour=args.behaviour, seed=args.seed, worker_id=args.worker_id,
+    kind = None
+    if settings.cel is not None:  # a CEL run's learner (coevo cel) plugs into the worker's seam
+        from coevo.cel_service.learner import CelLearner
+
+        kind = CelLearner
+    return run_worker(settings, kind=kind or Worker, behaviour=args.behaviour, seed=args.seed, worker_id=args.worker_id,
                       out=Path(args.out) if args.out else (RunPaths(base).worker(args.behaviour).dir if base else None),
                       conf=config_from_args(args), resume=args.resume,
-                      final_sync=args.final_sync, run_key=_run_key(args.key_file, settings, base))
+                      final_sync=args.final_sync, run_key=find_run_key(args.key_file, settings, base))
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     from coevo.bus.status import StatusDisplay
     from coevo.runs.local import LocalRun, default_run_id, run_local
-    from coevo.runs.settings import RunSettings
+    from coevo.rundir.settings import RunSettings
 
     if args.resume:
         _refuse(args, (*RUN_FLAGS, "run", "settings"), "--resume takes every setting from the run's run.json")
@@ -247,7 +242,7 @@ def cmd_keygen(args: argparse.Namespace) -> int:
 def cmd_chaos(args: argparse.Namespace) -> int:
     from coevo.runs.chaos import CHAOS_REPORT, ChaosPlan, run_chaos, summary_lines
     from coevo.runs.local import default_run_id
-    from coevo.runs.settings import RunSettings
+    from coevo.rundir.settings import RunSettings
 
     plan = ChaosPlan(faults=args.faults, kinds=tuple(args.kinds), gap=tuple(args.gap), down=tuple(args.down), seed=args.seed)
     task = args.task or ("door" if args.cel else "fuel")
@@ -429,7 +424,7 @@ def build_parser() -> argparse.ArgumentParser:
     from coevo.experiments.evolvability.command import add_parser as add_evolvability
     from coevo.show.command import add_parser as add_show
 
-    from coevo.cel.command import add_parsers as add_cel
+    from coevo.runs.cel_command import add_parsers as add_cel
 
     add_compare(sub)
     add_cel(sub)

@@ -166,7 +166,7 @@ class Lead:
 
 
 def max_lead_arg(text: str) -> Lead:
-    from coevo.agents.pacing import parse_max_lead
+    from coevo.rundir.settings import parse_max_lead
 
     try:
         return Lead(parse_max_lead(text))

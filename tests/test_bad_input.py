@@ -29,7 +29,7 @@ import pytest
 
 from coevo.cli import build_parser, main
 from coevo.errors import CoevoError
-from coevo.runs.settings import RunSettings
+from coevo.rundir.settings import RunSettings
 
 NUMBERS = ["nan", "inf", "-1", "0", "1e308", ""]
 CLEARLY_BAD = {"nan", "inf", "1e308", ""}  # for a flag that takes a number

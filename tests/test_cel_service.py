@@ -28,13 +28,13 @@ from coevo.bus.messages import CapabilityUpdate, CaseUpdate, ExecutionStatus, en
 from coevo.bus.session import open_session
 from coevo.bus.status import StatusBoard
 from coevo.cel.experiment import run_cel
-from coevo.cel.service import CelRun
+from coevo.runs.cel import CelRun
 from coevo.errors import MessageError
 from coevo.runs.check import check_run
-from coevo.runs.layout import read_cases, read_jsonl
+from coevo.rundir.layout import read_cases, read_jsonl
 from coevo.runs.local import free_port
 from coevo.runs.replay import replay
-from coevo.runs.settings import RunSettings
+from coevo.rundir.settings import RunSettings
 from coevo.tasks.door import default_ruleset, door_ga
 
 FAILED = ("front", "front_right", "right")

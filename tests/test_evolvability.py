@@ -21,7 +21,7 @@ from coevo.experiments.evolvability.experiment import GridSpec
 from coevo.experiments.evolvability.landscape import CLASSES, DynamicLandscape, LandscapeSpec
 from coevo.experiments.evolvability.report import shift_windows
 from coevo.ga import GA
-from coevo.runs.settings import RunSettings
+from coevo.rundir.settings import RunSettings
 from coevo.tasks import get_task
 from coevo.tasks.fuel.settings import WorldConfig
 

@@ -26,7 +26,7 @@ import pytest
 from procs import SMALL, coevo_proc, poll, stop
 
 from coevo.agents.checkpoint import load_checkpoint, save_checkpoint
-from coevo.runs.layout import WorkerPaths
+from coevo.rundir.layout import WorkerPaths
 
 CHECKPOINT = WorkerPaths(Path(".")).checkpoint.name
 from coevo.agents.models import PartnerModels
@@ -46,7 +46,7 @@ from coevo.bus.messages import MAX_BYTES, PolicyUpdate, Status, encode
 from coevo.bus.status import StatusBoard
 from coevo.policy import random_ruleset
 from coevo.runs.local import LocalRun
-from coevo.runs.settings import RunSettings
+from coevo.rundir.settings import RunSettings
 
 T, D, E = Behaviour.TRACKING, Behaviour.DOCKING, Behaviour.EXECUTIVE
 MID = GAConfig(generations=30, population=8, episodes=20, best_episodes=20, initial_rules=8)

@@ -11,7 +11,7 @@ import pytest
 
 from coevo.config import GAConfig
 from coevo.errors import ConfigError, RunDirError
-from coevo.runs.settings import RunSettings
+from coevo.rundir.settings import RunSettings
 from coevo.tasks.fuel.settings import WorldConfig
 
 

@@ -288,7 +288,7 @@ def test_a_stop_from_outside_an_open_run_ends_it_interrupted_not_with_exit_0(tmp
 
 
 def test_a_worker_refuses_a_foreign_key_and_a_roster_it_is_not_on(tmp_path: Path) -> None:
-    from coevo.runs.settings import RunSettings
+    from coevo.rundir.settings import RunSettings
 
     run_dir = tmp_path / "r"
     run_dir.mkdir()

@@ -10,7 +10,7 @@ those lengths, so whatever a crash left after the checkpoint (a curve line, an
 adoption, a publication of a generation that is now done again) disappears and
 the logs agree with the restored state: a replay reproduces the whole run.
 
-The file is written atomically (:func:`coevo.runs.layout.write_bytes`) and carries a
+The file is written atomically (:func:`coevo.rundir.layout.write_bytes`) and carries a
 CRC-32 of its body, so a crash mid-write leaves the previous checkpoint intact and
 a damaged file is refused with its name rather than half-read.
 
@@ -32,7 +32,7 @@ from typing import Any
 import msgpack
 
 from coevo.errors import ConfigError, RunDirError
-from coevo.runs.layout import WorkerPaths, read_json, write_bytes, write_json
+from coevo.rundir.layout import WorkerPaths, read_json, write_bytes, write_json
 
 __all__ = ["FORMAT", "save_checkpoint", "load_checkpoint", "resume_state", "truncate_log", "prepare_dir", "cut_logs"]
 

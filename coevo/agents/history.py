@@ -16,7 +16,7 @@ from pathlib import Path
 
 from coevo.bus.messages import PolicyUpdate
 from coevo.errors import ConfigError, RunDirError
-from coevo.runs.layout import RunPaths, read_store
+from coevo.rundir.layout import RunPaths, read_store
 
 __all__ = ["HistoryFeed"]
 

@@ -25,7 +25,7 @@ from coevo.bus.messages import PolicyUpdate
 from coevo.bus.session import is_put, query
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import MessageError
-from coevo.runs.layout import append_durably, read_store
+from coevo.rundir.layout import append_durably, read_store
 
 __all__ = ["BrokerWatch", "Outbox"]
 

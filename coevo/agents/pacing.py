@@ -26,7 +26,7 @@ the worker keeps to ``max_lead`` and waits for them, up to ``wait_limit``, as fo
 any partner that stopped reporting.  ``settle`` covers the moment between the
 partners' tokens and the broker's going, which arrive in either order.  The two
 modules of a CEL run give each other a longer ``settle`` and ``grace``, a restart's time
-(:mod:`coevo.cel.robot`, :mod:`coevo.cel.learner`).  Progress is read from the partners' status
+(:mod:`coevo.cel_service.robot`, :mod:`coevo.cel_service.learner`).  Progress is read from the partners' status
 heartbeats, kept in rings inside Zenoh (no Python runs per heartbeat, so a flood
 on the status keys cannot slow the worker), so pacing needs nothing beyond what
 status already publishes.  While it waits, the worker
@@ -47,26 +47,11 @@ from coevo.bus import keys
 from coevo.bus.messages import Status
 from coevo.bus.session import drain_messages, is_put, ring_subscriber
 from coevo.errors import ConfigError
+from coevo.rundir.settings import DEFAULT_MAX_LEAD, parse_max_lead
 
 __all__ = ["DEFAULT_MAX_LEAD", "Pacer", "parse_max_lead"]
 
 log = logging.getLogger(__name__)
-
-DEFAULT_MAX_LEAD = 1
-
-
-def parse_max_lead(value: str | int | None) -> int | None:
-    """``"off"``/``None`` → no pacing; otherwise a lead of at least 0 generations."""
-    if value is None or (isinstance(value, str) and value.strip().lower() in ("off", "none")):
-        return None
-    try:
-        lead = int(value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"max lead must be a whole number of generations or 'off', got {value!r}") from None
-    if lead < 0:
-        raise ConfigError(f"max lead must be 0 or more generations (or 'off'), got {lead}")
-    return lead
-
 
 class Pacer:
     """Follows the partners' heartbeats and liveliness and holds a worker back when it is too far ahead."""

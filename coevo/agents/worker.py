@@ -11,7 +11,7 @@ The worker is three parts, each a context-managed object on one Zenoh session:
   the best so far if it improved, the current best and a heartbeat.
 
 What a worker writes in its directory (``runs/RUN/workers/BEHAVIOUR/``,
-:class:`~coevo.runs.layout.WorkerPaths`):
+:class:`~coevo.rundir.layout.WorkerPaths`):
 
 * ``worker.json``: its settings (a ``--resume`` with other settings is refused);
 * ``curve.jsonl``: one line per generation (the learning curve);
@@ -49,8 +49,8 @@ from coevo.errors import ConfigError, MessageError
 from coevo.ga import GA, GenerationReport
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
-from coevo.runs.layout import WorkerPaths, read_jsonl, write_json, write_text
-from coevo.runs.settings import RunSettings
+from coevo.rundir.layout import WorkerPaths, read_jsonl, write_json, write_text
+from coevo.rundir.settings import RunSettings
 from coevo.tasks import DEFAULT_TASK
 
 __all__ = ["Worker", "run_worker", "INBOX", "FAULT_HANG_ENV"]
@@ -185,7 +185,12 @@ class Worker:
         save_checkpoint(self.paths.checkpoint, self._ident(), state)
         self.checkpoint_seconds += time.perf_counter() - t0
 
-    # ------------------------------------------------------------ what a subclass changes (coevo.cel.learner)
+    # ------------------------------------------------------------ the seam: what another kind of learner changes
+    # A learner of another kind (coevo.cel_service.learner.CelLearner, the CEL learning module) subclasses Worker and
+    # overrides only these: how its GA is made and checkpointed, how one generation is made and what of it is
+    # published, what it takes in between generations, how it is paced, and the extra subscriptions it runs inside.
+    # The loop, the directory, the publication log, the store sync and the heartbeats stay here, and this module
+    # names no kind but its own.
     def _make_ga(self) -> GA:
         return GA(self.task, self.behaviour, world=self.world, ga=self.ga_cfg, seed=self.seed)
 
@@ -340,15 +345,12 @@ class Worker:
 
 
 def run_worker(settings: RunSettings, *, behaviour: str, seed: int | None, worker_id: str | None, out: Path | None,
-               conf: Any, resume: bool, final_sync: float, run_key: RunKey | None = None) -> int:
-    """``coevo worker``: run one worker to its end (exit status 0), or until SIGINT/SIGTERM (130)."""
+               conf: Any, resume: bool, final_sync: float, run_key: RunKey | None = None,
+               kind: type[Worker] = Worker) -> int:
+    """``coevo worker``: run one worker of ``kind`` (this class, or a learner plugged into its seam, e.g. the CEL
+    learner) to its end (exit status 0), or until SIGINT/SIGTERM (130)."""
     out = out if out is not None else settings.paths(Path("runs")).worker(behaviour).dir
     sigterm_as_exit()
-    kind: type[Worker] = Worker
-    if settings.cel is not None:  # a CEL run's learner (coevo cel)
-        from coevo.cel.learner import CelLearner
-
-        kind = CelLearner
     w = kind(settings, behaviour=behaviour, seed=seed, worker_id=worker_id, out_dir=out, conf=conf, resume=resume,
                final_sync=final_sync, run_key=run_key)
     try:

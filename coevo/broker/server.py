@@ -49,7 +49,7 @@ from coevo.bus.messages import MAX_BYTES, BrokerStatus, CaseUpdate, PolicyUpdate
 from coevo.bus.session import config_from_args, open_session, sigterm_as_exit
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import CoevoError, MessageError
-from coevo.runs.layout import RunPaths
+from coevo.rundir.layout import RunPaths
 
 __all__ = ["Broker", "Keyring", "serve_broker", "serve_router"]
 
@@ -108,7 +108,7 @@ class Keyring:
             return None
         if paths.run_json.exists():
             try:
-                from coevo.runs.settings import RunSettings
+                from coevo.rundir.settings import RunSettings
 
                 gate = RunSettings.load(paths.run_json).gate(key)
                 log.info("run %s: key loaded%s", run, ", roster " + str(gate.roster) if gate.roster else "")

@@ -40,7 +40,7 @@ from coevo.bus import keys
 from coevo.bus.messages import CaseUpdate, PolicyUpdate
 from coevo.bus.rejections import Rejections
 from coevo.errors import ConfigError, MessageError
-from coevo.runs.layout import RunPaths, read_cases, read_store
+from coevo.rundir.layout import RunPaths, read_cases, read_store
 
 Stored = PolicyUpdate | CaseUpdate
 _CASES = "cases/"  # the stream of a behaviour's cases is "cases/BEHAVIOUR"; a behaviour's policies, "BEHAVIOUR"

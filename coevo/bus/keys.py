@@ -26,6 +26,7 @@ from __future__ import annotations
 import re
 
 from coevo.errors import ConfigError
+import coevo.tasks  # noqa: F401 - the built-in tasks register their behaviours, whose names travel on keys
 from coevo.policy.schema import registered
 
 __all__ = ["ROOT", "BROKER", "BROKER_DEGRADED", "check_id", "valid_id", "policy", "current", "status", "control", "alive", "store_latest", "store_history",

@@ -28,6 +28,7 @@ from pydantic import (
 from coevo.bus import auth, keys
 from coevo.errors import MessageError, RuleSetError
 from coevo.policy.rules import RuleSet
+import coevo.tasks  # noqa: F401 - the built-in tasks register their behaviours, whose names travel on keys
 from coevo.policy.schema import registered
 
 __all__ = ["SCHEMA_VERSION", "MAX_BYTES", "REASONS", "PolicyUpdate", "Status", "BrokerStatus", "Control", "CaseUpdate",

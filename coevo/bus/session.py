@@ -29,11 +29,12 @@ from typing import Any
 
 import zenoh
 
-from coevo.bus.messages import Message
+from coevo.bus import keys
+from coevo.bus.messages import Message, PolicyUpdate
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import ConfigError, MessageError, ServiceError
 
-__all__ = ["DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
+__all__ = ["fetch_latest", "DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
            "drain", "drain_messages", "is_put", "make_config", "open_session", "query", "ring_subscriber", "sigterm_as_exit",
            "GatedSession", "Ring", "query_messages"]
 
@@ -398,3 +399,9 @@ def sigterm_as_exit() -> Any:
         raise KeyboardInterrupt(f"signal {signum}")
 
     return signal.signal(signal.SIGTERM, _raise)
+
+
+def fetch_latest(session: Any, run: str, timeout: float = 5.0, gate: Gate | None = None) -> dict[str, PolicyUpdate]:
+    """The store's latest policy of each behaviour of ``run`` that passes ``gate`` (default: the session's)."""
+    msgs = query_messages(session, keys.store_latest(run), timeout=timeout, what="the store's latest policies", gate=gate)
+    return {m.behaviour: m for m in msgs if isinstance(m, PolicyUpdate) and m.run == run}

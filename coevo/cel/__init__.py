@@ -10,10 +10,11 @@ base, :mod:`.casebase`) and hands each new best to the execution module.
 :mod:`.experiment` steps the two in lockstep, deterministically, for the Figure 3
 experiment and the cyclic schedule.
 
-The live service: :mod:`.learner` (the learning module as a worker process),
-:mod:`.robot` (the execution module as a process, ``coevo execution``), :mod:`.service`
-(``coevo cel``: one run on this machine), :mod:`.settings` (a run's ``cel`` block) and
-:mod:`.command` (the two commands).
+:mod:`.settings` is a run's ``cel`` block (part of its ``run.json``).
+
+Nothing here touches the network: the live service builds on it, the learner and the
+robot as processes in :mod:`coevo.cel_service`, a whole run on one machine
+(``coevo cel``) in :mod:`coevo.runs.cel`.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """A live CEL run's own settings (``run.json``'s ``cel`` block; SPEC §5, issue 17).
 
-A CEL run is a door-task run (:class:`~coevo.runs.settings.RunSettings` with ``task =
+A CEL run is a door-task run (:class:`~coevo.rundir.settings.RunSettings` with ``task =
 "door"``) plus these: the failure schedule of the execution module's world, the
 execution module's clock and monitor, and the learner's restart.  ``coevo cel``
 writes them; the learner (``coevo worker``) and the execution module (``coevo

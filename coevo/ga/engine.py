@@ -6,7 +6,7 @@ partner models; rule strengths are updated from the payoffs (Lamarckian: offspri
 inherit them); the generation's best is re-evaluated on ``best_episodes`` episodes
 for the learning curve; the best so far is kept; the next population is bred.
 
-The GA names no task: its task (:class:`~coevo.tasks.base.Task`) gives it the
+The GA names no task: its problem (:class:`~coevo.ga.evaluator.Problem`, a task) gives it the
 behaviour's initial rules and an evaluator.  The partner models are an argument of
 every generation, so an asynchronous worker can swap in new partner policies
 between generations without the GA knowing; so is the tick a worker's heartbeat
@@ -23,20 +23,18 @@ import json
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from pydantic import BaseModel
 
 from coevo.config import GAConfig
 from coevo.errors import ConfigError
+from coevo.ga.evaluator import Evaluation, Partners, Problem, Tick
 from coevo.ga.mutation import CONTROL_LEVELS, MutationModel, model_from_config
 from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise, trim
 from coevo.policy.rules import RuleSet, random_ruleset
 from coevo.policy.strength import update_strengths
-
-if TYPE_CHECKING:  # the tasks implement the interface on top of the GA's operators
-    from coevo.tasks.base import Evaluation, Partners, Task, Tick
 
 __all__ = ["GA", "GenerationReport"]
 
@@ -67,7 +65,7 @@ class GA:
 
     def __init__(
         self,
-        task: Task,
+        task: Problem,
         behaviour: str,
         *,
         world: BaseModel,

@@ -4,8 +4,9 @@ A task declares, for each of its learning behaviours, a :class:`Schema`: its
 discretised sensors and its actions.  Rules, the matcher, the rule text and the GA
 read everything they need from it and name no task.  Schemas are registered by
 behaviour name (names are unique across tasks: a rule set on the wire carries only
-its behaviour's name), and :func:`schema` finds them; the built-in tasks register
-theirs when :mod:`coevo.tasks` is imported, which :func:`schema` does on a miss.
+its behaviour's name), and :func:`schema` finds them.  The registry is filled from
+above: each task registers its behaviours when it is imported (``import coevo.tasks``
+imports the built-in ones); this module, like the rest of the core, names no task.
 
 Every sensor is discretised into bins.  A rule condition is an interval of bin
 indices; it prints as the bins' lower edges (``range = [35, 45]`` covers bins
@@ -131,18 +132,15 @@ def register(*schemas: Schema) -> None:
 
 
 def registered() -> tuple[str, ...]:
-    """The names of every known behaviour (of every built-in task)."""
-    import coevo.tasks  # noqa: F401 - registers the built-in tasks' schemas
-
+    """The names of every registered behaviour."""
     return tuple(_REGISTRY)
 
 
 def schema(behaviour: str) -> Schema:
     """The rule layout of a behaviour, by name."""
     name = str(behaviour)
-    if name not in _REGISTRY:
-        import coevo.tasks  # noqa: F401 - registers the built-in tasks' schemas
     try:
         return _REGISTRY[name]
     except KeyError:
-        raise RuleSetError(f"unknown behaviour {name!r} (known: {', '.join(_REGISTRY)})") from None
+        known = ", ".join(_REGISTRY) or "none: import the task that declares it, e.g. coevo.tasks"
+        raise RuleSetError(f"unknown behaviour {name!r} (known: {known})") from None

@@ -36,9 +36,9 @@ from coevo.bus.session import open_session, sigterm_as_exit
 from coevo.bus.status import StatusBoard
 from coevo.errors import ConfigError, RunDirError
 from coevo.runs.check import check_run
-from coevo.runs.layout import write_json
+from coevo.rundir.layout import write_json
 from coevo.runs.local import LocalRun, end_processes, fetch_latest, wait_until
-from coevo.runs.settings import RunSettings
+from coevo.rundir.settings import RunSettings
 
 __all__ = ["FAULTS", "ChaosPlan", "run_chaos", "summary_lines"]
 
@@ -84,7 +84,7 @@ def run_chaos(settings: RunSettings, *, root: Path, plan: ChaosPlan, measure_epo
     if measure_epochs < 1:
         raise ConfigError(f"--measure-epochs must be at least 1, got {measure_epochs}")
     if settings.cel is not None:
-        from coevo.cel.service import CelRun
+        from coevo.runs.cel import CelRun
 
         lr: LocalRun = CelRun(settings, root=root, log_level=log_level)
     else:

@@ -30,7 +30,7 @@ from typing import Any
 
 from coevo.agents.inbox import rules_digest
 from coevo.errors import CoevoError
-from coevo.runs.layout import RunPaths, read_cases, read_json, read_jsonl, read_store
+from coevo.rundir.layout import RunPaths, read_cases, read_json, read_jsonl, read_store
 
 __all__ = ["RunCheck", "check_run"]
 

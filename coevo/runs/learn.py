@@ -27,7 +27,7 @@ from coevo.errors import ConfigError
 from coevo.ga import GA, GenerationReport
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
-from coevo.runs.layout import LearnPaths, staged_dir, write_csv, write_json, write_text
+from coevo.rundir.layout import LearnPaths, staged_dir, write_csv, write_json, write_text
 from coevo.tasks import task_of
 
 __all__ = ["learn", "LearnResult", "default_out"]

@@ -1,6 +1,6 @@
 """``coevo run``: a whole asynchronous run on one machine.
 
-Writes the run's settings once to ``run.json`` (:class:`~coevo.runs.settings.RunSettings`),
+Writes the run's settings once to ``run.json`` (:class:`~coevo.rundir.settings.RunSettings`),
 starts ``coevo broker`` and one ``coevo worker --settings RUN/run.json`` per behaviour
 of the task as separate processes (``subprocess``: fork+exec, never a fork of a
 process with a session), shows the live status, and at the end measures the run's
@@ -39,12 +39,12 @@ from typing import Any
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.messages import Control, PolicyUpdate
-from coevo.bus.session import make_config, open_session, query_messages, sigterm_as_exit
+from coevo.bus.session import fetch_latest, make_config, open_session, sigterm_as_exit
 from coevo.bus.status import StatusBoard
 from coevo.bus.trust import Gate
 from coevo.errors import ConfigError, RunDirError, ServiceError
-from coevo.runs.layout import RunPaths, read_json, read_jsonl, write_csv, write_json
-from coevo.runs.settings import RunSettings
+from coevo.rundir.layout import RunPaths, read_json, read_jsonl, write_csv, write_json
+from coevo.rundir.settings import RunSettings
 
 __all__ = ["default_run_id", "free_port", "wait_until", "end_processes", "LocalRun", "run_local", "fetch_latest"]
 
@@ -71,12 +71,6 @@ def wait_until(check: Callable[[], Any], timeout: float, what: str | Callable[[]
             return value
         time.sleep(0.05)
     raise ServiceError(f"timed out after {timeout:.0f} s waiting for {what() if callable(what) else what}")
-
-
-def fetch_latest(session: Any, run: str, timeout: float = 5.0, gate: Gate | None = None) -> dict[str, PolicyUpdate]:
-    """The store's latest policy of each behaviour of ``run`` that passes ``gate`` (default: the session's)."""
-    msgs = query_messages(session, keys.store_latest(run), timeout=timeout, what="the store's latest policies", gate=gate)
-    return {m.behaviour: m for m in msgs if isinstance(m, PolicyUpdate) and m.run == run}
 
 
 class LocalRun:

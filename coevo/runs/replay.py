@@ -5,7 +5,7 @@ evaluated against; the only non-repeatable thing in a run is *when* partner
 versions arrived.  The adoption log records that (after how many of its own
 generations a worker took which version), and the store holds every version, so
 replaying feeds each GA the same partners at the same points and must reproduce
-its learning curve bit for bit.  A CEL learner (:mod:`coevo.cel.learner`) is replayed
+its learning curve bit for bit.  A CEL learner (:mod:`coevo.cel_service.learner`) is replayed
 the same way from its ``changes.jsonl``: after how many generations it took which
 capability list, and the cases it restarted from; a CEL run's execution module from
 its ``policies.jsonl`` (which rule set from which trial): its world is its own seed's.
@@ -26,7 +26,7 @@ from coevo.config import GAConfig, build
 from coevo.errors import RunDirError
 from coevo.ga import GA
 from coevo.policy.rules import RuleSet
-from coevo.runs.layout import RunPaths, WorkerPaths, read_json, read_jsonl, read_store
+from coevo.rundir.layout import RunPaths, WorkerPaths, read_json, read_jsonl, read_store
 from coevo.tasks import DEFAULT_TASK, Task, get_task
 
 __all__ = ["WorkerReplay", "replay"]

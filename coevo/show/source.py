@@ -21,7 +21,7 @@ from pathlib import Path
 from coevo.errors import ConfigError, RunDirError
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import read_rule_file
-from coevo.runs.layout import LearnPaths, RunPaths
+from coevo.rundir.layout import LearnPaths, RunPaths
 from coevo.tasks.fuel import HAS_DEFAULT, default_ruleset
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.settings import WorldConfig

@@ -3,7 +3,7 @@
 A task is a world with one or more *learning behaviours*.  For each behaviour it
 declares the rule layout (sensors and actions, :class:`~coevo.policy.schema.Schema`),
 its initial rules, the partners it learns against in each regime, and an
-:class:`Evaluator` that plays a population of rule sets in its batched world and
+:class:`~coevo.ga.evaluator.Evaluator` (the GA's side of the contract, re-exported here) that plays a population of rule sets in its batched world and
 returns a fitness, the experience the GA's Lamarckian operators read, and the
 task's own measures.  The core never names a task or a behaviour: the
 tracking-under-fuel task (:mod:`coevo.tasks.fuel`) is one implementation, the
@@ -17,8 +17,7 @@ Settings: a task's world settings are a frozen pydantic model (its
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -27,46 +26,11 @@ from pydantic import BaseModel
 
 from coevo.config import GAConfig
 from coevo.errors import ConfigError
-from coevo.ga.operators import Experience
+from coevo.ga.evaluator import ChildRng, Evaluation, Evaluator, Partners, Tick
 from coevo.policy.rules import RuleSet, random_ruleset
 from coevo.policy.schema import Schema, schema
 
 __all__ = ["Task", "Evaluator", "Evaluation", "Partners", "Tick", "ChildRng"]
-
-#: The learner's models of the other behaviours it needs, by name; a behaviour that is
-#: absent is played by the task's trivial stand-in (e.g. an Executive that always picks the learner).
-Partners = Mapping[str, RuleSet]
-#: Called between episode rounds of a long evaluation (a worker's heartbeat).
-Tick = Callable[[], None]
-#: Draws a fresh generator from the GA's own stream, only when a measure needs one.
-ChildRng = Callable[[], np.random.Generator]
-
-
-@dataclass
-class Evaluation:
-    """Fitness of each individual, with what each did (for the Lamarckian operators)."""
-
-    fitness: np.ndarray
-    episodes: np.ndarray  # episodes each individual controlled (0: starved of experience)
-    experience: list[Experience]
-    details: Any = field(default=None, repr=False)  # the task's own record (its measures read it)
-
-
-class Evaluator(ABC):
-    """Plays populations of one behaviour in a task's batched world."""
-
-    behaviour: str
-
-    @abstractmethod
-    def evaluate(self, policies: list[RuleSet], partners: Partners, rng: np.random.Generator, *,
-                 episodes: int | None = None, tick: Tick | None = None) -> Evaluation:
-        """Fitness of every policy against ``partners`` (``episodes``: by default the GA's setting)."""
-
-    @abstractmethod
-    def measures(self, best: RuleSet, partners: Partners, check: Evaluation, child_rng: ChildRng) -> dict[str, float | None]:
-        """The task's measures of a generation's best, from its re-evaluation ``check``; the same
-        keys every generation (they are the learning curve's columns)."""
-
 
 class Task(ABC):
     """A world with learning behaviours; see the module docstring."""

@@ -22,7 +22,7 @@ from coevo.console import (
     positive_float_arg,
     seed_arg,
 )
-from coevo.agents.pacing import DEFAULT_MAX_LEAD
+from coevo.rundir.settings import DEFAULT_MAX_LEAD
 from coevo.errors import ConfigError
 
 __all__ = ["add_parser", "cmd_compare"]

@@ -42,15 +42,15 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from coevo.agents.models import MODELS
-from coevo.runs.settings import RunSettings
+from coevo.rundir.settings import MODELS
+from coevo.rundir.settings import RunSettings
 from coevo.tasks.fuel import FuelTask
 
 REGIMES = FuelTask.regimes
-from coevo.agents.pacing import DEFAULT_MAX_LEAD
+from coevo.rundir.settings import DEFAULT_MAX_LEAD
 from coevo.config import GAConfig
 from coevo.errors import ConfigError, RunDirError
-from coevo.runs.layout import LearnPaths, RunPaths, ensure_dir, write_json
+from coevo.rundir.layout import LearnPaths, RunPaths, ensure_dir, write_json
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.settings import WorldConfig
 

@@ -35,7 +35,7 @@ from coevo.experiments.compare.experiment import (
 from coevo.experiments.compare.stats import GroupComparison, RankComparison, compare_groups, compare_samples
 from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
 from coevo.policy.text import parse_ruleset
-from coevo.runs.layout import LearnPaths, RunPaths, read_jsonl, write_csv, write_json, write_text
+from coevo.rundir.layout import LearnPaths, RunPaths, read_jsonl, write_csv, write_json, write_text
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.robot import docking_from_random_starts
 

@@ -31,7 +31,7 @@ def main(args: argparse.Namespace) -> int:
     """Run the grid and hidden-state experiments, write the report into ``args.out``, print the verdicts."""
     from coevo.experiments.earl.experiment import EarlSpec, run_grid, run_hidden
     from coevo.experiments.earl.report import write_report
-    from coevo.runs.layout import staged_dir
+    from coevo.rundir.layout import staged_dir
 
     if args.runs < 1:
         raise ConfigError(f"--runs {args.runs}: give a whole number >= 1")

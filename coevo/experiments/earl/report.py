@@ -19,7 +19,7 @@ import numpy as np
 from coevo.experiments.earl import gridworld, hidden
 from coevo.experiments.earl.earl1 import implicit_values
 from coevo.experiments.earl.experiment import TABLE2, TABLE2_FITNESS, EarlSpec
-from coevo.runs.layout import write_csv, write_json, write_text
+from coevo.rundir.layout import write_csv, write_json, write_text
 
 __all__ = ["TABLE1_D", "TABLE4", "claims", "write_report"]
 

@@ -69,7 +69,7 @@ def td_main(args: argparse.Namespace) -> int:
     """Run the TD baseline on the chosen tasks, write the report into ``args.out``, print the verdicts."""
     from coevo.experiments.earl.td_report import summarise, write_report
     from coevo.experiments.earl.td_tasks import run_task
-    from coevo.runs.layout import staged_dir
+    from coevo.rundir.layout import staged_dir
 
     specs = specs_from_args(args)
     out = Path(args.out)

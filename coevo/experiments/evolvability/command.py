@@ -21,7 +21,7 @@ def cmd_evolvability(args: argparse.Namespace) -> int:
     """Run the grid (or only rewrite the report of a finished one) and print the claims' verdicts."""
     from coevo.experiments.evolvability.experiment import GridResults, GridSpec, run_grid
     from coevo.experiments.evolvability.report import write_report
-    from coevo.runs.layout import ensure_dir
+    from coevo.rundir.layout import ensure_dir
 
     if args.report_only:
         if not args.out:

@@ -1,6 +1,6 @@
 """The run directory: its layout (every path, in one place), its readers, and atomic writes.
 
-    RUN/run.json                 the run's settings (coevo.runs.settings.RunSettings)
+    RUN/run.json                 the run's settings (coevo.rundir.settings.RunSettings)
     RUN/secret.key               the run's secret key, mode 0600 (coevo.bus.auth.RunKey; absent in an open run)
     RUN/store/BEHAVIOUR.jsonl    the broker's store: every PolicyUpdate of a behaviour, in arrival order
     RUN/store/cases/BEHAVIOUR.jsonl   the case base in the store: every CaseUpdate (a CEL run)
@@ -60,7 +60,7 @@ class WorkerPaths:
 
     #: The append-only logs a checkpoint records the sizes of (cut back to them on --resume).
     LOGS = ("curve.jsonl", "adoptions.jsonl", "published.jsonl")
-    #: A CEL learner's two more (:mod:`coevo.cel.learner`).
+    #: A CEL learner's two more (:mod:`coevo.cel_service.learner`).
     CEL_LOGS = ("changes.jsonl", "cases.jsonl")
 
     @property
@@ -116,7 +116,7 @@ class WorkerPaths:
 
 @dataclass(frozen=True)
 class ExecutionPaths:
-    """A CEL execution module's directory (``RUN/execution/``; see :mod:`coevo.cel.robot` for what each holds)."""
+    """A CEL execution module's directory (``RUN/execution/``; see :mod:`coevo.cel_service.robot` for what each holds)."""
 
     dir: Path
 

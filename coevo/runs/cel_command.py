@@ -1,7 +1,7 @@
 """``coevo cel`` (a live CEL run on this machine) and ``coevo execution`` (its execution module process).
 
-Registered by :mod:`coevo.cli`; the run is :mod:`coevo.cel.service`, the processes
-:mod:`coevo.cel.learner` and :mod:`coevo.cel.robot`.
+Registered by :mod:`coevo.cli`; the run is :mod:`coevo.runs.cel`, the processes
+:mod:`coevo.cel_service.learner` and :mod:`coevo.cel_service.robot`.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ def _settings(args: argparse.Namespace) -> Any:
     from coevo.cel.settings import CelSettings
     from coevo.config import build
     from coevo.runs.local import default_run_id
-    from coevo.runs.settings import RunSettings
+    from coevo.rundir.settings import RunSettings
 
     if args.fail and args.schedule:
         raise ConfigError("give --schedule or --fail events, not both")
@@ -64,10 +64,10 @@ def _settings(args: argparse.Namespace) -> Any:
 
 def cmd_cel(args: argparse.Namespace) -> int:
     from coevo.bus.status import StatusDisplay
-    from coevo.cel.service import CelRun, cases_of_run, import_cases
-    from coevo.cel.status import CelPlain, cel_table
+    from coevo.runs.cel import CelRun, cases_of_run, import_cases
+    from coevo.runs.cel_status import CelPlain, cel_table
     from coevo.runs.local import run_local
-    from coevo.runs.settings import RunSettings
+    from coevo.rundir.settings import RunSettings
 
     if args.resume:
         given = [f for f in ("run", "prepare", "seed", "fail", "schedule", "case_base", "cases_from", "trials_per_generation", "chunk",
@@ -124,15 +124,14 @@ def cmd_cel(args: argparse.Namespace) -> int:
 
 def cmd_execution(args: argparse.Namespace) -> int:
     from coevo.bus.session import config_from_args
-    from coevo.cel.robot import run_execution
-    from coevo.cli import _run_key
-    from coevo.runs.layout import RunPaths
-    from coevo.runs.settings import RunSettings
+    from coevo.cel_service.robot import run_execution
+    from coevo.rundir.layout import RunPaths
+    from coevo.rundir.settings import RunSettings, find_run_key
 
     settings = RunSettings.load(Path(args.settings))
     out = Path(args.out) if args.out else RunPaths(Path(args.settings).parent).execution.dir  # beside run.json
     return run_execution(settings, out=out, conf=config_from_args(args),
-                         resume=args.resume, run_key=_run_key(args.key_file, settings, Path(args.settings).parent))
+                         resume=args.resume, run_key=find_run_key(args.key_file, settings, Path(args.settings).parent))
 
 
 def add_parsers(sub: Any) -> None:

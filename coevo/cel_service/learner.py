@@ -51,7 +51,7 @@ from coevo.errors import ConfigError, MessageError, ServiceError
 from coevo.ga import GA, GenerationReport
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
-from coevo.runs.layout import WorkerPaths, append_durably, read_cases, write_text
+from coevo.rundir.layout import WorkerPaths, append_durably, read_cases, write_text
 
 __all__ = ["CelLearner", "RobotPacer", "case_of"]
 

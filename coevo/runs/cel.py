@@ -2,8 +2,8 @@
 
 A :class:`CelRun` is a :class:`~coevo.runs.local.LocalRun` of the door task with a
 ``cel`` block in its ``run.json``: it starts ``coevo broker``, the learning module
-(``coevo worker --behaviour door``, a :class:`~coevo.cel.learner.CelLearner`) and the
-execution module (``coevo execution``, :mod:`coevo.cel.robot`) as three processes,
+(``coevo worker --behaviour door``, a :class:`~coevo.cel_service.learner.CelLearner`) and the
+execution module (``coevo execution``, :mod:`coevo.cel_service.robot`) as three processes,
 shows the live table (the learner's generation and best simulated success, the
 robot's external performance, capability list and last change) and at the end writes
 what the run did: ``performance.csv`` (Figure 3's curve, one row per generation),
@@ -28,7 +28,7 @@ from typing import Any
 
 from coevo.bus.messages import CaseUpdate
 from coevo.errors import ConfigError, RunDirError
-from coevo.runs.layout import ExecutionPaths, RunPaths, read_cases, read_json, read_jsonl, write_csv, write_json
+from coevo.rundir.layout import ExecutionPaths, RunPaths, read_cases, read_json, read_jsonl, write_csv, write_json
 from coevo.runs.local import LocalRun
 from coevo.tasks.door import DOOR
 
@@ -129,7 +129,7 @@ def _detections(changes: list[dict[str, Any]], schedule: tuple[tuple[int, tuple[
 
 def cel_report(paths: RunPaths) -> dict[str, Any]:
     """What a CEL run did, from its directory: Figure 3's rows, the changes, the detection delays, the latency."""
-    from coevo.runs.settings import RunSettings
+    from coevo.rundir.settings import RunSettings
 
     settings = RunSettings.load(paths.run_json)
     if settings.cel is None:

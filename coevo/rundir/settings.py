@@ -9,6 +9,7 @@ those of the run's task, validated by the task's own model and stored in full.
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -16,20 +17,36 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, Field, field_validator, model_validator
 
-from coevo.agents.models import MODELS
-from coevo.agents.pacing import DEFAULT_MAX_LEAD
-from coevo.bus.auth import RunKey
+from coevo.bus.auth import KEY_ENV, RunKey
 from coevo.bus.keys import check_id
 from coevo.bus.trust import Gate
 from coevo.cel.settings import CelSettings
 from coevo.config import GAConfig, Settings, build
 from coevo.errors import CoevoError, ConfigError, MessageError, RunDirError
-from coevo.runs.layout import RunPaths, read_json, write_json
+from coevo.rundir.layout import RunPaths, read_json, write_json
 from coevo.tasks import DEFAULT_TASK, Task, get_task
 
-__all__ = ["RunSettings", "SETTINGS_VERSION"]
+__all__ = ["RunSettings", "SETTINGS_VERSION", "MODELS", "DEFAULT_MAX_LEAD", "parse_max_lead", "find_run_key"]
 
 SETTINGS_VERSION = 1
+#: How a worker models a partner (:mod:`coevo.agents.models`): its best so far (the report's choice),
+#: its current policy, or one drawn from its recent best.
+MODELS = ("best", "current", "recent")
+#: Pacing (:mod:`coevo.agents.pacing`): generations a worker may lead its slowest partner.
+DEFAULT_MAX_LEAD = 1
+
+
+def parse_max_lead(value: str | int | None) -> int | None:
+    """``"off"``/``None`` → no pacing; otherwise a lead of at least 0 generations."""
+    if value is None or (isinstance(value, str) and value.strip().lower() in ("off", "none")):
+        return None
+    try:
+        lead = int(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"max lead must be a whole number of generations or 'off', got {value!r}") from None
+    if lead < 0:
+        raise ConfigError(f"max lead must be 0 or more generations (or 'off'), got {lead}")
+    return lead
 
 
 class RunSettings(Settings):
@@ -141,3 +158,10 @@ class RunSettings(Settings):
     def restarted(self, endpoint: str) -> RunSettings:
         """The same run, its broker now at ``endpoint``."""
         return self.model_copy(update={"endpoint": endpoint, "started": time.time()})
+
+
+def find_run_key(flag: str | None, settings: RunSettings, base: Path | None) -> RunKey | None:
+    """A process's run key: ``flag`` (its ``--key-file``), else ``$COEVO_RUN_KEY_FILE``, else the key file
+    ``run.json`` names (``base``: run.json's directory); None: the run is open."""
+    path = flag or os.environ.get(KEY_ENV) or (settings.key_path(base) if base is not None else None)
+    return None if path is None else RunKey.load(Path(path), run=settings.run)

@@ -28,7 +28,7 @@ one stretch of trials after another:
 A checkpoint after each stretch holds the module's state (rules, generator, window,
 monitor) and the lengths of its logs; ``--resume`` cuts the logs back to it and goes
 on from there (the same rules as :mod:`coevo.agents.checkpoint`).  What it writes in
-``RUN/execution/`` (:class:`~coevo.runs.layout.ExecutionPaths`): ``execution.json``,
+``RUN/execution/`` (:class:`~coevo.rundir.layout.ExecutionPaths`): ``execution.json``,
 the three logs, ``checkpoint.msgpack`` and, at the end, ``done.json``.
 """
 
@@ -57,9 +57,9 @@ from coevo.cel.monitor import Monitor
 from coevo.cel.settings import ROBOT_SEED_OFFSET
 from coevo.errors import ConfigError, MessageError, RunDirError, ServiceError
 from coevo.policy.rules import RuleSet
-from coevo.runs.local import fetch_latest
-from coevo.runs.layout import ExecutionPaths, read_jsonl, write_json
-from coevo.runs.settings import RunSettings
+from coevo.bus.session import fetch_latest
+from coevo.rundir.layout import ExecutionPaths, read_jsonl, write_json
+from coevo.rundir.settings import RunSettings
 from coevo.tasks.door import DOOR, default_ruleset
 from coevo.tasks.door.settings import SONARS, DoorConfig
 from coevo.tasks.door.world import COLLISION, GOAL, TIMEOUT
