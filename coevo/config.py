@@ -16,9 +16,29 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from coevo.errors import ConfigError
 
-__all__ = ["Settings", "GAConfig", "build"]
+__all__ = ["Settings", "GAConfig", "build", "MODELS", "DEFAULT_MAX_LEAD", "parse_max_lead"]
 
 _M = TypeVar("_M", bound=BaseModel)
+
+#: How a worker models a partner (:mod:`coevo.agents.models`): its best so far (the report's choice),
+#: its current policy, or one drawn from its recent best.
+MODELS = ("best", "current", "recent")
+#: Pacing (:mod:`coevo.agents.pacing`): generations a worker may lead its slowest partner.
+DEFAULT_MAX_LEAD = 1
+
+
+def parse_max_lead(value: str | int | None) -> int | None:
+    """``"off"``/``None`` → no pacing; otherwise a lead of at least 0 generations."""
+    if value is None or (isinstance(value, str) and value.strip().lower() in ("off", "none")):
+        return None
+    try:
+        lead = int(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"max lead must be a whole number of generations or 'off', got {value!r}") from None
+    if lead < 0:
+        raise ConfigError(f"max lead must be 0 or more generations (or 'off'), got {lead}")
+    return lead
+
 
 
 class Settings(BaseModel):

@@ -13,9 +13,11 @@ import math
 import sys
 from dataclasses import dataclass
 from types import TracebackType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from coevo.config import GAConfig, build
+if TYPE_CHECKING:
+    from coevo.config import GAConfig
+
 from coevo.errors import ConfigError
 
 __all__ = ["Lead", "max_lead_of", "ProgressBar", "seed_arg", "count_arg", "positive_float_arg", "pairs", "ga_settings", "world_settings",
@@ -128,6 +130,8 @@ def pairs(values: list[str] | None, flag: str) -> dict[str, Any]:
 
 
 def ga_settings(args: argparse.Namespace) -> GAConfig:
+    from coevo.config import GAConfig, build
+
     over = pairs(args.ga, "ga")
     for name in ("generations", "population", "episodes"):
         if getattr(args, name, None) is not None:
@@ -137,24 +141,34 @@ def ga_settings(args: argparse.Namespace) -> GAConfig:
 
 def world_settings(args: argparse.Namespace, task: str) -> dict[str, Any]:
     """The world settings given, checked against the task's model (stored in full by whoever keeps them)."""
+    from coevo.config import build
     from coevo.tasks import get_task
 
     values = pairs(args.world, "world")
     return build(get_task(task).world_settings, values).model_dump(mode="json")
 
 
-def add_settings(p: argparse.ArgumentParser) -> None:
+#: What ``--initial`` means in each command that offers it (the fuel task: Tracking and Docking start from their
+#: shipped direction-only rule sets or random ones; the Executive always starts random).
+INITIAL_FUEL = ("how Tracking and Docking start: their shipped direction-only rule sets (default) or random rule sets; "
+                "the Executive always starts random (the same as --ga initial=...)")
+
+
+def add_settings(p: argparse.ArgumentParser, *, generations: int = 50, initial: str | None = INITIAL_FUEL) -> None:
+    """The GA and world settings flags, declared once for every command that takes them: ``generations`` is the
+    command's own default (shown in its help); ``initial`` is what ``--initial`` means there (None: not offered,
+    the command's task decides)."""
     # Plain whole numbers: GAConfig checks their ranges (one place) and names the bad value.
-    p.add_argument("--generations", type=int, help="generations (default 50)")
+    p.add_argument("--generations", type=int, help=f"generations (default {generations})")
     p.add_argument("--population", type=int, help="population size (default 50)")
     p.add_argument("--episodes", type=int, help="evaluation episodes per individual (default 90)")
     p.add_argument("--world", action="append", metavar="NAME=VALUE", help="world setting, e.g. target_speed=3 (repeatable)")
     p.add_argument("--ga", action="append", metavar="NAME=VALUE", help="GA setting, e.g. mutation_rate=0.05 (repeatable)")
-    p.add_argument("--initial", dest="ga", action="append", type=lambda v: f"initial={v}", metavar="default|random",
-                   help="how Tracking and Docking start: their shipped direction-only rule sets (default) or random "
-                        "rule sets; the Executive always starts random (the same as --ga initial=...)")
+    if initial is not None:
+        p.add_argument("--initial", dest="ga", action="append", type=lambda v: f"initial={v}", metavar="default|random",
+                       help=initial)
     p.add_argument("--mutation-model", dest="ga", action="append", type=lambda v: f"mutation_model={v}", metavar="fm|gm|fh|gh",
-                   help="mutation model (default fm; the same as --ga mutation_model=...; parameters: see README)")
+                   help="mutation model (default fm; the same as --ga mutation_model=...; parameters: docs/design.md)")
 
 
 @dataclass(frozen=True)
@@ -166,7 +180,7 @@ class Lead:
 
 
 def max_lead_arg(text: str) -> Lead:
-    from coevo.rundir.settings import parse_max_lead
+    from coevo.config import parse_max_lead
 
     try:
         return Lead(parse_max_lead(text))

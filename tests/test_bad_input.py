@@ -66,7 +66,7 @@ def places(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> dict[str, Path]:
     RunSettings.make(run="cel-run", task="door", regime="independent", cel={}).save(cel / "run.json")
     p["cel-run"] = cel
     for mod, name in (("coevo.runs.local", "run_local"), ("coevo.runs.chaos", "run_chaos"),
-                      ("coevo.experiments.compare", "run_all"), ("coevo.experiments.earl.experiment", "run_grid"),
+                      ("coevo.experiments.compare.experiment", "run_all"), ("coevo.experiments.earl.experiment", "run_grid"),
                       ("coevo.experiments.earl.td_tasks", "run_task")):
         monkeypatch.setattr(f"{mod}.{name}", _reached(name))
     return p

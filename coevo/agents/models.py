@@ -23,7 +23,7 @@ import numpy as np
 from coevo.config import GAConfig
 from coevo.errors import ConfigError
 from coevo.policy.rules import RuleSet
-from coevo.rundir.settings import MODELS
+from coevo.config import MODELS
 from coevo.tasks.base import Partners, Task
 
 __all__ = ["MODELS", "PartnerModels"]

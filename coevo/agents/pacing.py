@@ -46,8 +46,7 @@ from typing import Any
 from coevo.bus import keys
 from coevo.bus.messages import Status
 from coevo.bus.session import drain_messages, is_put, ring_subscriber
-from coevo.errors import ConfigError
-from coevo.rundir.settings import DEFAULT_MAX_LEAD, parse_max_lead
+from coevo.config import DEFAULT_MAX_LEAD, parse_max_lead
 
 __all__ = ["DEFAULT_MAX_LEAD", "Pacer", "parse_max_lead"]
 

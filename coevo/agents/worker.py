@@ -186,7 +186,7 @@ class Worker:
         self.checkpoint_seconds += time.perf_counter() - t0
 
     # ------------------------------------------------------------ the seam: what another kind of learner changes
-    # A learner of another kind (coevo.cel_service.learner.CelLearner, the CEL learning module) subclasses Worker and
+    # A learner of another kind (the CEL learning module is one) subclasses Worker and
     # overrides only these: how its GA is made and checkpointed, how one generation is made and what of it is
     # published, what it takes in between generations, how it is paced, and the extra subscriptions it runs inside.
     # The loop, the directory, the publication log, the store sync and the heartbeats stay here, and this module
@@ -261,29 +261,8 @@ class Worker:
                     t_net = time.perf_counter()
                     self._take_in(inbox, g)
                     self.net_seconds += time.perf_counter() - t_net
-                    rep, new_best, best_so_far = self._generation(ga)
+                    rep = self._one_generation(ga, inbox, outbox, pacer, curve_log)
                     curve.append(rep)
-                    curve_log.write(json.dumps(rep.as_dict()) + "\n")
-                    curve_log.flush()
-                    if new_best is not None:
-                        outbox.record(self._policy(outbox.next_version, rep, new_best.to_dict(), best_so_far,
-                                                   self.ga_cfg.best_episodes))
-                        write_text(p.best_rules, format_ruleset(new_best))
-                    self._completed, self._best = rep.generation, best_so_far
-                    self._measures = self.task.status_measures(self.behaviour, rep.measures)
-                    # Checkpoint before anything leaves: what was published is always in a checkpoint,
-                    # so a resumed worker never publishes a different policy under a version number.
-                    self._checkpoint(ga, pacer.waited)
-                    t0 = time.perf_counter()
-                    if ga.current is not None:
-                        outbox.put_current(self._policy(rep.generation, rep, ga.current.to_dict(), ga.current_fitness,
-                                                        self.ga_cfg.episodes))
-                    outbox.put_latest()
-                    self._heartbeat(done=False)
-                    if outbox.broker.back.is_set():
-                        inbox.refetch = True  # a restarted broker may hold partner versions this worker missed
-                    outbox.sync(upto=outbox.top - (1 if new_best is not None else 0))
-                    self.net_seconds += time.perf_counter() - t0
                     if hang_after is not None and rep.generation >= hang_after:
                         _hang(self.worker_id, rep.generation)
                 finished = self._completed >= self.ga_cfg.generations
@@ -305,6 +284,34 @@ class Worker:
             "checkpoint_seconds": self.checkpoint_seconds, "pace_seconds": pacer.waited, "open": self.gate.open,
         })
         return curve
+
+    def _one_generation(self, ga: GA, inbox: Inbox, outbox: Outbox, pacer: Pacer, curve_log: Any) -> GenerationReport:
+        """One generation and what follows it: the curve's line, the new best published (after the checkpoint),
+        the current best, a heartbeat and the store sync."""
+        p = self.paths
+        rep, new_best, best_so_far = self._generation(ga)
+        curve_log.write(json.dumps(rep.as_dict()) + "\n")
+        curve_log.flush()
+        if new_best is not None:
+            outbox.record(self._policy(outbox.next_version, rep, new_best.to_dict(), best_so_far,
+                                       self.ga_cfg.best_episodes))
+            write_text(p.best_rules, format_ruleset(new_best))
+        self._completed, self._best = rep.generation, best_so_far
+        self._measures = self.task.status_measures(self.behaviour, rep.measures)
+        # Checkpoint before anything leaves: what was published is always in a checkpoint,
+        # so a resumed worker never publishes a different policy under a version number.
+        self._checkpoint(ga, pacer.waited)
+        t0 = time.perf_counter()
+        if ga.current is not None:
+            outbox.put_current(self._policy(rep.generation, rep, ga.current.to_dict(), ga.current_fitness,
+                                            self.ga_cfg.episodes))
+        outbox.put_latest()
+        self._heartbeat(done=False)
+        if outbox.broker.back.is_set():
+            inbox.refetch = True  # a restarted broker may hold partner versions this worker missed
+        outbox.sync(upto=outbox.top - (1 if new_best is not None else 0))
+        self.net_seconds += time.perf_counter() - t0
+        return rep
 
     def _policy(self, version: int, rep: GenerationReport, rules: dict[str, Any], fitness: float,
                 episodes: int) -> PolicyUpdate:

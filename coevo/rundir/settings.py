@@ -21,34 +21,14 @@ from coevo.bus.auth import KEY_ENV, RunKey
 from coevo.bus.keys import check_id
 from coevo.bus.trust import Gate
 from coevo.cel.settings import CelSettings
-from coevo.config import GAConfig, Settings, build
+from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig, Settings, build
 from coevo.errors import CoevoError, ConfigError, MessageError, RunDirError
 from coevo.rundir.layout import RunPaths, read_json, write_json
 from coevo.tasks import DEFAULT_TASK, Task, get_task
 
-__all__ = ["RunSettings", "SETTINGS_VERSION", "MODELS", "DEFAULT_MAX_LEAD", "parse_max_lead", "find_run_key"]
+__all__ = ["RunSettings", "SETTINGS_VERSION", "find_run_key"]
 
 SETTINGS_VERSION = 1
-#: How a worker models a partner (:mod:`coevo.agents.models`): its best so far (the report's choice),
-#: its current policy, or one drawn from its recent best.
-MODELS = ("best", "current", "recent")
-#: Pacing (:mod:`coevo.agents.pacing`): generations a worker may lead its slowest partner.
-DEFAULT_MAX_LEAD = 1
-
-
-def parse_max_lead(value: str | int | None) -> int | None:
-    """``"off"``/``None`` → no pacing; otherwise a lead of at least 0 generations."""
-    if value is None or (isinstance(value, str) and value.strip().lower() in ("off", "none")):
-        return None
-    try:
-        lead = int(value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"max lead must be a whole number of generations or 'off', got {value!r}") from None
-    if lead < 0:
-        raise ConfigError(f"max lead must be 0 or more generations (or 'off'), got {lead}")
-    return lead
-
-
 class RunSettings(Settings):
     """Everything a run's processes share; see the module docstring."""
 

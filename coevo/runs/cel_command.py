@@ -14,7 +14,7 @@ from typing import Any
 from coevo.console import add_max_lead, add_settings, count_arg, ga_settings, max_lead_of, seed_arg, world_settings
 from coevo.errors import ConfigError
 
-__all__ = ["add_parsers", "cmd_cel", "cmd_execution", "SCHEDULES"]
+__all__ = ["configure_cel", "configure_execution", "cmd_cel", "cmd_execution", "SCHEDULES"]
 
 #: Named failure schedules: (generation, failed sonars) events (docs/cel.md).
 SCHEDULES: dict[str, tuple[tuple[int, tuple[str, ...]], ...]] = {
@@ -27,6 +27,8 @@ SCHEDULES: dict[str, tuple[tuple[int, tuple[str, ...]], ...]] = {
 #: The learner's lead over the robot (ours): 0, the lockstep order, so that a live run is the lockstep run of its seed
 #: (docs/cel.md, "The clock"); it costs the learner ~50 ms of waiting a generation (measured, docs/cel.md).
 CEL_MAX_LEAD = 0
+#: Figure 3's run: 100 generations, the failure at 50.
+CEL_GENERATIONS = 100
 
 
 def fail_arg(text: str) -> tuple[int, tuple[str, ...]]:
@@ -57,7 +59,7 @@ def _settings(args: argparse.Namespace) -> Any:
     cel = build(CelSettings, {"schedule": schedule, "case_base": args.case_base or bool(args.cases_from), **given})
     ga = ga_settings(args)
     if args.generations is None:
-        ga = ga.model_copy(update={"generations": 100})  # the issue's run: 100 generations, the failure at 50
+        ga = ga.model_copy(update={"generations": CEL_GENERATIONS})
     return RunSettings.make(run=args.run or default_run_id("cel"), task="door", regime="independent", seed=args.seed or 0,
                             max_lead=max_lead_of(args.max_lead, CEL_MAX_LEAD), world=world_settings(args, "door"), ga=ga, cel=cel)
 
@@ -134,11 +136,8 @@ def cmd_execution(args: argparse.Namespace) -> int:
                          resume=args.resume, run_key=find_run_key(args.key_file, settings, Path(args.settings).parent))
 
 
-def add_parsers(sub: Any) -> None:
-    from coevo.bus.session import add_connection_args
-
-    p = sub.add_parser("cel", help="Appendix B: a live CEL run (broker, learning module, execution module) with a "
-                                   "failure schedule")
+def configure_cel(p: argparse.ArgumentParser) -> None:
+    """``coevo cel``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
     p.add_argument("--run", help="run id (default cel-TIME)")
     p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
     p.add_argument("--resume", metavar="RUN_DIR", help="continue this run from its processes' checkpoints")
@@ -164,10 +163,15 @@ def add_parsers(sub: Any) -> None:
                    help="only make the run directory (run.json, key, cases) and print how to start its three processes, "
                         "e.g. on several hosts (deploy/README.md)")
     add_max_lead(p, default=CEL_MAX_LEAD)
-    add_settings(p)
+    add_settings(p, generations=CEL_GENERATIONS,
+                 initial="how the learner starts: the door task's direction-only rule set (default) or random rule sets")
     p.set_defaults(func=cmd_cel)
 
-    p = sub.add_parser("execution", help="a CEL run's execution module (the robot, with its monitor) as its own process")
+
+def configure_execution(p: argparse.ArgumentParser) -> None:
+    """``coevo execution``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
+    from coevo.bus.flags import add_connection_args
+
     p.add_argument("--settings", required=True, metavar="RUN_JSON", help="the run's settings (its run.json, made by coevo cel)")
     p.add_argument("--out", help="its directory (default: execution/ beside run.json)")
     p.add_argument("--resume", action="store_true", help="continue from the checkpoint in --out")

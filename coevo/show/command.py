@@ -21,7 +21,7 @@ from coevo.show.source import Robot, robot_from_default, robot_from_path
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.settings import WorldConfig
 
-__all__ = ["add_parser", "cmd_show", "DEFAULT_EPISODES", "MAX_EPISODES"]
+__all__ = ["configure_show", "cmd_show", "DEFAULT_EPISODES", "MAX_EPISODES"]
 
 DEFAULT_EPISODES = 3  # for a Tracking or Docking rule set alone
 MAX_EPISODES = 1000  # one lane records (episodes x steps) states; beyond this a picture is unreadable anyway
@@ -110,25 +110,23 @@ def cmd_show(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parser(sub: Any) -> None:
-    """Add the ``show`` sub-command to ``coevo``'s sub-parsers."""
-    p = sub.add_parser(
-        "show", help="draw a robot's episodes (PNG, GIF) and print its rules with how often they fired",
-        description=("Play a robot from a seed and draw its episodes: the arena, walls and dock, the robot's\n"
+def configure_show(p: argparse.ArgumentParser) -> None:
+    """``coevo show``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
+    p.description = ("Play a robot from a seed and draw its episodes: the arena, walls and dock, the robot's\n"
                      "path coloured by the Executive's choice (Track/Dock), the Target's path, the tracking\n"
                      'range around the Target, where each episode began and how it ended (tracking, docked,\n'
                      'collided, ran dry, time up). A Tracking or Docking rule set alone is driven by the\n'
                      'trivial Executive that always picks it. Bad input (a missing or unreadable file, a run\n'
                      "directory without policies, a bad option) prints one line 'ErrorType: message' and exits\n"
-                     'with status 2, writing nothing.'),
-        epilog="examples:\n"
-               "  coevo show --default tracking                 # default-tracking-episodes3-seed0.png\n"
-               "  coevo show runs/ID                            # a coevo run's combined robot, one epoch\n"
-               "  coevo show runs/learn-docking-... --episodes 5 --trace\n"
-               "  coevo show best.rules --rules                 # rules by strength, with fire counts\n"
-               "  coevo show runs/ID --animate --out epoch.gif\n"
-               "  coevo show exec.rules --tracking t.rules --docking d.rules --epoch",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+                     'with status 2, writing nothing.')
+    p.epilog = ("examples:\n"
+                "  coevo show --default tracking                 # default-tracking-episodes3-seed0.png\n"
+                "  coevo show runs/ID                            # a coevo run's combined robot, one epoch\n"
+                "  coevo show runs/learn-docking-... --episodes 5 --trace\n"
+                "  coevo show best.rules --rules                 # rules by strength, with fire counts\n"
+                "  coevo show runs/ID --animate --out epoch.gif\n"
+                "  coevo show exec.rules --tracking t.rules --docking d.rules --epoch")
+    p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.add_argument("source", nargs="?", metavar="RULES_OR_RUN_DIR",
                    help="a rule file, a 'coevo run' directory (its workers' final best.rules: the combined robot) "
                         "or a 'coevo learn' directory (its best.rules)")

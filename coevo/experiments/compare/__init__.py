@@ -2,10 +2,6 @@
 
 ``experiment`` plans, runs and resumes the replicates; ``table1`` classes a run
 as the report's Table 1 does; ``stats`` compares two regimes; ``plots`` draws
-the learning curves; ``report`` writes it all down.
+the learning curves; ``report`` writes it all down.  Nothing is imported here, so that
+``coevo compare --help`` loads no statistics or plotting library.
 """
-
-from coevo.experiments.compare.experiment import CompareSpec, prepare, run_all
-from coevo.experiments.compare.report import write_report
-
-__all__ = ["CompareSpec", "prepare", "run_all", "write_report"]

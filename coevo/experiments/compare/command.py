@@ -22,15 +22,16 @@ from coevo.console import (
     positive_float_arg,
     seed_arg,
 )
-from coevo.rundir.settings import DEFAULT_MAX_LEAD
+from coevo.config import DEFAULT_MAX_LEAD
 from coevo.errors import ConfigError
 
-__all__ = ["add_parser", "cmd_compare"]
+__all__ = ["configure_compare", "cmd_compare"]
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from coevo.config import build
-    from coevo.experiments.compare import CompareSpec, prepare, run_all, write_report
+    from coevo.experiments.compare.experiment import CompareSpec, prepare, run_all
+    from coevo.experiments.compare.report import write_report
     from coevo.experiments.compare.experiment import default_jobs, replicates
     from coevo.tasks.fuel.settings import WorldConfig
 
@@ -74,9 +75,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 1 if results["runs_finished"] < results["runs_expected"] and not args.report_only else 0
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Add the ``compare`` sub-command to ``coevo``'s sub-parsers."""
-    p = sub.add_parser("compare", help="many real runs per regime: Table 1, learning curves, rank tests, verdict")
+def configure_compare(p: argparse.ArgumentParser) -> None:
+    """``coevo compare``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
     p.add_argument("--regimes", nargs="+", default=["mutual", "independent"], metavar="REGIME",
                    help="regimes to compare (default: mutual independent); independent-offline: the Executive "
                         "learns on the independent runs' recorded Tracking/Docking histories, at each --rates")

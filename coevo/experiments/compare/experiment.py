@@ -42,12 +42,12 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from coevo.rundir.settings import MODELS
+from coevo.config import MODELS
 from coevo.rundir.settings import RunSettings
 from coevo.tasks.fuel import FuelTask
 
 REGIMES = FuelTask.regimes
-from coevo.rundir.settings import DEFAULT_MAX_LEAD
+from coevo.config import DEFAULT_MAX_LEAD
 from coevo.config import GAConfig
 from coevo.errors import ConfigError, RunDirError
 from coevo.rundir.layout import LearnPaths, RunPaths, ensure_dir, write_json

@@ -15,7 +15,7 @@ from pathlib import Path
 from coevo.console import ProgressBar, seed_arg
 from coevo.errors import ConfigError
 
-__all__ = ["add_arguments", "add_parser", "main"]
+__all__ = ["add_arguments", "configure_earl", "main"]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -54,8 +54,7 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Add the ``earl`` sub-command to ``coevo``'s sub-parsers."""
-    p = sub.add_parser("earl", help="Appendix C: the EA-vs-TD grid world and hidden-state experiments, with a report")
+def configure_earl(p: argparse.ArgumentParser) -> None:
+    """``coevo earl``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
     add_arguments(p)
     p.set_defaults(func=main)

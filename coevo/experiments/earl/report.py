@@ -11,6 +11,7 @@ survey's own Table 2 population beside its legible Table 4), ``grid_q_curve.csv`
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -58,6 +59,16 @@ def claims(spec: EarlSpec, grid: dict[str, Any], hid: dict[str, Any]) -> list[di
         out.append({"section": section, "claim": claim, "survey": survey, "measured": measured,
                     "verdict": verdict, "numbers": numbers})
 
+    _grid_claims(add, spec, grid)
+    _hidden_claims(add, spec, hid)
+    return out
+
+
+Add = Callable[..., None]
+
+
+def _grid_claims(add: Add, spec: EarlSpec, grid: dict[str, Any]) -> None:
+    """The grid world's claims (Figure 1, Tables 1-4)."""
     qstar = grid["qstar"]
     paths = grid["optimal_paths"]
     add("grid", "The optimal score from a1 is 17, e.g. along R,D,R,D,D,R,R,D", "17",
@@ -120,6 +131,9 @@ def claims(spec: EarlSpec, grid: dict[str, Any], hid: dict[str, Any]) -> list[di
         "holds" if majority[~visited_any].mean() < majority[visited_any].mean() else "does not hold",
         agreement_visited=_f(majority[visited_any].mean()), agreement_unvisited=_f(majority[~visited_any].mean()))
 
+
+def _hidden_claims(add: Add, spec: EarlSpec, hid: dict[str, Any]) -> None:
+    """The hidden-state claims (Figure 13, Table 5, Figure 14)."""
     qpol = hid["q_policy"]
     every = (qpol == np.array(hidden.Q_POLICY)).all(axis=1)
     qb = hid["q_final"][:, hidden.BLUE]
@@ -154,7 +168,6 @@ def claims(spec: EarlSpec, grid: dict[str, Any], hid: dict[str, Any]) -> list[di
         f"{'; '.join(f'{_trials_label(t)} {v:.3f}' for t, v in ea_value.items())}; Q-learner {hid['q_expected'].mean():.3f}",
         "holds" if ea_value[head] > hid["q_expected"].mean() else "does not hold",
         ea={_trials_label(t): _f(v) for t, v in ea_value.items()}, q=_f(hid["q_expected"].mean()))
-    return out
 
 
 def _trials_label(t: int) -> str:

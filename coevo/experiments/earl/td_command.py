@@ -14,7 +14,13 @@ from pathlib import Path
 from coevo.console import ProgressBar, seed_arg
 from coevo.errors import ConfigError
 
-__all__ = ["add_td_arguments", "td_main", "specs_from_args"]
+__all__ = ["configure_td_baseline", "add_td_arguments", "td_main", "specs_from_args"]
+
+
+def configure_td_baseline(p: argparse.ArgumentParser) -> None:
+    """``coevo td-baseline``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
+    add_td_arguments(p)
+    p.set_defaults(func=td_main)
 
 
 def add_td_arguments(parser: argparse.ArgumentParser) -> None:

@@ -14,7 +14,7 @@ from typing import Any
 from coevo.console import ProgressBar, seed_arg
 from coevo.errors import ConfigError
 
-__all__ = ["add_parser", "cmd_evolvability"]
+__all__ = ["configure_evolvability", "cmd_evolvability"]
 
 
 def cmd_evolvability(args: argparse.Namespace) -> int:
@@ -57,9 +57,8 @@ def _tuple(values: list[Any] | None) -> tuple[Any, ...] | None:
     return None if values is None else tuple(values)
 
 
-def add_parser(sub: Any) -> None:
-    """Add the ``evolvability`` sub-command to ``coevo``'s sub-parsers."""
-    p = sub.add_parser("evolvability", help="Appendix D: FM/GM/FH/GH mutation models on dynamic landscapes, with a report")
+def configure_evolvability(p: argparse.ArgumentParser) -> None:
+    """``coevo evolvability``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
     p.add_argument("--out", help="output directory (default runs/evolvability-TIME)")
     p.add_argument("--classes", nargs="+", metavar="CLASS", help="landscape classes (default: gradual abrupt)")
     p.add_argument("--rates", nargs="+", type=_number, metavar="MR", help="base mutation rates (default: the report's 8)")

@@ -88,14 +88,28 @@ def _runs(a: np.ndarray) -> np.ndarray:
     return a.reshape(-1, *a.shape[2:])
 
 
-def _claims(res: GridResults) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+def _views(res: GridResults) -> tuple[Any, list[str], list[float], dict[str, np.ndarray], dict[str, np.ndarray], list[float]]:
+    """What the claims read: the spec, models, rates, current-best and online means per class, the rates <= 0.1."""
     spec = res.spec
     models, rates = list(spec.models), list(spec.rates)
     cb = {c: res.best[c].mean(axis=-1) for c in res.best}  # (M, K, L, N)
     on = {c: res.mean[c].mean(axis=-1) for c in res.mean}
-    claims: list[dict[str, Any]] = []
     low = [r for r in rates if r <= 0.1 + 1e-12]
+    return spec, models, rates, cb, on, low
 
+
+def _claims(res: GridResults) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """Each claim of Appendix D tested on the grid: (claims, GH's hypermutation windows for the plots)."""
+    claims = _ranking_claims(res)
+    hyper = _hypermutation_claim(res, claims)
+    _online_claim(res, claims)
+    return claims, hyper
+
+
+def _ranking_claims(res: GridResults) -> list[dict[str, Any]]:
+    """Claims 1-3: who beats whom on current-best."""
+    spec, models, rates, cb, on, low = _views(res)
+    claims: list[dict[str, Any]] = []
     # 1. FH and GH beat FM and GM on current-best, both classes, mr <= 0.1
     tests = []
     for c in cb:
@@ -141,7 +155,12 @@ def _claims(res: GridResults) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     ok = sum(t["holds"] for t in tests)
     claims.append({"id": "gm_like_fm003", "claim": "GM performs like FM(0.03) on current-best (no significant "
                    "difference)", "verdict": _verdict(ok, len(tests)), "held": ok, "tested": len(tests), "tests": tests})
+    return claims
 
+
+def _hypermutation_claim(res: GridResults, claims: list[dict[str, Any]]) -> dict[str, Any]:
+    """Claim 4, appended to ``claims``: GH's rate rises after an abrupt shift and falls while the landscape is still."""
+    spec, models, rates, cb, on, low = _views(res)
     # 4. GH's hypermutation rate rises after an abrupt shift and falls while the landscape is still
     hyper: dict[str, Any] = {}
     tests = []
@@ -170,7 +189,12 @@ def _claims(res: GridResults) -> tuple[list[dict[str, Any]], dict[str, Any]]:
                    "verdict": ("holds at mr = 0.03; " if main and main[0]["holds"] else
                                "does not hold at mr = 0.03; " if main else "") + f"all rates: {_verdict(ok, len(tests))}",
                    "held": ok, "tested": len(tests), "tests": tests})
+    return hyper
 
+
+def _online_claim(res: GridResults, claims: list[dict[str, Any]]) -> None:
+    """Claim 5, appended to ``claims``: online performance drops at high base rates."""
+    spec, models, rates, cb, on, low = _views(res)
     # 5. online performance drops at high base rates
     tests = []
     high = [r for r in rates if r > 0.1 + 1e-12]
@@ -190,7 +214,6 @@ def _claims(res: GridResults) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     claims.append({"id": "online_drops_high_rates", "claim": "Online performance of FM, FH and GH drops as the base "
                    "rate rises beyond 0.1", "verdict": _verdict(ok, len(tests)), "held": ok, "tested": len(tests),
                    "tests": tests})
-    return claims, hyper
 
 
 def _plots(res: GridResults, out: Path, hyper: dict[str, Any]) -> list[str]:

@@ -1,0 +1,54 @@
+"""The commands that look at a finished run: ``coevo check`` (is it complete?) and ``coevo replay`` (re-run it).
+
+Gathered by :mod:`coevo.cli`; the work is :mod:`coevo.runs.check` and :mod:`coevo.runs.replay`.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+__all__ = ["configure_check", "configure_replay"]
+
+
+def configure_check(p: argparse.ArgumentParser) -> None:
+    """``coevo check``'s arguments."""
+    p.add_argument("run_dir")
+    p.add_argument("--no-replay", action="store_true", help="skip re-running the GAs")
+    p.set_defaults(func=cmd_check)
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    from coevo.runs.check import check_run
+
+    res = check_run(Path(args.run_dir), replay=not args.no_replay)
+    for beh, facts in sorted((k, v) for k, v in res.facts.items() if isinstance(v, dict) and "published" in v):
+        print(f"{beh}: {facts['generations']} generations, {facts['published']} versions published, "
+              f"{facts['adoptions']} adoptions")
+    ex = res.facts.get("execution")
+    if ex:
+        print(f"execution: {ex['generations']} generations of trials, {ex['policies_used']} rule sets used, "
+              f"{ex['changes']} capability changes")
+    if res.ok:
+        print("complete" + (" (replay exact)" if res.facts.get("replayed") else ""))
+        return 0
+    for p in res.problems:
+        print(f"PROBLEM: {p}")
+    return 1
+
+
+def configure_replay(p: argparse.ArgumentParser) -> None:
+    """``coevo replay``'s arguments."""
+    p.add_argument("run_dir")
+    p.set_defaults(func=cmd_replay)
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    from coevo.runs.replay import replay
+
+    ok = True
+    for r in replay(Path(args.run_dir)):
+        ok &= r.reproduced
+        verdict = "reproduced exactly" if r.reproduced else f"DIFFERS at generation {r.first_mismatch}: {r.detail}"
+        print(f"{r.behaviour}: {r.generations} generations {verdict}")
+    return 0 if ok else 1

@@ -1,0 +1,276 @@
+"""The commands that start a run's processes or follow them: ``coevo run``, ``worker``, ``chaos``, ``status``, ``keygen``.
+
+Each command is a ``configure_NAME`` (its arguments, declared here beside it) and a ``cmd_NAME`` (what it
+does); :mod:`coevo.cli` gathers them.  The module's top imports only what a parser needs, so that
+``coevo status --help`` answers at once: the work's modules are imported by the command that runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from coevo.console import (
+    add_max_lead,
+    add_settings,
+    count_arg,
+    ga_settings,
+    max_lead_of,
+    positive_float_arg,
+    seed_arg,
+    world_settings,
+)
+from coevo.config import DEFAULT_MAX_LEAD, MODELS
+from coevo.errors import ConfigError
+
+__all__ = ["configure_run", "configure_worker", "configure_chaos", "configure_status", "configure_keygen",
+           "GA_FLAGS", "RUN_FLAGS", "refuse", "add_run_settings"]
+
+GA_FLAGS = ("generations", "population", "episodes", "world", "ga")  # the settings flags of console.add_settings
+RUN_FLAGS = ("task", "regime", "seed", "model", "max_lead", *GA_FLAGS)  # and a run's
+
+
+def refuse(args: argparse.Namespace, names: tuple[str, ...], why: str) -> None:
+    """A ConfigError naming each of the flags ``names`` that was given, when ``why`` says they cannot be."""
+    given = [f"--{n.replace('_', '-')}" for n in names if getattr(args, n, None) is not None]
+    if given:
+        raise ConfigError(f"{why}; drop {', '.join(given)}")
+
+
+def task_names() -> list[str]:
+    from coevo.tasks import TASKS
+
+    return list(TASKS)
+
+
+def behaviour_names() -> list[str]:
+    import coevo.tasks  # noqa: F401 - the built-in tasks register their behaviours
+    from coevo.policy.schema import registered
+
+    return list(registered())
+
+
+def add_run_settings(p: argparse.ArgumentParser, *, defaults_note: bool = True) -> None:
+    """A run's settings flags (task, seed, partner model, pacing, GA and world), shared by run and worker."""
+    p.add_argument("--task", choices=task_names(), help="the task (default fuel)")
+    p.add_argument("--seed", type=seed_arg, help="default 0" + ("; worker i of the task's behaviours uses seed + i" if defaults_note else ""))
+    p.add_argument("--model", choices=MODELS, help="how partners are modelled (default best so far)")
+    add_max_lead(p)
+    add_settings(p)
+
+
+def configure_run(p: argparse.ArgumentParser) -> None:
+    """``coevo run``'s arguments."""
+    p.add_argument("--regime", help="mutual or independent (default independent)")
+    p.add_argument("--run", help="run id (default REGIME-TIME)")
+    p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
+    p.add_argument("--resume", metavar="RUN_DIR", help="continue this run from its workers' checkpoints, with its settings")
+    p.add_argument("--settings", metavar="RUN_JSON", help="start a run with these settings (a run.json, e.g. one coevo compare wrote)")
+    p.add_argument("--measure-epochs", type=count_arg(1, 1_000_000), default=100)
+    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--open", action="store_true",
+                   help="make no key: the run's messages are unauthenticated (local experiments only)")
+    add_run_settings(p)
+    p.set_defaults(func=cmd_run)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from coevo.bus.status import StatusDisplay
+    from coevo.runs.local import LocalRun, default_run_id, run_local
+    from coevo.rundir.settings import RunSettings
+
+    if args.resume:
+        refuse(args, (*RUN_FLAGS, "run", "settings"), "--resume takes every setting from the run's run.json")
+        lr = LocalRun.resume(Path(args.resume), log_level=args.log_level)
+        if lr.settings.cel is not None:
+            raise ConfigError(f"{args.resume} is a CEL run: continue it with coevo cel --resume {args.resume}")
+    else:
+        if args.settings:
+            refuse(args, RUN_FLAGS, "--settings gives every run setting but the run id")
+            settings = RunSettings.load(Path(args.settings)).fresh(args.run)  # a new run: its own endpoint and key
+        else:
+            task = args.task or "fuel"
+            regime = args.regime or "independent"
+            settings = RunSettings.make(run=args.run or default_run_id(regime), task=task, regime=regime,
+                                        seed=args.seed or 0, model=args.model or "best",
+                                        max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
+                                        world=world_settings(args, task), ga=ga_settings(args))
+        if settings.cel is not None:
+            raise ConfigError(f"{args.settings} is a CEL run's settings: start it with coevo cel (its execution module "
+                              "is not a worker)")
+        lr = LocalRun(settings, root=Path(args.root), log_level=args.log_level, open_run=args.open)
+        lr.create()
+    title = f"run {lr.run} ({lr.settings.regime})" + (" OPEN: messages unauthenticated" if lr.open else "")
+    with StatusDisplay(title, quiet=args.quiet) as display:
+        summary = run_local(lr, resume=bool(args.resume), measure_epochs=args.measure_epochs, on_status=display.show)
+    print(f"run directory: {lr.dir} ({summary['seconds']:.1f} s)")
+    if "measures" in summary:
+        m = summary["measures"]
+        print("final policies together: " + ", ".join(f"{k} {v:.1f}" for k, v in m.items()
+                                                     if isinstance(v, float) and k not in ("tracking_payoff", "docking_payoff")))
+    if summary["interrupted"]:
+        early = ", ".join(f"{b} after {g}" for b, g in summary.get("stopped_early", {}).items())
+        print(f"the run stopped early{' (' + early + ' generations)' if early else ''}; continue it with "
+              f"coevo run --resume {lr.dir}", file=sys.stderr)
+        return 130 if summary.get("stopped_here") else 1
+    return 0
+
+
+def configure_worker(p: argparse.ArgumentParser) -> None:
+    """``coevo worker``'s arguments."""
+    p.add_argument("--settings", metavar="RUN_JSON", help="the run's settings (its run.json; what coevo run starts workers with)")
+    p.add_argument("--behaviour", required=True, choices=behaviour_names())
+    p.add_argument("--regime", help="without --settings: mutual or independent (the task's regimes)")
+    p.add_argument("--run", help="without --settings: run id (letters, digits, _ - .)")
+    p.add_argument("--worker-id", help="default BEHAVIOUR-SEED")
+    p.add_argument("--out", help="worker directory (default: workers/BEHAVIOUR beside --settings' run.json, else "
+                                 "runs/RUN/workers/BEHAVIOUR)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue from the checkpoint in --out (or start afresh if there is none yet)")
+    p.add_argument("--final-sync", type=positive_float_arg(allow_zero=True, maximum=86400), default=30.0, metavar="SECONDS",
+                   help="at the end, wait this long for the broker's store to hold every published version (default 30)")
+    p.add_argument("--key-file", metavar="FILE",
+                   help="the run's secret key (default: $COEVO_RUN_KEY_FILE, else the key_file run.json names); "
+                        "without one the worker is open: it sends and accepts unauthenticated messages")
+    add_run_settings(p, defaults_note=False)
+    from coevo.bus.flags import add_connection_args
+
+    add_connection_args(p)
+    p.set_defaults(func=cmd_worker)
+
+
+def cmd_worker(args: argparse.Namespace) -> int:
+    from coevo.agents.worker import Worker, run_worker
+    from coevo.bus.session import config_from_args
+    from coevo.rundir.layout import RunPaths
+    from coevo.rundir.settings import RunSettings, find_run_key
+
+    if args.settings:
+        refuse(args, ("task", "regime", "run", "model", "max_lead", *GA_FLAGS), "--settings gives every run setting")
+        settings = RunSettings.load(Path(args.settings))
+        base: Path | None = Path(args.settings).parent
+    else:
+        base = None
+        if args.run is None or args.regime is None:
+            raise ConfigError("give --settings RUN/run.json (a run's settings), or --run and --regime")
+        task = args.task or "fuel"
+        settings = RunSettings.make(run=args.run, task=task, regime=args.regime, seed=args.seed or 0,
+                                    model=args.model or "best", max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
+                                    world=world_settings(args, task), ga=ga_settings(args))
+    kind = None
+    if settings.cel is not None:  # a CEL run's learner (coevo cel) plugs into the worker's seam
+        from coevo.cel_service.learner import CelLearner
+
+        kind = CelLearner
+    return run_worker(settings, kind=kind or Worker, behaviour=args.behaviour, seed=args.seed, worker_id=args.worker_id,
+                      out=Path(args.out) if args.out else (RunPaths(base).worker(args.behaviour).dir if base else None),
+                      conf=config_from_args(args), resume=args.resume,
+                      final_sync=args.final_sync, run_key=find_run_key(args.key_file, settings, base))
+
+
+def configure_chaos(p: argparse.ArgumentParser) -> None:
+    """``coevo chaos``'s arguments."""
+    p.add_argument("--regime", help="mutual or independent (default mutual; the door task's: independent)")
+    p.add_argument("--run", help="run id (default chaos-REGIME-TIME)")
+    p.add_argument("--cel", action="store_true",
+                   help="a CEL run (coevo cel, door task): its execution module is killed and paused too; front, "
+                        "front-right and right fail halfway")
+    p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
+    p.add_argument("--task", help="the task (default fuel)")
+    p.add_argument("--seed", type=seed_arg, default=0, help="seeds the workers and the choice of faults")
+    p.add_argument("--model", default="best", choices=MODELS)
+    p.add_argument("--faults", type=count_arg(0, 10_000), default=8, help="faults to inject (default 8)")
+    p.add_argument("--kinds", nargs="+", default=["kill-worker", "kill-broker", "pause-worker"], metavar="KIND",
+                   help="kill-worker kill-broker pause-worker (default all three)")
+    p.add_argument("--gap", type=positive_float_arg(allow_zero=True, maximum=3600), nargs=2, default=[1.0, 4.0],
+                   metavar=("MIN", "MAX"), help="seconds between faults (default 1 4)")
+    p.add_argument("--down", type=positive_float_arg(allow_zero=True, maximum=3600), nargs=2, default=[0.5, 3.0],
+                   metavar=("MIN", "MAX"), help="seconds a killed process stays down or a paused one stopped (default 0.5 3)")
+    p.add_argument("--measure-epochs", type=count_arg(1, 1_000_000), default=20)
+    p.add_argument("--quiet", action="store_true")
+    add_settings(p)
+    p.set_defaults(func=cmd_chaos)
+
+
+def cmd_chaos(args: argparse.Namespace) -> int:
+    from coevo.runs.chaos import CHAOS_REPORT, ChaosPlan, run_chaos, summary_lines
+    from coevo.runs.local import default_run_id
+    from coevo.rundir.settings import RunSettings
+
+    plan = ChaosPlan(faults=args.faults, kinds=tuple(args.kinds), gap=tuple(args.gap), down=tuple(args.down), seed=args.seed)
+    task = args.task or ("door" if args.cel else "fuel")
+    regime = args.regime or ("independent" if task == "door" else "mutual")
+    ga = ga_settings(args)
+    cel = None
+    if args.cel:  # a CEL run: the Figure 3 failure halfway through, the learner in lockstep with the robot
+        if task != "door":
+            raise ConfigError(f"--cel is a door-task run; drop --task {task}")
+        from coevo.cel.settings import FIGURE3_SCHEDULE
+
+        cel = {"schedule": [[ga.generations // 2, list(FIGURE3_SCHEDULE[0][1])]]}
+    settings = RunSettings.make(run=args.run or default_run_id(f"chaos-{'cel' if cel else regime}"), task=task,
+                                regime=regime, seed=args.seed, model=args.model, world=world_settings(args, task), ga=ga, cel=cel,
+                                **({"max_lead": 0} if cel else {}))
+
+    def say(text: str) -> None:
+        if not args.quiet:
+            print(f"{time.strftime('%H:%M:%S')} {text}", flush=True)
+
+    report = run_chaos(settings, root=Path(args.root), plan=plan, measure_epochs=args.measure_epochs, on_event=say,
+                       log_level=args.log_level)
+    for line in summary_lines(report):
+        print(line)
+    print(f"report: {settings.paths(Path(args.root)).dir / CHAOS_REPORT}")
+    return 0 if report["complete"] else 1
+
+
+def configure_status(p: argparse.ArgumentParser) -> None:
+    """``coevo status``'s arguments."""
+    p.add_argument("--run", required=True)
+    p.add_argument("--json", action="store_true", help="one JSON object per update")
+    p.add_argument("--stall", type=positive_float_arg(maximum=86400), default=3.0,
+                   help="seconds without a heartbeat before a live worker counts as stalled (default 3; workers beat every second)")
+    p.add_argument("--every", type=positive_float_arg(maximum=3600), default=0.5,
+                   help="refresh period in seconds (default 0.5; changes show at once)")
+    p.add_argument("--duration", type=positive_float_arg(maximum=1e7), help="stop after this many seconds (default: until Ctrl-C)")
+    p.add_argument("--key-file", metavar="FILE", help="the run's key: show only authenticated heartbeats (default: unverified)")
+    from coevo.bus.flags import add_connection_args
+
+    add_connection_args(p)
+    p.set_defaults(func=cmd_status)
+
+
+def cmd_status(args: argparse.Namespace) -> int:
+    from coevo.bus import keys
+    from coevo.bus.auth import RunKey
+    from coevo.bus.session import config_from_args
+    from coevo.bus.status import StatusDisplay, follow
+    from coevo.bus.trust import Gate
+
+    keys.check_id("run id", args.run)
+    gate = None
+    if args.key_file:
+        gate = Gate(key=RunKey.load(Path(args.key_file), run=args.run))
+    title = f"run {args.run} at {{time}}" + ("" if gate else " (unverified: no --key-file)")
+    with StatusDisplay(title, json_lines=args.json) as display:
+        follow(config_from_args(args), args.run, display.show, every=args.every, stall=args.stall, duration=args.duration,
+               gate=gate)
+    return 0
+
+
+def configure_keygen(p: argparse.ArgumentParser) -> None:
+    """``coevo keygen``'s arguments."""
+    p.add_argument("--run", required=True, help="the run id the key is for")
+    p.add_argument("--out", required=True, metavar="FILE", help="the key file to create (never overwritten)")
+    p.set_defaults(func=cmd_keygen)
+
+
+def cmd_keygen(args: argparse.Namespace) -> int:
+    from coevo.bus import keys
+    from coevo.bus.auth import RunKey
+
+    RunKey.create(keys.check_id("run id", args.run)).save(Path(args.out))
+    print(f"run {args.run}'s key written to {args.out} (mode 0600); copy it to each host of the run, see deploy/README.md")
+    return 0

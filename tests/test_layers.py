@@ -1,0 +1,64 @@
+"""The code's shape, checked: one-way layers, small functions, a command line that starts light.
+
+The layers are the contract in ``.importlinter`` (docs/architecture.md): lowest first ``errors``,
+``config``, the core (``policy``, ``ga``), ``tasks``, the CEL core, ``bus``, ``rundir``, ``console``,
+the processes (``agents``, ``broker``, ``cel_service``), ``runs``, then ``experiments`` and ``show``,
+then ``cli``.  Nothing imports upward: a new upward import fails here with the chain that makes it.
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGE = ROOT / "coevo"
+MAX_FUNCTION_LINES = 80
+
+
+def test_no_import_points_up_a_layer() -> None:
+    from importlinter.cli import lint_imports
+
+    assert lint_imports(config_filename=str(ROOT / ".importlinter")) == 0, "an import breaks a layer: see above"
+
+
+def test_the_layer_contract_names_every_package() -> None:
+    """A new package must be placed in a layer, or the contract would not check it."""
+    text = (ROOT / ".importlinter").read_text()
+    layered = {name.strip() for line in text.split("layers =", 1)[1].splitlines() for name in line.split("|")}
+    packages = {f"coevo.{p.name}" for p in PACKAGE.iterdir() if (p / "__init__.py").exists()}
+    modules = {f"coevo.{p.stem}" for p in PACKAGE.glob("*.py")} - {"coevo.__init__", "coevo.__main__"}
+    assert packages | modules <= layered, f"not in any layer: {sorted((packages | modules) - layered)}"
+
+
+def _functions() -> list[tuple[int, str]]:
+    out = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                out.append((node.end_lineno - node.lineno + 1, f"{path.relative_to(ROOT)}:{node.lineno} {node.name}"))
+    return out
+
+
+def test_no_function_is_longer_than_a_screen() -> None:
+    long = sorted((n, where) for n, where in _functions() if n > MAX_FUNCTION_LINES)
+    assert not long, f"functions over {MAX_FUNCTION_LINES} lines: {long}"
+
+
+@pytest.mark.parametrize(("argv", "absent"), [
+    (["--help"], ("numpy", "pydantic", "zenoh", "matplotlib", "scipy", "pymunk", "coevo.tasks")),
+    (["status", "--help"], ("matplotlib", "scipy", "pymunk", "zenoh", "coevo.tasks")),
+    (["compare", "--help"], ("matplotlib", "scipy", "zenoh")),
+    (["show", "--help"], ("matplotlib", "scipy", "zenoh")),
+])
+def test_help_loads_only_what_the_parser_needs(argv: list[str], absent: tuple[str, ...]) -> None:
+    """What makes ``coevo --help`` slow is the libraries it loads (the time is measured in benchmarks/startup.py)."""
+    code = ("import sys\nfrom coevo.cli import main\ntry:\n    main(sys.argv[1:])\nexcept SystemExit:\n    pass\n"
+            "print(' '.join(sorted(m for m in sys.modules)))")
+    out = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, check=True).stdout
+    loaded = set(out.strip().splitlines()[-1].split())
+    assert not [m for m in absent if m in loaded], f"coevo {' '.join(argv)} loads {[m for m in absent if m in loaded]}"
