@@ -21,3 +21,25 @@ def small_ga() -> GAConfig:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(1234)
+
+
+# ---------------------------------------------------------------- the two test sets
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--all", action="store_true",
+                     help="also run the tests that start processes (service, faults, trust, deploy, whole comparisons): "
+                          "the whole suite, what CI runs")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Without --all, the fast set: tests marked service or slow (and any using the broker fixture, a process) are
+    left out, and say so in the summary."""
+    for item in items:
+        if "broker" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.service)
+    if config.getoption("--all"):
+        return
+    keep = [i for i in items if not (i.get_closest_marker("service") or i.get_closest_marker("slow"))]
+    dropped = [i for i in items if i not in keep]
+    if dropped:
+        config.hook.pytest_deselected(items=dropped)
+        items[:] = keep

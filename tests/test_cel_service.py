@@ -37,6 +37,8 @@ from coevo.runs.replay import replay
 from coevo.rundir.settings import RunSettings
 from coevo.tasks.door import default_ruleset, door_ga
 
+pytestmark = pytest.mark.service  # starts brokers, workers or whole runs as processes: run with --all
+
 FAILED = ("front", "front_right", "right")
 SMALL = ["--population", "16", "--episodes", "20", "--ga", "best_episodes=20"]
 

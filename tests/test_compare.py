@@ -40,6 +40,7 @@ def _csv(path: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(f))
 
 
+@pytest.mark.service
 def test_tiny_comparison_writes_a_consistent_report(tiny: Path) -> None:
     for name in ("compare.json", "report.md", "results.json", "runs.csv", "curves.csv",
                  "figure-mutual.png", "figure-independent.png", "regimes.png"):
@@ -109,6 +110,7 @@ def test_tiny_comparison_writes_a_consistent_report(tiny: Path) -> None:
             assert f"![{name}]({name})" in md
 
 
+@pytest.mark.service
 def test_resume_reruns_only_what_is_unfinished(tiny: Path) -> None:
     kept = {r: (tiny / "runs" / r / "summary.json").read_bytes() for r in RUNS if r != "mutual-01"}
     (tiny / "runs" / "mutual-01" / "summary.json").unlink()  # as if killed before the end

@@ -31,6 +31,8 @@ from procs import SMALL, coevo_proc, poll, stop
 
 from coevo.runs.local import free_port
 
+pytestmark = pytest.mark.service  # starts brokers, workers or whole runs as processes: run with --all
+
 REASON = unavailable()
 
 GENERATIONS = 10

@@ -48,6 +48,8 @@ from coevo.policy import random_ruleset
 from coevo.runs.local import LocalRun
 from coevo.rundir.settings import RunSettings
 
+pytestmark = pytest.mark.service  # starts brokers, workers or whole runs as processes: run with --all
+
 T, D, E = Behaviour.TRACKING, Behaviour.DOCKING, Behaviour.EXECUTIVE
 MID = GAConfig(generations=30, population=8, episodes=20, best_episodes=20, initial_rules=8)
 

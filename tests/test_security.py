@@ -24,7 +24,8 @@ from coevo.errors import ConfigError, ServiceError
 from coevo.runs.local import free_port
 
 REPO = Path(__file__).resolve().parent.parent
-pytestmark = pytest.mark.skipif(shutil.which("openssl") is None, reason="openssl is not installed")
+pytestmark = [pytest.mark.skipif(shutil.which("openssl") is None, reason="openssl is not installed"),
+              pytest.mark.service]  # starts brokers and workers as processes: run with --all
 
 
 @pytest.fixture(scope="module")

@@ -21,6 +21,8 @@ from coevo.bus.status import StatusBoard
 from coevo.policy import random_ruleset
 from coevo.runs.local import free_port
 
+pytestmark = pytest.mark.service  # starts brokers, workers or whole runs as processes: run with --all
+
 
 def test_broker_stores_answers_and_rejects(broker, tmp_path: Path) -> None:
     endpoint, data = broker

@@ -74,6 +74,7 @@ def test_a_task_refuses_another_tasks_settings() -> None:
         get_task("corridor").evaluator("corridor", WorldConfig(), GAConfig())
 
 
+@pytest.mark.service
 def test_the_same_worker_and_broker_run_the_corridor(tmp_path: Path) -> None:
     """coevo run: a broker and the corridor's worker as real processes, then coevo check replays it."""
     r = subprocess.run([sys.executable, "-m", "coevo", "run", "--task", "corridor", "--run", "c", "--root", str(tmp_path),

@@ -34,6 +34,8 @@ from coevo.policy import random_ruleset
 from coevo.runs.check import check_run
 from coevo.runs.local import free_port
 
+pytestmark = pytest.mark.service  # starts brokers, workers or whole runs as processes: run with --all
+
 BEHAVIOURS = ("tracking", "docking", "executive")
 
 
