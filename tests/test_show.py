@@ -17,9 +17,8 @@ import pytest
 from coevo.cli import main
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.text import format_ruleset, parse_ruleset
-from coevo.show import play, robot_from_rules, scene_for
-from coevo.show.rules_view import fire_counts, rule_rows, trace_lines
-from coevo.show.tracking_fuel import episode_endings
+from coevo.tasks.fuel.pictures import episode_endings, play, robot_from_rules, scene_for
+from coevo.tasks.fuel.pictures.rules_view import fire_counts, rule_rows, trace_lines
 from coevo.tasks.fuel import default_ruleset
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.recorder import Recorder
