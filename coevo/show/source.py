@@ -146,6 +146,10 @@ def _run_world(task: Task, meta: Mapping[str, Any], f: Path, over: Mapping[str, 
     if not isinstance(values, dict):
         raise RunDirError(f"{str(f)!r}: its world is not a JSON object of settings")
     try:
+        check_world(values)
+    except ConfigError as exc:
+        raise RunDirError(f"{str(f)!r}: {str(exc).replace('--world ', 'world setting ', 1)}") from None
+    try:
         world = _world(task, values)
     except ConfigError as exc:
         raise RunDirError(f"{str(f)!r} does not hold {task.name!r} world settings{version}: {_short(str(exc))}") from None
@@ -193,8 +197,11 @@ def _from_learn(d: Path, over: Mapping[str, Any], partners: Mapping[str, RuleSet
                           f"{rs.behaviour} rules of the {task.name!r} task")
     _check_task(task, wanted, d)
     _partners_of(task, partners, str(d))
+    from coevo import __version__
+
     written = meta.get("coevo")
-    world = _run_world(task, meta, paths.config, over, f" (written by coevo {written})" if written else "")
+    version = f" (written by coevo {written}, this is {__version__})" if written and written != __version__ else ""
+    world = _run_world(task, meta, paths.config, over, version)
     rules = {rs.behaviour: rs}
     for b in task.partners_needed(rs.behaviour, "independent"):
         f = paths.partner_rules(b)
