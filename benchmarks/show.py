@@ -22,8 +22,9 @@ import numpy as np
 
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.text import parse_ruleset
-from coevo.show import animate, draw_png, play, robot_from_path, robot_from_rules, scene_for
-from coevo.show.source import Robot
+from coevo.scene import animate, draw_png
+from coevo.show.source import from_path
+from coevo.tasks.fuel.pictures import Robot, play, robot_from_rules, scene_for
 from coevo.tasks.fuel import default_ruleset
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.runner import ALWAYS_DOCK, ALWAYS_TRACK, Rules, run_lanes
@@ -61,7 +62,7 @@ def main() -> None:
     ap.add_argument("--out", help="keep the pictures here (default: a temporary directory)")
     args = ap.parse_args()
     if args.source:
-        robot = robot_from_path(Path(args.source))
+        robot = from_path(Path(args.source), world_over={}, partners={}, wanted=None).robot
     else:
         robot = robot_from_rules("bench", WorldConfig(), {Behaviour.EXECUTIVE: parse_ruleset(EXEC),
                                                           Behaviour.TRACKING: default_ruleset("tracking"),

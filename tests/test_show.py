@@ -17,9 +17,8 @@ import pytest
 from coevo.cli import main
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.text import format_ruleset, parse_ruleset
-from coevo.show import play, robot_from_rules, scene_for
-from coevo.show.rules_view import fire_counts, rule_rows, trace_lines
-from coevo.show.tracking_fuel import episode_endings
+from coevo.tasks.fuel.pictures import episode_endings, play, robot_from_rules, scene_for
+from coevo.tasks.fuel.pictures.rules_view import fire_counts, rule_rows, trace_lines
 from coevo.tasks.fuel import default_ruleset
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.recorder import Recorder
@@ -241,3 +240,96 @@ def test_mp4_without_ffmpeg_is_a_clear_error(tmp_path: Path, capsys: pytest.Capt
     assert main(["show", "--default", "tracking", "--episodes", "1", "--out", str(tmp_path / "a.mp4")]) == 2
     assert "ffmpeg" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+# ----------------------------------------------------------------- other tasks: each task draws its own robots
+def _png_size(path: Path) -> tuple[int, int]:
+    data = path.read_bytes()
+    assert data.startswith(PNG) and data[12:16] == b"IHDR", path
+    return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+
+
+def _learn(tmp: Path, behaviour: str, *extra: str) -> Path:
+    d = tmp / f"learn-{behaviour}"
+    assert main(["learn", "--behaviour", behaviour, "--generations", "1", "--population", "4", "--episodes", "2",
+                 "--measure-epochs", "2", "--out", str(d), "--quiet", *extra]) == 0
+    return d
+
+
+def test_show_draws_a_door_learn_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    d = _learn(tmp_path, "door", "--fail", "front")
+    capsys.readouterr()
+    assert main(["show", str(d), "--episodes", "2", "--rules", "--trace", "--out", str(tmp_path / "door.png")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("door: ") and "rules by strength" in lines[0]
+    assert sum(line.startswith("trial ") for line in lines) == 2 and lines[-1].startswith("wrote ")
+    w, h = _png_size(tmp_path / "door.png")
+    assert 400 <= w <= 2000 and 300 <= h <= 2000
+    assert main(["show", str(d)]) == 0  # the default: one trial, inside the run directory
+    assert _png_size(d / "show-episodes1-seed0.png")[0] >= 400
+
+
+def test_door_scene_shows_the_room_and_the_failed_sonar() -> None:
+    from coevo.tasks import get_task
+    from coevo.tasks.door import DoorConfig, default_ruleset
+
+    door = get_task("door")
+    robot = door.show_robot("r", DoorConfig(failed=("front",)), {"door": default_ruleset()})
+    played = door.show_play(robot, seed=1, episodes=3)
+    scene = door.show_scene(played)
+    roles = [s.role for s in scene.statics]
+    assert roles.count("goal") == 1 and roles.count("failed beam") == 1 and roles.count("beam") == 6
+    assert [e.kind for e in scene.events if e.kind != "start"] == [
+        {1: "reached goal", 2: "collided", 3: "ran out of time"}[int(o)] for o in played.outcome]
+    assert scene.frames == len(scene.tracks[0].xy) == sum(len(p) for p in played.poses)
+    assert np.isfinite(scene.tracks[0].xy).all()
+
+
+def test_show_draws_a_corridor_learn_run(tmp_path: Path) -> None:
+    d = _learn(tmp_path, "corridor")
+    assert main(["show", str(d), "--out", str(tmp_path / "c.png"), "--rules"]) == 0
+    w, h = _png_size(tmp_path / "c.png")
+    assert 400 <= w <= 2000 and 300 <= h <= 2000
+    assert main(["show", str(d / "best.rules"), "--episodes", "2", "--animate", "--out", str(tmp_path / "c.gif")]) == 0
+    assert (tmp_path / "c.gif").read_bytes()[:6] == b"GIF89a"
+
+
+def test_foreign_or_broken_directories_fail_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    door = _learn(tmp_path, "door")
+    fuel_world = tmp_path / "door-with-a-fuel-world"
+    shutil.copytree(door, fuel_world)
+    meta = json.loads((fuel_world / "config.json").read_text())
+    (fuel_world / "config.json").write_text(json.dumps({**meta, "world": WorldConfig().model_dump()}))
+    runs = {}
+    for name, text in (("newer", '{"settings_version": 9, "task": "door"}'), ("maze", '{"task": "maze"}'),
+                       ("garbled", "{not json"), ("inf", '{"task": "door", "world": {"room_width": Infinity}}')):
+        runs[name] = tmp_path / name
+        runs[name].mkdir()
+        (runs[name] / "run.json").write_text(text)
+    capsys.readouterr()
+    cases = [
+        ([str(door), "--task", "fuel"], str(door)),
+        ([str(fuel_world)], "does not hold 'door' world settings"),
+        ([str(runs["newer"])], "settings version 9"),
+        ([str(runs["maze"])], "'maze'"),
+        ([str(runs["garbled"])], "cannot be read"),
+        ([str(runs["inf"])], "finite"),
+        ([str(tmp_path)], "holds no policies"),
+    ]
+    for args, needle in cases:
+        before = sorted(p.name for p in tmp_path.rglob("*"))
+        assert main(["show", *args]) == 2, args
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and err.startswith("RunDirError: ") and needle in err, (args, err)
+        assert sorted(p.name for p in tmp_path.rglob("*")) == before, args
+    for value in ("NaN", "Infinity", "-Infinity"):
+        assert main(["show", str(door), "--world", f"room_width={value}"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and err.startswith("ConfigError: ") and "finite" in err, err
+
+
+def test_show_names_no_task() -> None:
+    src = Path(__file__).resolve().parents[1] / "coevo" / "show"
+    for f in src.glob("*.py"):
+        text = f.read_text()
+        assert "tasks.fuel" not in text and "tasks.door" not in text and "tasks.corridor" not in text, f.name

@@ -1,149 +1,215 @@
-"""Which robot to show: a rule file, a run directory, or a behaviour's default rules.
+"""What to show: the task and robot held by a run directory, a rule file, or a behaviour's default rules.
 
-A :class:`Robot` is the three controllers plus the world they were learned in.  A
-Tracking or Docking rule set alone drives the trivial Executive that always picks
-it; an Executive needs its partners, and every way of naming them is checked here
-so that the error names the missing file.
+The task is found from what was given, never assumed, and its :class:`~coevo.tasks.base.Task` show
+hooks make the robot; every way of naming partners is checked here so that the error names the
+missing file.  Anything wrong with a directory is one :class:`~coevo.errors.RunDirError` naming it.
 
-    FILE.rules                      its behaviour from the '# behaviour:' header
-    runs/ID/  (coevo run)           workers/{executive,tracking,docking}/best.rules, world from run.json
-    runs/learn-.../ (coevo learn)   best.rules, world from config.json; an Executive's partners from the
-                                    tracking.rules / docking.rules learn wrote beside it
-    --default tracking|docking      the shipped default rule set
+    FILE.rules                      its behaviour (so its task) from the '# behaviour:' header
+    runs/ID/  (coevo run, cel)      workers/BEHAVIOUR/best.rules of each of the task's behaviours; task and
+                                    world from run.json
+    runs/learn-.../ (coevo learn)   best.rules; task and world from config.json; the partners it learned
+                                    against from the BEHAVIOUR.rules learn wrote beside it
+    --default BEHAVIOUR             the behaviour's shipped default rule set
 """
 
 from __future__ import annotations
 
 import json
+import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
+from pydantic import BaseModel
+
+from coevo.config import build
 from coevo.errors import ConfigError, RunDirError
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import read_rule_file
 from coevo.rundir.layout import LearnPaths, RunPaths
-from coevo.tasks.fuel import HAS_DEFAULT, default_ruleset
-from coevo.tasks.fuel.behaviours import Behaviour
-from coevo.tasks.fuel.settings import WorldConfig
+from coevo.rundir.settings import SETTINGS_VERSION
+from coevo.tasks import DEFAULT_TASK, TASKS, Task, task_of
 
-__all__ = ["Robot", "robot_from_path", "robot_from_default", "robot_from_rules"]
+__all__ = ["Shown", "find_task", "task_names", "from_default", "from_path", "check_world"]
 
-ROLES = (Behaviour.EXECUTIVE, Behaviour.TRACKING, Behaviour.DOCKING)
+_MAX_PROBLEM = 300  # characters of a validation message quoted in a one-line error
 
 
 @dataclass(frozen=True)
-class Robot:
-    """A robot to play: an Executive (None: the trivial one) and the policies it can pick."""
+class Shown:
+    """What ``coevo show`` plays: a task and its robot (the task's own object, with a name and a world)."""
 
-    name: str
-    world: WorldConfig
-    executive: RuleSet | None
-    tracking: RuleSet | None
-    docking: RuleSet | None
-
-    @property
-    def combined(self) -> bool:
-        """True when an Executive chooses between Tracking and Docking."""
-        return self.executive is not None
-
-    def rulesets(self) -> dict[Behaviour, RuleSet]:
-        pairs = ((Behaviour.EXECUTIVE, self.executive), (Behaviour.TRACKING, self.tracking), (Behaviour.DOCKING, self.docking))
-        return {b: rs for b, rs in pairs if rs is not None}
+    task: Task
+    robot: Any
 
 
-def robot_from_rules(name: str, world: WorldConfig, rules: dict[Behaviour, RuleSet]) -> Robot:
-    """A robot from whichever rule sets are given; an Executive needs both partners."""
-    ex, tr, do = (rules.get(b) for b in ROLES)
-    if ex is not None and (tr is None or do is None):
-        missing = " and ".join(b.value for b, rs in ((Behaviour.TRACKING, tr), (Behaviour.DOCKING, do)) if rs is None)
-        raise ConfigError(f"{name}: an Executive needs its partners; missing {missing} "
-                          "(give --tracking FILE --docking FILE)")
-    if ex is None and tr is not None and do is not None:
-        raise ConfigError(f"{name}: Tracking and Docking without an Executive: show them one at a time, or add an Executive")
-    if ex is None and tr is None and do is None:
-        raise ConfigError(f"{name}: no policies to show")
-    return Robot(name=name, world=world, executive=ex, tracking=tr, docking=do)
+def task_names() -> list[str]:
+    return list(TASKS)
 
 
-def robot_from_default(behaviour: str, world: WorldConfig) -> Robot:
+def find_task(name: str) -> Task:
+    """The registered task called ``name`` (or by one of its older names)."""
+    for t in TASKS.values():
+        if name == t.name or name in t.aliases:
+            return t
+    raise ConfigError(f"--task {name!r}: unknown task (known: {', '.join(TASKS)})")
+
+
+def check_world(over: Mapping[str, Any]) -> dict[str, Any]:
+    """``--world`` values: numbers must be finite (JSON lets NaN and Infinity through; no world has a use for them)."""
+    for k, v in over.items():
+        if isinstance(v, float) and not math.isfinite(v):
+            raise ConfigError(f"--world {k}={v}: expected a finite number")
+    return dict(over)
+
+
+def _world(task: Task, values: Mapping[str, Any]) -> BaseModel:
+    return build(task.world_settings, dict(values))
+
+
+def _short(msg: str) -> str:
+    return msg if len(msg) <= _MAX_PROBLEM else msg[:_MAX_PROBLEM].rstrip() + " ..."
+
+
+def _check_task(task: Task, wanted: Task | None, where: Path) -> Task:
+    if wanted is not None and wanted is not task:
+        raise RunDirError(f"{str(where)!r} is a {task.name!r} run, not {wanted.name!r} (--task {wanted.name})")
+    return task
+
+
+def _partners_of(task: Task, partners: Mapping[str, RuleSet], what: str) -> None:
+    foreign = [b for b in partners if b not in task.behaviours]
+    if foreign:
+        raise ConfigError(f"--{foreign[0]} is a partner in the {task_of(foreign[0]).name!r} task; {what} is a "
+                          f"{task.name!r} robot")
+
+
+def from_default(behaviour: str, world_over: Mapping[str, Any], *, wanted: Task | None) -> Shown:
+    """A behaviour's shipped default rules, in a world of its task's defaults with ``world_over``."""
+    have = [b for t in TASKS.values() for b in t.behaviours if t.default_rules(b) is not None]
     try:
-        b = Behaviour(behaviour)
-    except ValueError:
-        b = None
-    if b not in HAS_DEFAULT:
-        raise ConfigError(f"--default {behaviour!r}: only {' and '.join(x.value for x in HAS_DEFAULT)} have default rules")
-    rs = default_ruleset(b)
-    if rs is None:  # HAS_DEFAULT and the shipped files disagree: a packaging bug, said plainly
-        raise ConfigError(f"--default {behaviour!r}: its default rule set is missing from this installation")
-    return robot_from_rules(f"default-{b.value}", world, {b: rs})
+        task = task_of(behaviour)
+    except ConfigError:
+        raise ConfigError(f"--default {behaviour!r}: only {', '.join(have)} have default rules") from None
+    if wanted is not None and wanted is not task:
+        raise ConfigError(f"--default {behaviour!r} is a {task.name!r} behaviour, not {wanted.name!r} (--task)")
+    rs = task.default_rules(behaviour)
+    if rs is None:
+        raise ConfigError(f"--default {behaviour!r}: only {', '.join(have)} have default rules")
+    return Shown(task, task.show_robot(f"default-{behaviour}", _world(task, world_over), {behaviour: rs}))
 
 
-def robot_from_path(path: Path, *, world: WorldConfig | None = None,
-                    partners: dict[Behaviour, RuleSet] | None = None) -> Robot:
-    """The robot held by a rule file or a run directory; ``partners`` overrides or completes it.
-
-    ``world`` (settings from the command line) applies to rule files; run directories
-    bring their own.
-    """
+def from_path(path: Path, *, world_over: Mapping[str, Any], partners: Mapping[str, RuleSet],
+              wanted: Task | None) -> Shown:
+    """The robot held by a rule file or a run directory; ``partners`` overrides or completes it;
+    ``world_over`` changes its world's settings."""
     path = Path(path)
-    partners = dict(partners or {})
     if not path.exists():
         raise ConfigError(f"no such file or directory: {str(path)!r}")
     if path.is_dir():
         if RunPaths(path).run_json.exists():
-            return _from_run(path, partners)
+            return _from_run(path, world_over, partners, wanted)
         if LearnPaths(path).best_rules.exists() or LearnPaths(path).config.exists():
-            return _from_learn(path, partners)
+            return _from_learn(path, world_over, partners, wanted)
         raise RunDirError(f"{str(path)!r} holds no policies: neither a coevo run (run.json, workers/*/best.rules) "
                           "nor a coevo learn directory (best.rules)")
     rs = read_rule_file(path)
-    return robot_from_rules(path.stem, world or WorldConfig(), {**partners, rs.behaviour: rs})
+    task = task_of(rs.behaviour)
+    if wanted is not None and wanted is not task:
+        raise ConfigError(f"{str(path)!r} holds {rs.behaviour} rules of the {task.name!r} task, not {wanted.name!r} (--task)")
+    _partners_of(task, partners, str(path))
+    return Shown(task, task.show_robot(path.stem, _world(task, world_over), {**partners, rs.behaviour: rs}))
 
 
-def _world_of(f: Path, section: str = "world") -> WorldConfig:
+def _meta(f: Path) -> dict[str, Any]:
     try:
         meta = json.loads(f.read_text(encoding="utf-8"))
-        return WorldConfig(**meta[section])
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise RunDirError(f"{str(f)!r} cannot be read: {type(exc).__name__}: {exc}") from None
+    except (OSError, ValueError) as exc:
+        raise RunDirError(f"{str(f)!r} cannot be read: {type(exc).__name__}: {_short(str(exc))}") from None
+    if not isinstance(meta, dict):
+        raise RunDirError(f"{str(f)!r} is not a run's settings: expected a JSON object, got {type(meta).__name__}")
+    return meta
 
 
-def _from_run(d: Path, partners: dict[Behaviour, RuleSet]) -> Robot:
-    """A co-evolution run: its three workers' final best rule sets."""
-    world = _world_of(RunPaths(d).run_json)
-    rules: dict[Behaviour, RuleSet] = {}
+def _named_task(meta: Mapping[str, Any], f: Path, default: str) -> Task:
+    name = meta.get("task", default)
+    if not isinstance(name, str) or not any(name == t.name or name in t.aliases for t in TASKS.values()):
+        raise RunDirError(f"{str(f)!r} names task {name!r}, unknown to this coevo (it knows {', '.join(TASKS)}; "
+                          "written by another version?)")
+    return find_task(name)
+
+
+def _run_world(task: Task, meta: Mapping[str, Any], f: Path, over: Mapping[str, Any], version: str) -> BaseModel:
+    """The world in ``f`` (a RunDirError naming it when it is not the task's), with ``over`` on top (a ConfigError)."""
+    values = meta.get("world", {})
+    if not isinstance(values, dict):
+        raise RunDirError(f"{str(f)!r}: its world is not a JSON object of settings")
+    try:
+        check_world(values)
+    except ConfigError as exc:
+        raise RunDirError(f"{str(f)!r}: {str(exc).replace('--world ', 'world setting ', 1)}") from None
+    try:
+        world = _world(task, values)
+    except ConfigError as exc:
+        raise RunDirError(f"{str(f)!r} does not hold {task.name!r} world settings{version}: {_short(str(exc))}") from None
+    return _world(task, {**world.model_dump(), **over}) if over else world
+
+
+def _from_run(d: Path, over: Mapping[str, Any], partners: Mapping[str, RuleSet], wanted: Task | None) -> Shown:
+    """A co-evolution run (coevo run, coevo cel): its workers' final best rule sets."""
+    f = RunPaths(d).run_json
+    meta = _meta(f)
+    version = meta.get("settings_version", SETTINGS_VERSION)
+    if version != SETTINGS_VERSION:
+        raise RunDirError(f"{str(f)!r} has settings version {version!r}; this coevo reads version {SETTINGS_VERSION} "
+                          "(written by another version of coevo)")
+    task = _check_task(_named_task(meta, f, DEFAULT_TASK), wanted, d)
+    _partners_of(task, partners, str(d))
+    world = _run_world(task, meta, f, over, "")
+    rules: dict[str, RuleSet] = {}
     missing = []
-    for b in ROLES:
-        f = RunPaths(d).worker(b).best_rules
+    for b in task.behaviours:
+        best = RunPaths(d).worker(b).best_rules
+        if b in partners:
+            rules[b] = partners[b]
+        elif best.exists():
+            rules[b] = read_rule_file(best, b)
+        else:
+            missing.append(str(best))
+    if missing:
+        raise RunDirError(f"run directory {str(d)!r} holds no policies for its robot: missing {', '.join(missing)} "
+                          "(is the run finished?)")
+    return Shown(task, task.show_robot(d.name, world, rules))
+
+
+def _from_learn(d: Path, over: Mapping[str, Any], partners: Mapping[str, RuleSet], wanted: Task | None) -> Shown:
+    """A ``coevo learn`` directory: its best rule set, with the partners it learned against."""
+    paths = LearnPaths(d)
+    if not paths.best_rules.exists():
+        raise RunDirError(f"learn directory {str(d)!r} holds no best.rules (was the run interrupted?)")
+    rs = read_rule_file(paths.best_rules)
+    task = task_of(rs.behaviour)
+    meta = _meta(paths.config) if paths.config.exists() else {}
+    named = _named_task(meta, paths.config, task.name)
+    if named is not task:
+        raise RunDirError(f"{str(d)!r}: its config.json names task {named.name!r} but its best.rules holds "
+                          f"{rs.behaviour} rules of the {task.name!r} task")
+    _check_task(task, wanted, d)
+    _partners_of(task, partners, str(d))
+    from coevo import __version__
+
+    written = meta.get("coevo")
+    version = f" (written by coevo {written}, this is {__version__})" if written and written != __version__ else ""
+    world = _run_world(task, meta, paths.config, over, version)
+    rules = {rs.behaviour: rs}
+    for b in task.partners_needed(rs.behaviour, "independent"):
+        f = paths.partner_rules(b)
         if b in partners:
             rules[b] = partners[b]
         elif f.exists():
             rules[b] = read_rule_file(f, b)
         else:
-            missing.append(str(f))
-    if missing:
-        raise RunDirError(f"run directory {str(d)!r} holds no policies for its combined robot: missing {', '.join(missing)} "
-                          "(is the run finished?)")
-    return robot_from_rules(d.name, world, rules)
-
-
-def _from_learn(d: Path, partners: dict[Behaviour, RuleSet]) -> Robot:
-    """A ``coevo learn`` directory: its best rule set, with the trivial Executive or its recorded partners."""
-    best = LearnPaths(d).best_rules
-    if not best.exists():
-        raise RunDirError(f"learn directory {str(d)!r} holds no best.rules (was the run interrupted?)")
-    config = LearnPaths(d).config
-    world = _world_of(config) if config.exists() else WorldConfig()
-    rs = read_rule_file(best)
-    rules = {rs.behaviour: rs}
-    if rs.behaviour == Behaviour.EXECUTIVE:
-        for b in (Behaviour.TRACKING, Behaviour.DOCKING):
-            f = LearnPaths(d).partner_rules(b)
-            if b in partners:
-                rules[b] = partners[b]
-            elif f.exists():
-                rules[b] = read_rule_file(f, b)
-            else:
-                raise RunDirError(f"executive learn directory {str(d)!r} does not hold its {b.value} partner ({f.name}; "
-                                  f"learn runs before coevo show did not keep it): give --{b.value} FILE")
-    return robot_from_rules(d.name, world, rules)
+            raise RunDirError(f"{rs.behaviour} learn directory {str(d)!r} does not hold its {b} partner ({f.name}; "
+                              f"learn runs before coevo show did not keep it): give --{b} FILE")
+    return Shown(task, task.show_robot(d.name, world, rules))

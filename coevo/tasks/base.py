@@ -10,6 +10,10 @@ tracking-under-fuel task (:mod:`coevo.tasks.fuel`) is one implementation, the
 corridor (:mod:`coevo.tasks.corridor`) a tiny second one that keeps the interface
 honest.
 
+``coevo show`` (generic: it names no task) finds a run's task and calls the task's show hooks
+(``show_robot``, ``show_episodes``, ``show_play``, ``show_scene``, ``show_rules``, ``show_trace``);
+a task draws with the task-agnostic :mod:`coevo.scene`.
+
 Settings: a task's world settings are a frozen pydantic model (its
 ``world_settings``); the GA's are :class:`~coevo.config.GAConfig`, shared by all.
 """
@@ -19,7 +23,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from pathlib import Path
-from typing import ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from pydantic import BaseModel
@@ -30,6 +34,10 @@ from coevo.ga.evaluator import ChildRng, Evaluation, Evaluator, Partners, Tick
 from coevo.policy.rules import RuleSet, random_ruleset
 from coevo.policy.schema import Schema, schema
 
+if TYPE_CHECKING:
+    from coevo.scene import Scene
+    from coevo.tasks.showing import RuleTable, ShowPlay, ShowRobot
+
 __all__ = ["Task", "Evaluator", "Evaluation", "Partners", "Tick", "ChildRng"]
 
 class Task(ABC):
@@ -39,6 +47,8 @@ class Task(ABC):
     behaviours: ClassVar[tuple[str, ...]]
     regimes: ClassVar[tuple[str, ...]] = ("independent",)
     world_settings: ClassVar[type[BaseModel]]
+    #: Other names ``coevo show --task`` accepts for it (names of earlier versions).
+    aliases: ClassVar[tuple[str, ...]] = ()
     #: Short names of its status measures for narrow displays (e.g. quality_tracking -> QT).
     measure_labels: ClassVar[dict[str, str]] = {}
 
@@ -93,3 +103,32 @@ class Task(ABC):
                      seed: int) -> dict[str, float | int] | None:
         """The measures of a whole run's final policies together (``coevo run``), or None if incomplete."""
         return None
+
+    # ------------------------------------------------------------------ coevo show
+    def _cannot_show(self) -> ConfigError:
+        return ConfigError(f"task {self.name!r} has no pictures: coevo show cannot draw it")
+
+    def show_robot(self, name: str, world: BaseModel, rules: Mapping[str, RuleSet]) -> ShowRobot:
+        """The robot these rule sets (behaviour -> rules) make, to play in ``world``; a ConfigError naming
+        what is missing when they make none (e.g. an Executive without its partners)."""
+        raise self._cannot_show()
+
+    def show_episodes(self, robot: Any) -> int | None:
+        """Episodes ``coevo show`` plays unless told (None: one epoch)."""
+        return 3
+
+    def show_play(self, robot: Any, *, seed: int, episodes: int | None) -> ShowPlay:
+        """Play ``robot`` from ``seed`` with everything recorded: ``episodes`` in a row, or one epoch when None."""
+        raise self._cannot_show()
+
+    def show_scene(self, played: Any, *, title: str | None = None) -> Scene:
+        """A recorded play as a :class:`~coevo.scene.Scene` (what ``coevo show`` draws and animates)."""
+        raise self._cannot_show()
+
+    def show_rules(self, played: Any) -> list[RuleTable]:
+        """The robot's rule sets by strength, with how often each rule fired in ``played``."""
+        raise self._cannot_show()
+
+    def show_trace(self, played: Any) -> list[str]:
+        """Per episode, one line: the rules that fired in turn and how it ended."""
+        return []

@@ -302,9 +302,29 @@ def write_report(out: Path, spec: CompareSpec, *, elapsed: float | None = None) 
     return results
 
 
+def _final_robot(d: Path) -> Any:
+    """A finished fuel run's combined robot: its workers' final best.rules, in the world of its run.json."""
+    from coevo.policy.text import read_rule_file
+    from coevo.rundir.settings import RunSettings
+    from coevo.tasks.fuel.pictures import robot_from_rules
+
+    world = RunSettings.load(RunPaths(d).run_json).world_config()
+    rules, missing = {}, []
+    for b in Behaviour:
+        f = RunPaths(d).worker(b).best_rules
+        if f.exists():
+            rules[b] = read_rule_file(f, b)
+        else:
+            missing.append(str(f))
+    if missing:
+        raise RunDirError(f"run directory {str(d)!r} holds no policies for its robot: missing {', '.join(missing)} "
+                          "(is the run finished?)")
+    return robot_from_rules(d.name, world, rules)  # type: ignore[arg-type]
+
+
 def _robot_pictures(out: Path, spec: CompareSpec, records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Per live regime, the combined robots of its best and worst run (by executive payoff) playing one epoch."""
-    from coevo.show import picture, robot_from_path
+    from coevo.tasks.fuel.pictures import picture
 
     reps = {r.run_id: r for r in replicates(spec)}
     shown = []
@@ -319,7 +339,7 @@ def _robot_pictures(out: Path, spec: CompareSpec, records: list[dict[str, Any]])
             entry = {"regime": regime, "which": which, "run": x["run"], "seed": x["seed"],
                      "executive_payoff": x["measures"]["executive_payoff"], "file": name, "problem": None}
             try:
-                robot = robot_from_path(run_dir(out, reps[x["run"]]))
+                robot = _final_robot(run_dir(out, reps[x["run"]]))
                 picture(robot, out / name, seed=x["seed"], title=f"{regime}, {which} run {x['run']} "
                         f"(executive payoff {entry['executive_payoff']:.3f}): one epoch, seed {x['seed']}")
             except CoevoError as exc:

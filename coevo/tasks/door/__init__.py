@@ -32,6 +32,12 @@ from coevo.tasks.door.settings import DOOR_GA, SONARS, DoorConfig, capability_la
 
 if TYPE_CHECKING:
     from coevo.ga import GA
+    from coevo.scene import Scene
+    from coevo.tasks.door.pictures import DoorPlay, DoorRobot
+    from coevo.tasks.showing import RuleTable
+
+#: Trials ``coevo show`` plays unless told: one, like the report's figures (each trial has its own opening).
+SHOW_TRIALS = 1
 
 __all__ = ["DoorTask", "DoorConfig", "DOOR", "SONARS", "DOOR_GA", "door_ga", "default_ruleset", "restart",
            "capability_label"]
@@ -84,6 +90,36 @@ class DoorTask(Task):
 
         cfg = _door_world(world)
         path_figure(path, best, cfg, seed=seed, title=f"{name}: the best door rules ({capability_label(cfg)}), seed {seed}")
+
+    # coevo show: a Scene of trials (coevo.tasks.door.pictures)
+    def show_robot(self, name: str, world: BaseModel, rules: Mapping[str, RuleSet]) -> DoorRobot:
+        from coevo.tasks.door.pictures import door_robot
+
+        return door_robot(name, _door_world(world), rules)
+
+    def show_episodes(self, robot: DoorRobot) -> int | None:
+        return SHOW_TRIALS
+
+    def show_play(self, robot: DoorRobot, *, seed: int, episodes: int | None) -> DoorPlay:
+        """``episodes`` trials (None, one epoch: :data:`SHOW_TRIALS`; the door task has no epochs)."""
+        from coevo.tasks.door.pictures import play_trials
+
+        return play_trials(robot, seed=seed, trials=episodes or SHOW_TRIALS)
+
+    def show_scene(self, played: DoorPlay, *, title: str | None = None) -> Scene:
+        from coevo.tasks.door.pictures import scene_of
+
+        return scene_of(played, title=title)
+
+    def show_rules(self, played: DoorPlay) -> list[RuleTable]:
+        from coevo.tasks.door.pictures import rule_tables
+
+        return rule_tables(played)
+
+    def show_trace(self, played: DoorPlay) -> list[str]:
+        from coevo.tasks.door.pictures import trace_lines
+
+        return trace_lines(played)
 
 
 def restart(ga: GA, world: DoorConfig, *, keep: float = 0.5) -> None:

@@ -6,21 +6,33 @@ and (b) the robot at the end of the trial with its whole path.  The trial shown 
 the first of ``candidates`` fresh trials that reached the goal *(ours)*, so the
 picture shows how the rules succeed; if none did, or with ``prefer_success=False``
 (how rules fail, e.g. right after a sonar failure), the first trial.
+
+``coevo show`` draws door trials as a task-agnostic :class:`~coevo.scene.Scene` instead
+(:func:`play_trials`, :func:`scene_of`): the room, each trial's wall with its opening (older
+trials paler), the goal and starting lines, the robot's path at every substep, the sonars at
+the last trial's start (failed ones as red stubs) and how each trial ended.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from coevo.errors import ConfigError
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.rules import RuleSet
+from coevo.scene.scene import Event, Scene, Shape, Span, Track
 from coevo.tasks.door.evaluate import play
-from coevo.tasks.door.settings import SONAR_ANGLES, SONARS, DoorConfig
-from coevo.tasks.door.world import GOAL, DoorWorld, Trials, draw_trials
+from coevo.tasks.door.sensors import DOOR
+from coevo.tasks.door.settings import SONAR_ANGLES, SONARS, DoorConfig, capability_label
+from coevo.tasks.door.world import COLLISION, GOAL, TIMEOUT, DoorWorld, Trials, draw_trials
+from coevo.tasks.showing import RuleTable, rule_rows, run_lengths
 
-__all__ = ["trial_path", "path_figure"]
+__all__ = ["trial_path", "path_figure", "DoorRobot", "DoorPlay", "door_robot", "play_trials", "scene_of",
+           "rule_tables", "trace_lines"]
 
 _OUTCOME = {1: "reached the goal", 2: "collided", 3: "ran out of time"}
 
@@ -98,3 +110,136 @@ def path_figure(path: Path, rules: RuleSet, cfg: DoorConfig, *, seed: int, title
     fig.savefig(path, dpi=90)
     plt.close(fig)
     return outcome
+
+
+# ------------------------------------------------------------------ coevo show
+_ENDING = {GOAL: "reached goal", COLLISION: "collided", TIMEOUT: "ran out of time"}
+
+
+@dataclass(frozen=True)
+class DoorRobot:
+    """Door rules to show, in the world (sonars failed or not) they play in."""
+
+    name: str
+    world: DoorConfig
+    rules: RuleSet
+
+
+@dataclass(frozen=True)
+class DoorPlay:
+    """``episodes`` recorded trials: per trial its poses at every substep ``(k, 3)`` and the rules it fired
+    per decision (0-based, in order)."""
+
+    robot: DoorRobot
+    seed: int
+    trials: Trials
+    poses: tuple[np.ndarray, ...]
+    fired: tuple[np.ndarray, ...]
+    outcome: np.ndarray
+    time: np.ndarray
+
+    @property
+    def episodes(self) -> int:
+        return len(self.outcome)
+
+
+def door_robot(name: str, world: DoorConfig, rules: Mapping[str, RuleSet]) -> DoorRobot:
+    if set(rules) != {DOOR}:
+        raise ConfigError(f"{name}: the door task shows one {DOOR} rule set, got {', '.join(sorted(rules)) or 'none'}")
+    return DoorRobot(name, world, rules[DOOR])
+
+
+def play_trials(robot: DoorRobot, *, seed: int, trials: int) -> DoorPlay:
+    """Play ``trials`` fresh trials drawn from ``seed``, recording every substep's pose."""
+    cfg = robot.world
+    rng = np.random.default_rng(seed)
+    drawn = draw_trials(cfg, trials, rng)
+    out = play(cfg, CompiledPolicies([robot.rules]), np.zeros(trials, dtype=np.int64), drawn, rng, record=True)
+    path = np.stack(out.world.path)  # type: ignore[arg-type]  # (substeps + 1, trials, 3)
+    poses, fired = [], []
+    for i in range(trials):
+        steps = int(round(out.time[i] / cfg.decision_seconds * cfg.substeps))
+        poses.append(path[: steps + 1, i].copy())
+        fired.append(out.rule[out.lane == i])
+    return DoorPlay(robot, seed, drawn, tuple(poses), tuple(fired), out.outcome.copy(), out.time.copy())
+
+
+def _box(x0: float, x1: float, y0: float, y1: float) -> np.ndarray:
+    return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], float)
+
+
+def _beams(cfg: DoorConfig, trials: Trials, k: int) -> list[Shape]:
+    """The sonars of trial ``k``'s start: working ones to their echo, failed ones as red stubs (they read 0)."""
+    x, h = float(trials.x[k]), float(trials.heading[k])
+    world = DoorWorld(cfg, Trials(np.array([x]), np.array([h]), trials.opening[k:k + 1]), rng=np.random.default_rng(0))
+    reading = world.sonars(np.array([0]))[0]
+    y = cfg.start_line
+    out = []
+    for name, angle, r in zip(SONARS, SONAR_ANGLES, reading, strict=True):
+        a = np.deg2rad(h + angle)
+        failed = name in cfg.failed
+        d = cfg.robot_radius * (2.5 if failed else 1.0) + float(r)
+        out.append(Shape("polyline", np.array([[x, y], [x - d * np.sin(a), y + d * np.cos(a)]]),
+                         "failed beam" if failed else "beam", name))
+    return out
+
+
+def scene_of(played: DoorPlay, *, title: str | None = None) -> Scene:
+    """The trials of a recorded play, one after the other on the frame axis."""
+    cfg, K = played.robot.world, played.episodes
+    W, D = cfg.room_width, cfg.room_depth
+    statics = [Shape("polygon", _box(0, W, 0, D), "wall")]
+    for k in range(K):
+        a = float(played.trials.opening[k])
+        alpha = 1.0 if k == K - 1 else 0.25 + 0.5 * (k + 1) / K
+        for x0, x1 in ((0.0, a), (a + cfg.opening, W)):
+            if x1 > x0:
+                statics.append(Shape("polygon", _box(x0, x1, cfg.wall_near, cfg.wall_far), "wall piece", alpha=alpha))
+    statics.append(Shape("polyline", np.array([[0, cfg.goal_line], [W, cfg.goal_line]], float), "goal"))
+    statics.append(Shape("polyline", np.array([[0, cfg.start_line], [W, cfg.start_line]], float), "mark"))
+    if K:
+        statics += _beams(cfg, played.trials, K - 1)
+    xy, heading, rule, captions, spans, events = [], [], [], [], [], []
+    first = 0
+    for k, (poses, fired) in enumerate(zip(played.poses, played.fired, strict=True)):
+        n = len(poses)
+        last = first + n - 1
+        xy.append(poses[:, :2])
+        heading.append(np.deg2rad(poses[:, 2]) + np.pi / 2)  # the renderer's angle is from +x; the door's from +y
+        decision = np.minimum(np.arange(n) // cfg.substeps, max(len(fired) - 1, 0))
+        r = np.where(np.arange(n) < n - 1, fired[decision] + 1 if len(fired) else 0, 0)
+        rule.append(r)
+        ending = _ENDING[int(played.outcome[k])]
+        t = float(played.time[k])
+        spans.append(Span(first, last, 0, f"{k + 1:>2}. {ending}: {t:.0f} s, {len(fired)} decisions"))
+        events.append(Event(first, float(poses[0, 0]), float(poses[0, 1]), "start", str(k + 1)))
+        events.append(Event(last, float(poses[-1, 0]), float(poses[-1, 1]), ending, str(k + 1)))
+        captions += [f"trial {k + 1} at {j * cfg.decision_seconds / cfg.substeps:.1f} s"
+                     + (f" rule R{r[j]}" if r[j] else "") for j in range(n)]
+        first = last + 1
+    won = int((played.outcome == GOAL).sum())
+    return Scene(
+        title=title or (f"{played.robot.name}: {K} door trial{'s' if K != 1 else ''}, seed {played.seed}, "
+                        f"{capability_label(cfg)}; {won} reached the goal"),
+        extent=(0.0, W, 0.0, D),
+        statics=tuple(statics),
+        categories=("door",),
+        tracks=(Track("robot", np.concatenate(xy) if xy else np.zeros((0, 2)),
+                      np.concatenate(heading) if heading else np.zeros(0),
+                      np.zeros(first, np.int64), cfg.robot_radius),),
+        rings=(), events=tuple(events), spans=tuple(spans), captions=tuple(captions),
+        rule=np.concatenate(rule).astype(np.int64) if rule else None, rule_label="rule fired (R: door)",
+    )
+
+
+def rule_tables(played: DoorPlay) -> list[RuleTable]:
+    rs = played.robot.rules
+    counts = np.bincount(np.concatenate(played.fired).astype(np.int64), minlength=len(rs))[: len(rs)] \
+        if played.fired else np.zeros(len(rs), np.int64)
+    title = f"{DOOR}: {len(rs)} rules by strength; fired = decisions it made in {played.episodes} trials"
+    return [RuleTable(title, "R", tuple(rule_rows(rs, counts)))]
+
+
+def trace_lines(played: DoorPlay) -> list[str]:
+    return [f"trial {k + 1}: {run_lengths(f, 'R')} -> {_ENDING[int(o)]}"
+            for k, (f, o) in enumerate(zip(played.fired, played.outcome, strict=True))]

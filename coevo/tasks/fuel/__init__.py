@@ -18,6 +18,7 @@ from collections.abc import Mapping
 from functools import cache
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from coevo.config import GAConfig
 from coevo.policy.rules import RuleSet
@@ -26,6 +27,11 @@ from coevo.tasks.base import Partners, Task
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.evaluate import FuelEvaluator
 from coevo.tasks.fuel.settings import WorldConfig
+
+if TYPE_CHECKING:
+    from coevo.scene import Scene
+    from coevo.tasks.fuel.pictures import Played, Robot
+    from coevo.tasks.showing import RuleTable
 
 __all__ = ["FuelTask", "Behaviour", "default_ruleset", "HAS_DEFAULT"]
 
@@ -56,6 +62,7 @@ class FuelTask(Task):
     behaviours = tuple(b.value for b in Behaviour)
     regimes = ("mutual", "independent")
     world_settings = WorldConfig
+    aliases = ("tracking-fuel",)  # coevo show --task's name for it before tasks owned their pictures
     measure_labels = {"quality_tracking": "QT", "docking_from_random": "docks", "dock_choice": "picks-D",
                       "docking_success_rate": "docked"}
 
@@ -95,11 +102,41 @@ class FuelTask(Task):
     def picture(self, path: Path, behaviour: str, best: RuleSet, *, world: WorldConfig, partners: Partners,  # type: ignore[override]
                 seed: int, name: str) -> None:
         """best.png: the best policy playing a few episodes (or, for the Executive, one epoch); ~0.5 s."""
-        from coevo.show import picture, robot_from_rules
+        from coevo.tasks.fuel.pictures import picture, robot_from_rules
 
         robot = robot_from_rules(name, world, {**partners, behaviour: best})
         picture(robot, path, seed=seed, episodes=None if robot.combined else PICTURE_EPISODES,
                 title=f"{name}: the best {behaviour} policy, seed {seed}")
+
+    # coevo show: the pictures of coevo.tasks.fuel.pictures
+    def show_robot(self, name: str, world: WorldConfig, rules: Mapping[str, RuleSet]) -> Robot:  # type: ignore[override]
+        from coevo.tasks.fuel.pictures import robot_from_rules
+
+        return robot_from_rules(name, world, rules)
+
+    def show_episodes(self, robot: Robot) -> int | None:
+        """One epoch for a combined robot; a few episodes for Tracking or Docking alone."""
+        return None if robot.combined else PICTURE_EPISODES
+
+    def show_play(self, robot: Robot, *, seed: int, episodes: int | None) -> Played:
+        from coevo.tasks.fuel.pictures import play
+
+        return play(robot, seed=seed, episodes=episodes)
+
+    def show_scene(self, played: Played, *, title: str | None = None) -> Scene:
+        from coevo.tasks.fuel.pictures import scene_for
+
+        return scene_for(played, title=title)
+
+    def show_rules(self, played: Played) -> list[RuleTable]:
+        from coevo.tasks.fuel.pictures.rules_view import rule_tables
+
+        return rule_tables(played)
+
+    def show_trace(self, played: Played) -> list[str]:
+        from coevo.tasks.fuel.pictures.rules_view import trace_lines
+
+        return trace_lines(played)
 
     def run_measures(self, policies: Mapping[str, RuleSet], *, world: WorldConfig, epochs: int,  # type: ignore[override]
                      seed: int) -> dict[str, float | int] | None:

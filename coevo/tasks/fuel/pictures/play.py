@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from coevo.errors import ConfigError
-from coevo.show.source import Robot
+from coevo.tasks.fuel.pictures.robot import Robot
 from coevo.tasks.fuel.recorder import Recorder
 from coevo.tasks.fuel.robot import controllers
 from coevo.tasks.fuel.runner import Outcome, run_lanes

@@ -1,4 +1,4 @@
-"""The tracking-under-fuel task as a :class:`~coevo.show.scene.Scene`.
+"""The tracking-under-fuel task as a :class:`~coevo.scene.Scene`.
 
 The arena's walls and the dock are the static geometry; the robot and the Target are
 tracks, the robot's coloured by the Executive's choice for each episode; the
@@ -12,13 +12,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from coevo.show.play import Played
-from coevo.show.scene import Event, Ring, Scene, Shape, Span, Track
+from coevo.scene.scene import Event, Ring, Scene, Shape, Span, Track
+from coevo.tasks.fuel.pictures.play import Played
 from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK
 
-__all__ = ["TASK", "scene_of", "episode_endings", "CATEGORIES"]
+__all__ = ["scene_of", "scene_for", "episode_endings", "CATEGORIES"]
 
-TASK = "tracking-fuel"
 CATEGORIES = tuple(name for _, name in sorted({TASK_TRACK: "Track", TASK_DOCK: "Dock"}.items()))  # index = task value
 MAX_RINGS = 6
 
@@ -116,3 +115,6 @@ def scene_of(played: Played, *, title: str | None = None) -> Scene:
         rule=rule, rule_label="rule fired (T: Tracking, D: Docking)",
     )
 
+
+
+scene_for = scene_of

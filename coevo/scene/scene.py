@@ -1,7 +1,7 @@
 """A task-agnostic picture of recorded episodes: static geometry, tracks on one frame axis, events.
 
-A task turns its recording into a :class:`Scene` (see :mod:`coevo.show.tracking_fuel`);
-:mod:`coevo.show.draw` renders any scene as a PNG or an animation without knowing the
+A task turns its recording into a :class:`Scene` (e.g. :mod:`coevo.tasks.fuel.pictures.scene`);
+:mod:`coevo.scene.draw` renders any scene as a PNG or an animation without knowing the
 task.  Frames are the scene's clock: every track has one row per frame (NaN where
 its body is absent, e.g. between episodes), and events, rings, spans and the rule
 trace refer to frames.  ``category`` is what a path is coloured by (for the tracking
@@ -14,10 +14,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Shape", "Track", "Ring", "Event", "Span", "Scene", "EVENT_KINDS"]
+__all__ = ["Shape", "Track", "Ring", "Event", "Span", "Scene", "EVENT_KINDS", "SHAPE_ROLES"]
 
 # Event kinds the renderer has a marker for; a task may use any subset.
-EVENT_KINDS = ("start", "tracking", "docked", "collided", "ran dry", "time up")
+EVENT_KINDS = ("start", "tracking", "docked", "collided", "ran dry", "time up", "reached goal", "ran out of time")
+# Roles of static shapes the renderer has a style for ("wall": an outline; "goal": a dashed green line;
+# "mark": a dotted grey line; "beam"/"failed beam": a sensor's beam, working or failed; anything else: a filled block).
+SHAPE_ROLES = ("wall", "goal", "mark", "beam", "failed beam")
 
 
 @dataclass(frozen=True)
@@ -28,6 +31,7 @@ class Shape:
     points: np.ndarray
     role: str
     label: str | None = None
+    alpha: float = 1.0  # paler for what belongs to an older span (e.g. an earlier trial's wall)
 
 
 @dataclass(frozen=True)

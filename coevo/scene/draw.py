@@ -1,4 +1,4 @@
-"""Render a :class:`~coevo.show.scene.Scene`: a PNG of the whole run, or an animation (GIF, MP4).
+"""Render a :class:`~coevo.scene.scene.Scene`: a PNG of the whole run, or an animation (GIF, MP4).
 
 The picture: the static geometry, the protagonist's path coloured by category (older
 spans paler), the other tracks thin and dashed, rings as shaded annuli, a marker per
@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from coevo.errors import ConfigError
-from coevo.show.scene import Scene
+from coevo.scene.scene import Scene
 
 __all__ = ["draw_png", "animate", "check_out_path", "FORMATS", "ANIMATION_FORMATS"]
 
@@ -36,6 +36,15 @@ EVENT_STYLE = {
     "collided": ("X", "tab:red", 80, "collided"),
     "ran dry": ("s", "saddlebrown", 60, "ran dry"),
     "time up": ("D", "0.45", 45, "time up, out of range"),
+    "reached goal": ("*", "tab:green", 140, "reached the goal"),
+    "ran out of time": ("D", "0.45", 45, "ran out of time"),
+}
+# role -> line style of open or thin static shapes (SHAPE_ROLES); other roles are filled blocks
+LINE_STYLE = {
+    "goal": dict(color="tab:green", linestyle="--", linewidth=1.2),
+    "mark": dict(color="0.6", linestyle=":", linewidth=1.0),
+    "beam": dict(color="tab:orange", linestyle="-", linewidth=1.0),
+    "failed beam": dict(color="tab:red", linestyle="-", linewidth=2.5),
 }
 
 
@@ -100,9 +109,13 @@ def _arena(ax: Any, scene: Scene) -> None:
     x0, x1, y0, y1 = scene.extent
     for s in scene.statics:
         if s.role == "wall":
-            ax.add_patch(Polygon(s.points, closed=s.kind == "polygon", fill=False, edgecolor="black", linewidth=2))
+            ax.add_patch(Polygon(s.points, closed=s.kind == "polygon", fill=False, edgecolor="black", linewidth=2,
+                                 alpha=None if s.alpha == 1 else s.alpha))
+        elif s.role in LINE_STYLE:
+            ax.plot(s.points[:, 0], s.points[:, 1], alpha=s.alpha, zorder=2, **LINE_STYLE[s.role])
         else:
-            ax.add_patch(Polygon(s.points, closed=s.kind == "polygon", facecolor="0.55", edgecolor="black"))
+            ax.add_patch(Polygon(s.points, closed=s.kind == "polygon", facecolor="0.55", edgecolor="black",
+                                 alpha=None if s.alpha == 1 else s.alpha))
             if s.label:
                 cx, cy = s.points.mean(axis=0)
                 ax.annotate(s.label, (cx, cy), ha="center", va="center", fontsize=6, color="white")
