@@ -224,6 +224,14 @@ def test_a_killed_broker_loses_nothing_once_restarted(tmp_path: Path) -> None:
     # have been republished.
     assert republished >= sum(max(0, len(v) - 1) for v in unheard.values())
     assert "store reloaded" in (lr.dir / "logs" / "broker.log").read_text()
+    # The store's latest (as a broker answers it, reloaded from disk) is each worker's newest published version.
+    from coevo.broker.store import PolicyStore
+
+    store = PolicyStore(tmp_path)
+    roster = lr.settings.roster or {}
+    for b in Behaviour:
+        newest = max(json.loads(x)["version"] for x in (lr.worker_dir(b) / "published.jsonl").read_text().splitlines())
+        assert store.latest(lr.run, b, worker=roster[b]).version == newest, b
 
 
 def test_pacing_holds_while_the_broker_is_down(tmp_path: Path) -> None:
