@@ -16,7 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from coevo.errors import ConfigError
 
-__all__ = ["Settings", "GAConfig", "build", "MODELS", "DEFAULT_MAX_LEAD", "parse_max_lead"]
+__all__ = ["MAX_MAGNITUDE", "Settings", "GAConfig", "build", "MODELS", "DEFAULT_MAX_LEAD", "parse_max_lead"]
 
 _M = TypeVar("_M", bound=BaseModel)
 
@@ -41,10 +41,24 @@ def parse_max_lead(value: str | int | None) -> int | None:
 
 
 
-class Settings(BaseModel):
-    """Frozen, no unknown fields: the base of every settings model (the GA's and each task's world)."""
+#: The largest magnitude a number of any settings model may have: no world is a billion inches wide, no GA
+#: runs a billion of anything; beyond it numbers only overflow somewhere far from the flag that gave them.
+MAX_MAGNITUDE = 1e9
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+
+class Settings(BaseModel):
+    """Frozen, no unknown fields, finite numbers of physical size (``nan``, ``inf`` and magnitudes beyond
+    :data:`MAX_MAGNITUDE` are refused by name): the base of every settings model (the GA's and each task's world)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+    @model_validator(mode="after")
+    def _physical(self) -> Settings:
+        for name in type(self).model_fields:
+            v = getattr(self, name)
+            if isinstance(v, (int, float)) and not isinstance(v, bool) and abs(v) > MAX_MAGNITUDE:
+                raise ValueError(f"{name}={v!r} is beyond any physical value (at most {MAX_MAGNITUDE:g} in size)")
+        return self
 
 
 class GAConfig(Settings):
