@@ -10,7 +10,7 @@ frozen pydantic models: invalid values fail at construction with a
 
 from __future__ import annotations
 
-from typing import Any, Literal, TypeVar
+from typing import Any, ClassVar, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
@@ -47,13 +47,17 @@ MAX_MAGNITUDE = 1e9
 
 
 class Settings(BaseModel):
-    """Frozen, no unknown fields, finite numbers of physical size (``nan``, ``inf`` and magnitudes beyond
-    :data:`MAX_MAGNITUDE` are refused by name): the base of every settings model (the GA's and each task's world)."""
+    """Frozen, no unknown fields, finite numbers (``nan`` and ``inf`` are refused by name): the base of every
+    settings model (the GA's and each task's world).  A model with ``physical = True`` (the GA's, the worlds')
+    also refuses magnitudes beyond :data:`MAX_MAGNITUDE` (not a run's settings: seeds and times are bigger)."""
 
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+    physical: ClassVar[bool] = False
 
     @model_validator(mode="after")
     def _physical(self) -> Settings:
+        if not self.physical:
+            return self
         for name in type(self).model_fields:
             v = getattr(self, name)
             if isinstance(v, (int, float)) and not isinstance(v, bool) and abs(v) > MAX_MAGNITUDE:
@@ -63,6 +67,8 @@ class Settings(BaseModel):
 
 class GAConfig(Settings):
     """The generational GA (report Appendix A §6.2; operators after SAMUEL, Appendix C §7)."""
+
+    physical: ClassVar[bool] = True
 
     generations: int = Field(50, ge=1, le=100_000)
     population: int = Field(50, ge=2, le=10_000)

@@ -9,7 +9,7 @@ appears (curves, benchmark tables, and the case base of the live-service issue).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 from pydantic import Field, field_validator, model_validator
 
@@ -54,6 +54,8 @@ class DoorConfig(Settings):
     Coordinates in inches: ``x`` across the room (0 at its left wall), ``y`` from the back
     wall toward the goal.  Heading 0° faces the goal (+y), counter-clockwise positive.
     """
+
+    physical: ClassVar[bool] = True
 
     room_width: float = Field(300.0, gt=0, description="room width, inches (report: 25 ft)")
     start_line: float = Field(48.0, gt=0, description="the starting line's distance from the back wall, inches (report: 4 ft)")
