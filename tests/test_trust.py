@@ -26,8 +26,8 @@ from hypothesis import strategies as st
 from procs import SMALL, coevo_proc, poll, stop
 
 from coevo.bus import keys
-from coevo.bus.auth import RunKey, mac, seal
-from coevo.bus.messages import REASONS, PolicyUpdate, decode, encode
+from coevo.bus.auth import RunKey, mac, mac2, seal
+from coevo.bus.messages import REASONS, Control, PolicyUpdate, decode, encode
 from coevo.bus.trust import Gate
 from coevo.errors import ConfigError, MessageError
 from coevo.policy import random_ruleset
@@ -58,10 +58,18 @@ def _raw_stop(run: str) -> bytes:
                          use_bin_type=True)
 
 
-def _raw_seal(secret: bytes, key: str, body: bytes) -> bytes:
-    """The envelope as the README describes it, computed here without coevo."""
-    tag = hmac.new(secret, b"coevo-mac-1\x00" + key.encode() + b"\x00" + body, hashlib.sha256).digest()
-    return msgpack.packb({"mac": tag, "msg": body}, use_bin_type=True)
+_RAW_SEQ = iter(range(1, 1 << 30))
+_RAW_BORN = time.time()
+
+
+def _raw_seal(secret: bytes, key: str, body: bytes, fresh: bytes | None = None) -> bytes:
+    """The envelope (format 2) as docs/trust.md describes it, computed here without coevo: a freshness header
+    [run incarnation, sender start, sender id, sequence number, time sealed] inside the MAC."""
+    if fresh is None:
+        fresh = msgpack.packb([0, _RAW_BORN, "raw-test", next(_RAW_SEQ), time.time()], use_bin_type=True)
+    tag = hmac.new(secret, b"coevo-mac-2\x00" + key.encode() + b"\x00" + len(fresh).to_bytes(4, "big") + fresh + body,
+                   hashlib.sha256).digest()
+    return msgpack.packb({"v": 2, "fresh": fresh, "mac": tag, "msg": body}, use_bin_type=True)
 
 
 def _raw_session(endpoint: str) -> zenoh.Session:
@@ -78,8 +86,9 @@ def test_the_envelope_authenticates_the_exact_bytes_and_the_key() -> None:
     key = RunKey.create("r1")
     body = _raw_policy("r1", "tracking", "tracking-0", 1, 1)
     k = keys.policy("r1", "tracking")
-    sealed = _raw_seal(key.secret, k, body)
-    assert sealed == seal(body, k, key.secret)  # the README's recipe is the codec's
+    fresh = msgpack.packb([0, _RAW_BORN, "raw-test", 1, time.time()], use_bin_type=True)
+    sealed = _raw_seal(key.secret, k, body, fresh)
+    assert sealed == seal(body, k, key.secret, fresh)  # docs/trust.md's recipe is the codec's
     msg = decode(sealed, key=k, secret=key.secret)
     assert isinstance(msg, PolicyUpdate) and msg.worker == "tracking-0"
     assert decode(encode(msg, key=k, secret=key.secret), key=k, secret=key.secret) == msg
@@ -87,10 +96,11 @@ def test_the_envelope_authenticates_the_exact_bytes_and_the_key() -> None:
         body,  # no envelope
         _raw_seal(b"x" * 32, k, body),  # another key's MAC
         _raw_seal(key.secret, keys.policy("r1", "docking"), body),  # sealed for another key expression
-        msgpack.packb({"mac": mac(key.secret, k, body)[:-1] + b"\0", "msg": body}),  # a bit flipped
-        msgpack.packb({"mac": mac(key.secret, k, body), "msg": body + b"\0"}),  # bytes appended
-        msgpack.packb({"mac": mac(key.secret, k, body), "msg": body, "more": 1}),
-        msgpack.packb({"mac": "text", "msg": body}),
+        msgpack.packb({"v": 2, "fresh": fresh, "mac": mac2(key.secret, k, fresh, body)[:-1] + b"\0", "msg": body}),
+        msgpack.packb({"v": 2, "fresh": fresh, "mac": mac2(key.secret, k, fresh, body), "msg": body + b"\0"}),
+        msgpack.packb({"v": 2, "fresh": fresh + b"\0", "mac": mac2(key.secret, k, fresh, body), "msg": body}),
+        msgpack.packb({"v": 2, "fresh": fresh, "mac": mac2(key.secret, k, fresh, body), "msg": body, "more": 1}),
+        msgpack.packb({"v": 2, "fresh": fresh, "mac": "text", "msg": body}),
     ]
     for payload in forged:
         with pytest.raises(MessageError) as err:
@@ -101,7 +111,42 @@ def test_the_envelope_authenticates_the_exact_bytes_and_the_key() -> None:
         decode(sealed, key=keys.policy("r1", "docking"), secret=key.secret)
     # An open receiver takes both forms, unverified.
     assert decode(body, key=k) == decode(sealed, key=k) == msg
-    assert {"unauthenticated", "not_roster", "bad_version"} <= set(REASONS)
+    assert {"unauthenticated", "not_roster", "bad_version", "replayed", "stale"} <= set(REASONS)
+    # Format 1 (no freshness) is refused with a reason that says so.
+    old = msgpack.packb({"mac": mac(key.secret, k, body), "msg": body}, use_bin_type=True)
+    with pytest.raises(MessageError, match="format 1") as err:
+        decode(old, key=k, secret=key.secret)
+    assert err.value.reason == "schema_version"
+    assert decode(old, key=k) == msg  # an open receiver still opens it, unverified
+
+
+def test_a_gate_refuses_replayed_and_stale_messages_and_keeps_a_memory_per_receiver() -> None:
+    from coevo.bus.freshness import Seen
+
+    key = RunKey.create("r")
+    gate = Gate(key=key, epoch=2)
+    k = keys.control("r")
+    stop = Control(run="r", command="stop", sent_at=time.time())
+    payload = gate.seal(stop, k)
+    assert gate.decode(k, payload) == stop
+    for again in (payload, payload):
+        with pytest.raises(MessageError) as err:
+            gate.decode(k, again)
+        assert err.value.reason == "replayed"
+    other = Seen()  # another receiver of the same process: new to it
+    assert gate.decode(k, payload, other) == stop
+    before = Gate(key=key, epoch=1).seal(stop, k)  # the previous incarnation's stop
+    with pytest.raises(MessageError, match="incarnation 1") as err:
+        gate.decode(k, before)
+    assert err.value.reason == "stale"
+    old = _raw_seal(key.secret, k, _raw_stop("r"), msgpack.packb([2, 1.0, "x", 1, time.time() - 3600]))
+    with pytest.raises(MessageError, match="s ago") as err:
+        gate.decode(k, old, Seen())
+    assert err.value.reason == "stale"
+    newer = Gate(key=key, epoch=3).seal(stop, k)  # a newer incarnation raises what the gate accepts from then on
+    assert gate.decode(k, newer) == stop and gate.fresh.epoch == 3
+    with pytest.raises(MessageError, match="incarnation 2"):
+        gate.decode(k, Gate(key=key, epoch=2).seal(stop, k), Seen())
 
 
 @settings(max_examples=300, deadline=None)

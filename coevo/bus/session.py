@@ -308,10 +308,14 @@ def query_messages(session: Any, key: str, *, timeout: float, what: str, gate: G
 
 
 class Ring:
-    """A ring subscriber and the gate its messages pass (the session's)."""
+    """A ring subscriber, the gate its messages pass (the session's) and its own memory of what it took
+    (:class:`~coevo.bus.freshness.Seen`: a replay is refused per receiver)."""
 
     def __init__(self, subscriber: Any, gate: Gate) -> None:
+        from coevo.bus.freshness import Seen
+
         self.subscriber, self.gate = subscriber, gate
+        self.seen = Seen()
 
     def try_recv(self) -> Any:
         return self.subscriber.try_recv()
@@ -350,7 +354,7 @@ def drain_messages(subscriber: Any, limit: int,
     out: list[tuple[str, Message]] = []
     for key, payload in drain(subscriber, limit):
         try:
-            out.append((key, gate.decode(key, payload)))
+            out.append((key, gate.decode(key, payload, getattr(subscriber, "seen", None))))
         except MessageError as err:
             if reject is not None:
                 reject(err, key)

@@ -114,6 +114,8 @@ class LocalRun:
         if settings.run != paths.name:
             raise RunDirError(f"{str(paths.run_json)!r} is for run {settings.run!r}, but the directory is named {paths.name!r}")
         key_path = settings.key_path(paths.dir)
+        # A new incarnation: every message of the previous one (a captured stop, old policies) is stale to this one.
+        settings = settings.model_copy(update={"incarnation": settings.incarnation + 1})
         lr = cls(settings.restarted(f"tcp/127.0.0.1:{free_port()}"), root=paths.dir.parent, log_level=log_level,
                  worker_env=worker_env, open_run=key_path is None)
         if key_path is not None:
@@ -138,6 +140,7 @@ class LocalRun:
             self.dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise RunDirError(f"cannot create the run directory {str(self.dir)!r}: {exc.strerror or exc}") from None
+        self.settings = self.settings.model_copy(update={"incarnation": 1})
         if self.open:
             self.settings = self.settings.model_copy(update={"key_file": None})
             log.warning("run %s is OPEN (--open): no key, its messages are not authenticated; anyone who reaches its "
