@@ -227,7 +227,7 @@ def test_a_broker_stores_only_runs_it_holds_a_key_for_and_seals_its_answers(tmp_
             got = poll(lambda: [r.ok for r in s.get(latest, timeout=2.0) if r.ok is not None], 10, "the stored policy")
             # The store's answer is sealed for the key it answers on and carries the policy that was sent.
             env = msgpack.unpackb(got[0].payload.to_bytes())
-            assert _raw_seal(key.secret, str(got[0].key_expr), env["msg"]) == got[0].payload.to_bytes()
+            assert _raw_seal(key.secret, str(got[0].key_expr), env["msg"], env["fresh"]) == got[0].payload.to_bytes()
             assert msgpack.unpackb(env["msg"]) == msgpack.unpackb(good)
             assert not [r for r in s.get(keys.store_latest("nokey"), timeout=1.0) if r.ok is not None]
             versions = [r.ok.payload.to_bytes() for r in s.get(keys.store_versions("keyed", "tracking"), timeout=2.0)
