@@ -11,6 +11,7 @@ import hashlib
 import hmac
 import json
 import os
+import signal
 import stat
 import subprocess
 import sys
@@ -351,3 +352,118 @@ def test_a_worker_refuses_a_foreign_key_and_a_roster_it_is_not_on(tmp_path: Path
     RunKey.create("r").save(run_dir / "secret.key")
     r = subprocess.run(base + ["--worker-id", "someone"], capture_output=True, text=True, timeout=60, env=env)
     assert r.returncode == 2 and "roster names 'tracking-0'" in r.stderr, r.stderr
+
+
+# ---------------------------------------------------------------------------- the outside view: replays
+_OUTSIDER = r'''
+import base64, json, os, sys, time
+import zenoh  # and nothing of coevo: what anyone on the run's network can do
+
+mode, endpoint, run, path, seconds = sys.argv[1:6]
+conf = zenoh.Config()
+conf.insert_json5("mode", '"client"')
+conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
+conf.insert_json5("scouting/multicast/enabled", "false")
+conf.insert_json5("connect/timeout_ms", "20000")
+s = zenoh.open(conf)
+end = time.time() + float(seconds)
+if mode == "capture":
+    out = open(path, "a")
+    def keep(sample):
+        out.write(json.dumps([str(sample.key_expr), base64.b64encode(bytes(sample.payload.to_bytes())).decode()]) + "\n")
+        out.flush()
+    sub = s.declare_subscriber("coevo/" + run + "/**", keep)
+    while time.time() < end and not os.path.exists(path + ".stop"):
+        time.sleep(0.05)
+    sub.undeclare()
+else:
+    msgs = [json.loads(x) for x in open(path).read().splitlines() if x.strip()]
+    n = 0
+    while time.time() < end and not os.path.exists(path + ".stop"):
+        for k, b in msgs:
+            s.put(k, base64.b64decode(b))
+            n += 1
+        time.sleep(0.3)
+    print(n, flush=True)
+s.close()
+'''
+
+
+def _outsider(tmp_path: Path, mode: str, endpoint: str, run: str, path: Path, seconds: float) -> subprocess.Popen:
+    script = tmp_path / "outsider.py"
+    script.write_text(_OUTSIDER)
+    return subprocess.Popen([sys.executable, str(script), mode, endpoint, run, str(path), str(seconds)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env={**os.environ, "PYTHONPATH": ""})
+
+
+def _rejected(run_dir: Path) -> dict[str, int]:
+    total: dict[str, int] = {}
+    for f in run_dir.glob("workers/*/done.json"):
+        for r, n in json.loads(f.read_text()).get("rejected", {}).items():
+            total[r] = total.get(r, 0) + n
+    return total
+
+
+def test_genuine_messages_captured_and_replayed_from_outside_change_nothing_running_or_resumed(tmp_path: Path) -> None:
+    """Issue 29 item 7: a raw zenoh client (no coevo import) captures a keyed run's genuine messages (policies,
+    current policies, statuses, the broker's status, the stop of a Ctrl-C) and puts them again, into the running
+    run and then, all of them every 0.3 s, into the resumed run: nothing is accepted, each is counted by reason."""
+    import base64
+
+    def coevo_run(*args: str, log: Path) -> subprocess.Popen:
+        with open(log, "wb") as f:
+            return subprocess.Popen([sys.executable, "-m", "coevo", "--log-level", "INFO", "run", *args], stdout=f,
+                                    stderr=subprocess.STDOUT)
+
+    run_dir = tmp_path / "rp"
+    p = coevo_run("--run", "rp", "--root", str(tmp_path), "--generations", "30", *SMALL, "--measure-epochs", "2",
+                  "--max-lead", "off", log=tmp_path / "first.out")
+    cap = tmp_path / "captured.jsonl"
+    try:
+        endpoint = poll(lambda: (run_dir / "run.json").exists() and json.loads((run_dir / "run.json").read_text())
+                        .get("endpoint"), 60, "run.json with the broker's endpoint")
+        capture = _outsider(tmp_path, "capture", endpoint, "rp", cap, 300)
+        poll(lambda: min((len(f.read_text().splitlines()) for f in run_dir.glob("workers/*/curve.jsonl")),
+                         default=0) >= 4, 180, "four generations")
+        kinds = lambda: {k.split("/")[2] for k, _ in (json.loads(x) for x in cap.read_text().splitlines())}  # noqa: E731
+        poll(lambda: {"policy", "status", "broker"} <= kinds(), 30, "policies, statuses and a broker status captured")
+        replay = _outsider(tmp_path, "replay", endpoint, "rp", cap, 5)  # into the running run
+        assert replay.wait(timeout=60) == 0, replay.stdout.read()
+        p.send_signal(signal.SIGINT)  # Ctrl-C: coevo run puts a genuine stop
+        p.wait(timeout=120)
+        poll(lambda: "control" in kinds(), 10, "the stop captured")
+        (tmp_path / "captured.jsonl.stop").write_text("")
+        capture.wait(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    first = json.loads((run_dir / "summary.json").read_text())
+    assert first["interrupted"]
+    replayed_running = _rejected(run_dir)
+    assert replayed_running.get("replayed", 0) > 0, replayed_running
+    (tmp_path / "captured.jsonl.stop").unlink()
+    old_endpoint = json.loads((run_dir / "run.json").read_text())["endpoint"]
+    resumed = coevo_run("--resume", str(run_dir), log=tmp_path / "resumed.out")
+    try:
+        endpoint = poll(lambda: json.loads((run_dir / "run.json").read_text()).get("endpoint") != old_endpoint
+                        and json.loads((run_dir / "run.json").read_text())["endpoint"], 60, "the resumed run's endpoint")
+        assert json.loads((run_dir / "run.json").read_text())["incarnation"] == 2
+        flood = _outsider(tmp_path, "replay", endpoint, "rp", cap, 600)  # everything, every 0.3 s, till the end
+        assert resumed.wait(timeout=600) == 0, (tmp_path / "resumed.out").read_text()[-3000:]
+        (tmp_path / "captured.jsonl.stop").write_text("")
+        flood.wait(timeout=30)
+    finally:
+        for q in (resumed,):
+            if q.poll() is None:
+                q.kill()
+                q.wait()
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert not summary["interrupted"], summary  # the captured stop ended nothing
+    after = _rejected(run_dir)
+    assert after.get("stale", 0) > replayed_running.get("stale", 0), after  # counted, by reason
+    check = check_run(run_dir)
+    assert check.ok, check.problems
+    broker_log = (run_dir / "logs" / "broker.log").read_text()
+    assert "rejected stale" in broker_log or "rejected replayed" in broker_log
+    assert base64  # the sender used only zenoh, msgpack-free: bytes as captured
