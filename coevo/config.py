@@ -10,13 +10,13 @@ frozen pydantic models: invalid values fail at construction with a
 
 from __future__ import annotations
 
-from typing import Any, Literal, TypeVar
+from typing import Any, ClassVar, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from coevo.errors import ConfigError
 
-__all__ = ["Settings", "GAConfig", "build", "MODELS", "DEFAULT_MAX_LEAD", "parse_max_lead"]
+__all__ = ["MAX_MAGNITUDE", "Settings", "GAConfig", "build", "MODELS", "DEFAULT_MAX_LEAD", "parse_max_lead"]
 
 _M = TypeVar("_M", bound=BaseModel)
 
@@ -41,14 +41,34 @@ def parse_max_lead(value: str | int | None) -> int | None:
 
 
 
-class Settings(BaseModel):
-    """Frozen, no unknown fields: the base of every settings model (the GA's and each task's world)."""
+#: The largest magnitude a number of any settings model may have: no world is a billion inches wide, no GA
+#: runs a billion of anything; beyond it numbers only overflow somewhere far from the flag that gave them.
+MAX_MAGNITUDE = 1e9
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+
+class Settings(BaseModel):
+    """Frozen, no unknown fields, finite numbers (``nan`` and ``inf`` are refused by name): the base of every
+    settings model (the GA's and each task's world).  A model with ``physical = True`` (the GA's, the worlds')
+    also refuses magnitudes beyond :data:`MAX_MAGNITUDE` (not a run's settings: seeds and times are bigger)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+    physical: ClassVar[bool] = False
+
+    @model_validator(mode="after")
+    def _physical(self) -> Settings:
+        if not self.physical:
+            return self
+        for name in type(self).model_fields:
+            v = getattr(self, name)
+            if isinstance(v, (int, float)) and not isinstance(v, bool) and abs(v) > MAX_MAGNITUDE:
+                raise ValueError(f"{name}={v!r} is beyond any physical value (at most {MAX_MAGNITUDE:g} in size)")
+        return self
 
 
 class GAConfig(Settings):
     """The generational GA (report Appendix A §6.2; operators after SAMUEL, Appendix C §7)."""
+
+    physical: ClassVar[bool] = True
 
     generations: int = Field(50, ge=1, le=100_000)
     population: int = Field(50, ge=2, le=10_000)

@@ -232,3 +232,75 @@ def _sweep(command: str, sub: argparse.ArgumentParser, places: dict[str, Path], 
                     problems.append(f"coevo {shown}: status {code}, expected 2 and one 'Type: message' line naming "
                                     f"{value!r}; stderr {stderr[-300:]!r}")
     return tried
+
+
+def _numeric_fields(model: type) -> list[str]:
+    """The settings of ``model`` that take a number (not booleans, choices or lists)."""
+    return [name for name, f in model.model_fields.items() if f.annotation in (int, float, "int", "float")]
+
+
+def _task_sweep() -> list[tuple[str, str, str]]:
+    """(behaviour, flag, setting): every world setting of every task, every GA setting once (on the cheapest task)."""
+    from coevo.config import GAConfig
+    from coevo.tasks import get_task
+
+    out = [("corridor", "--ga", n) for n in _numeric_fields(GAConfig)]
+    for behaviour, task in (("tracking", "fuel"), ("door", "door"), ("corridor", "corridor")):
+        out += [(behaviour, "--world", n) for n in _numeric_fields(get_task(task).world_settings)]
+    return out
+
+
+SETTINGS_SWEEP = _task_sweep()
+
+
+@pytest.mark.parametrize("behaviour", sorted({b for b, _, _ in SETTINGS_SWEEP}))
+def test_every_world_and_ga_setting_with_nan_inf_zero_and_negative_is_one_line_or_runs(behaviour: str,
+                                                                                        tmp_path: Path) -> None:
+    """nan and inf: status 2 and one ``ConfigError:`` line naming the setting and the value (``--world arena=inf``
+    ended in an OverflowError traceback); 0 and -1: refused the same way, or a run that ends normally."""
+    problems: list[str] = []
+    tried = 0
+    for b, flag, name in SETTINGS_SWEEP:
+        if b != behaviour:
+            continue
+        for value in ("nan", "inf", "-inf", "0", "-1", "1e308"):
+            tried += 1
+            tiny = [x for n, v in (("generations", 1), ("population", 2), ("episodes", 1), ("best_episodes", 1))
+                    if not (flag == "--ga" and n == name) for x in ("--ga", f"{n}={v}")]
+            argv = ["learn", "--behaviour", b, *tiny, "--measure-epochs", "1", "--quiet",
+                    "--out", str(tmp_path / f"o{tried}"), flag, f"{name}={value}"]
+            code, stderr, escaped = _run(argv)
+            shown = f"coevo {' '.join(argv)}"
+            lines = [x for x in stderr.splitlines() if x.strip()]
+            if escaped is not None:
+                problems.append(f"{shown}: {type(escaped).__name__}: {escaped}")
+            elif "Traceback" in stderr or code not in (0, 2):
+                problems.append(f"{shown}: status {code}, stderr {stderr[-300:]!r}")
+            elif code == 2 and (len(lines) != 1 or not lines[0].startswith("ConfigError: ") or name not in lines[0]
+                                or not _named(value, lines[0])):
+                problems.append(f"{shown}: expected one 'ConfigError: ...' line naming {name}={value}; got {stderr!r}")
+            elif value in ("nan", "inf", "-inf", "1e308") and code != 2:
+                problems.append(f"{shown}: a value that is not finite or not physical was accepted")
+    assert tried
+    assert not problems, f"{len(problems)} of {tried} command lines misbehave:\n" + "\n".join(problems)
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["router", "--connect", "tcp/127.0.0.1:99999", "--listen", "tcp/127.0.0.1:0"], "port 99999 cannot exist"),
+    (["router", "--listen", "tcp/127.0.0.1:70000"], "port 70000 cannot exist"),
+    (["worker", "--behaviour", "tracking", "--run", "x", "--regime", "independent", "--connect", "tcp/127.0.0.1:0",
+      "--connect-timeout", "0"],
+     "port 0 cannot exist"),
+    (["status", "--run", "x", "--connect", "tcp/nohostport"], "no HOST:PORT"),
+    (["broker", "--data-dir", "", "--listen", "tcp/127.0.0.1:0"], "--data-dir '' is empty"),
+    (["learn", "--behaviour", "corridor", "--out", ""], "--out '' is empty"),
+])
+def test_an_endpoint_that_cannot_exist_and_an_empty_path_are_one_line_and_status_2(argv: list[str], needle: str,
+                                                                                    tmp_path: Path,
+                                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    code, stderr, escaped = _run(argv)
+    lines = [x for x in stderr.splitlines() if x.strip()]
+    assert escaped is None and code == 2, (code, stderr, escaped)
+    assert len(lines) == 1 and lines[0].startswith("ConfigError: ") and needle in lines[0], stderr
+    assert not list(tmp_path.iterdir())  # nothing written (no store in the current folder, no runs/)

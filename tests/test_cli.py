@@ -212,3 +212,45 @@ def test_max_lead_off_is_not_the_same_as_not_given() -> None:
 
     assert lead("run", "--max-lead", "off") is None and lead("run") == 1 and lead("run", "--max-lead", "3") == 3
     assert lead("compare", "--max-lead", "off") is None and lead("cel", default=0) == 0
+
+
+def test_a_worker_that_finishes_is_shown_done_never_dead_in_the_table_the_lines_and_json() -> None:
+    """Its final heartbeat and its token's going travel apart (measured: "gen 50/50 ... dead", then "done"): a worker
+    whose token goes after its heartbeats showed its last generation is done; one that goes mid-run is dead."""
+    import json as _json
+    import time as _time
+
+    from rich.console import Console
+
+    from coevo.bus import keys
+    from coevo.bus.messages import Status, encode
+    from coevo.bus.session import make_config, open_session
+    from coevo.bus.status import PlainStatus, StatusBoard, status_table
+    from coevo.runs.local import free_port, wait_until
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    with open_session(make_config(mode="router", listen=[endpoint])) as router, \
+            open_session(make_config(mode="client", connect=[endpoint], connect_timeout=10)) as worker:
+        board = StatusBoard(router, "fin")
+        plain = PlainStatus()
+        for beh, gen in (("tracking", 50), ("docking", 20)):  # tracking finishes; docking dies at 20 of 50
+            wid = f"{beh}-1"
+            token = worker.liveliness().declare_token(keys.alive("fin", beh, wid))
+            wait_until(lambda: any(w["worker"] == wid and w["state"] == "alive" for w in board.snapshot()), 10, "alive")
+            worker.put(keys.status("fin", beh, wid), encode(Status(run="fin", behaviour=beh, worker=wid, regime="mutual",
+                                                                   generation=gen, generations=50, best_fitness=0.5,
+                                                                   sent_at=_time.time())))
+            wait_until(lambda: any(w["worker"] == wid and w["generation"] == gen for w in board.snapshot()), 10, "gen")
+            token.undeclare()  # its done heartbeat not (yet) here
+            wait_until(lambda: any(w["worker"] == wid and w["state"] != "alive" for w in board.snapshot()), 10, "gone")
+        states = {w["worker"]: w["state"] for w in board.snapshot()}
+        assert states == {"tracking-1": "done", "docking-1": "dead"}
+        lines = plain.lines(board)
+        assert any("tracking-1 gen 50/50" in x and x.endswith(" done") for x in lines), lines
+        assert not any("tracking-1" in x and "dead" in x for x in lines), lines
+        assert {w["worker"]: w["state"] for w in _json.loads(board.json_line())["workers"]}["tracking-1"] == "done"
+        console = Console(width=100, record=True, color_system=None)
+        console.print(status_table(board, "fin"))
+        row = next(x for x in console.export_text().splitlines() if "tracking-1" in x)
+        assert row.rstrip().endswith("done"), row
+        board.close()

@@ -224,6 +224,14 @@ def test_a_killed_broker_loses_nothing_once_restarted(tmp_path: Path) -> None:
     # have been republished.
     assert republished >= sum(max(0, len(v) - 1) for v in unheard.values())
     assert "store reloaded" in (lr.dir / "logs" / "broker.log").read_text()
+    # The store's latest (as a broker answers it, reloaded from disk) is each worker's newest published version.
+    from coevo.broker.store import PolicyStore
+
+    store = PolicyStore(tmp_path)
+    roster = lr.settings.roster or {}
+    for b in Behaviour:
+        newest = max(json.loads(x)["version"] for x in (lr.worker_dir(b) / "published.jsonl").read_text().splitlines())
+        assert store.latest(lr.run, b, worker=roster[b]).version == newest, b
 
 
 def test_pacing_holds_while_the_broker_is_down(tmp_path: Path) -> None:
@@ -400,3 +408,56 @@ def test_coevo_chaos_kills_and_restarts_and_the_run_comes_out_complete(tmp_path:
     assert report["complete"] and sum(report["faults"].values()) >= 1
     for b in ("tracking", "docking", "executive"):
         assert report["facts"][b]["generations"] == 30
+
+
+def _children(pid: int) -> list[int]:
+    try:
+        return [int(x) for x in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+    except OSError:
+        return []
+
+
+def _broker_of(pid: int) -> int | None:
+    """The pid of the broker a ``coevo run`` process started (its child running ``coevo ... broker``)."""
+    for c in _children(pid):
+        try:
+            if b"\0broker\0" in Path(f"/proc/{c}/cmdline").read_bytes():
+                return c
+        except OSError:
+            continue
+    return None
+
+
+def test_coevo_run_whose_broker_is_killed_twice_restarts_it_completes_and_checks(tmp_path: Path) -> None:
+    """Item 3 of issue 29: the run supervises its broker (same endpoint, same data directory); nothing is lost and
+    the store's latest is each worker's newest (coevo check); a finishing worker is never shown dead."""
+    out = tmp_path / "run.out"
+    with open(out, "wb") as f:
+        p = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--run", "sup", "--root", str(tmp_path),
+                              "--generations", "40", *SMALL, "--measure-epochs", "2", "--max-lead", "off"], stdout=f,
+                             stderr=subprocess.STDOUT)
+    run_dir = tmp_path / "sup"
+    try:
+        for n in (1, 2):
+            poll(lambda: _curve_len_dir(run_dir) >= 3 * n, 180, f"generations before kill {n}")
+            pid = poll(lambda: _broker_of(p.pid), 30, "the broker process")
+            os.kill(pid, signal.SIGKILL)
+            poll(lambda: (run_dir / "logs" / "broker.log").read_text().count("--- start") >= n + 1, 30,
+                 f"the broker started again ({n})")
+        assert p.wait(timeout=600) == 0, out.read_text()[-3000:]
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    text = out.read_text()
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert not summary["interrupted"], summary
+    check = check_run(run_dir)
+    assert check.ok, check.problems
+    # While the broker (the router the status session reaches the workers through) is down every worker looks dead;
+    # a worker that finished its generations never does.
+    assert not [x for x in text.splitlines() if " gen 40/40 " in x and x.rstrip().endswith(" dead")], text[-3000:]
+
+
+def _curve_len_dir(run_dir: Path) -> int:
+    return min((len(f.read_text().splitlines()) for f in run_dir.glob("workers/*/curve.jsonl")), default=0)

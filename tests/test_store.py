@@ -4,6 +4,7 @@ quotas are refused and counted.  The disk-full test runs a real broker process a
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -45,6 +46,23 @@ def test_run_ids_that_are_not_plain_directory_names_are_refused_before_any_path(
     with pytest.raises(MessageError, match="not a plain directory name"):
         store.add(forged)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["data"] and not list((tmp_path / "data").iterdir())
+
+
+def test_the_store_answers_by_version_not_by_arrival_and_keeps_arrival_order_on_disk(tmp_path: Path) -> None:
+    """After an outage the workers republish what the store lacked, after newer versions (measured: 4, 1, 2, 3)."""
+    store = PolicyStore(tmp_path)
+    for v in (4, 1, 2, 3):
+        assert store.add(_msg("o", v))
+    store.add(_msg("o", 9, worker="intruder"))  # an open run: another worker id (a keyed run's gate refuses it)
+    f = tmp_path / "o" / "store" / "tracking.jsonl"
+    assert [json.loads(x)["version"] for x in f.read_text().splitlines()] == [4, 1, 2, 3, 9]  # arrival order on disk
+    for s in (store, PolicyStore(tmp_path)):  # and the same once reloaded
+        assert s.latest("o", "tracking", worker="tracking-0").version == 4  # the roster's worker's newest
+        assert s.latest("o", "tracking").version == 9
+        assert [m.version for m in s.history("o", "tracking")] == [1, 2, 3, 4, 9]
+        assert s.latest("o", "tracking", worker="nobody") is None
+    assert not store.add(_msg("o", 2))  # an old version again: a duplicate, changes nothing
+    assert store.latest("o", "tracking", worker="tracking-0").version == 4
 
 
 def test_extra_fields_inside_rules_are_refused_as_bad_rules() -> None:

@@ -11,6 +11,7 @@ import hashlib
 import hmac
 import json
 import os
+import signal
 import stat
 import subprocess
 import sys
@@ -26,8 +27,8 @@ from hypothesis import strategies as st
 from procs import SMALL, coevo_proc, poll, stop
 
 from coevo.bus import keys
-from coevo.bus.auth import RunKey, mac, seal
-from coevo.bus.messages import REASONS, PolicyUpdate, decode, encode
+from coevo.bus.auth import RunKey, mac, mac2, seal
+from coevo.bus.messages import REASONS, Control, PolicyUpdate, decode, encode
 from coevo.bus.trust import Gate
 from coevo.errors import ConfigError, MessageError
 from coevo.policy import random_ruleset
@@ -58,10 +59,18 @@ def _raw_stop(run: str) -> bytes:
                          use_bin_type=True)
 
 
-def _raw_seal(secret: bytes, key: str, body: bytes) -> bytes:
-    """The envelope as the README describes it, computed here without coevo."""
-    tag = hmac.new(secret, b"coevo-mac-1\x00" + key.encode() + b"\x00" + body, hashlib.sha256).digest()
-    return msgpack.packb({"mac": tag, "msg": body}, use_bin_type=True)
+_RAW_SEQ = iter(range(1, 1 << 30))
+_RAW_BORN = time.time()
+
+
+def _raw_seal(secret: bytes, key: str, body: bytes, fresh: bytes | None = None) -> bytes:
+    """The envelope (format 2) as docs/trust.md describes it, computed here without coevo: a freshness header
+    [run incarnation, sender start, sender id, sequence number, time sealed] inside the MAC."""
+    if fresh is None:
+        fresh = msgpack.packb([0, _RAW_BORN, "raw-test", next(_RAW_SEQ), time.time()], use_bin_type=True)
+    tag = hmac.new(secret, b"coevo-mac-2\x00" + key.encode() + b"\x00" + len(fresh).to_bytes(4, "big") + fresh + body,
+                   hashlib.sha256).digest()
+    return msgpack.packb({"v": 2, "fresh": fresh, "mac": tag, "msg": body}, use_bin_type=True)
 
 
 def _raw_session(endpoint: str) -> zenoh.Session:
@@ -78,8 +87,9 @@ def test_the_envelope_authenticates_the_exact_bytes_and_the_key() -> None:
     key = RunKey.create("r1")
     body = _raw_policy("r1", "tracking", "tracking-0", 1, 1)
     k = keys.policy("r1", "tracking")
-    sealed = _raw_seal(key.secret, k, body)
-    assert sealed == seal(body, k, key.secret)  # the README's recipe is the codec's
+    fresh = msgpack.packb([0, _RAW_BORN, "raw-test", 1, time.time()], use_bin_type=True)
+    sealed = _raw_seal(key.secret, k, body, fresh)
+    assert sealed == seal(body, k, key.secret, fresh)  # docs/trust.md's recipe is the codec's
     msg = decode(sealed, key=k, secret=key.secret)
     assert isinstance(msg, PolicyUpdate) and msg.worker == "tracking-0"
     assert decode(encode(msg, key=k, secret=key.secret), key=k, secret=key.secret) == msg
@@ -87,10 +97,11 @@ def test_the_envelope_authenticates_the_exact_bytes_and_the_key() -> None:
         body,  # no envelope
         _raw_seal(b"x" * 32, k, body),  # another key's MAC
         _raw_seal(key.secret, keys.policy("r1", "docking"), body),  # sealed for another key expression
-        msgpack.packb({"mac": mac(key.secret, k, body)[:-1] + b"\0", "msg": body}),  # a bit flipped
-        msgpack.packb({"mac": mac(key.secret, k, body), "msg": body + b"\0"}),  # bytes appended
-        msgpack.packb({"mac": mac(key.secret, k, body), "msg": body, "more": 1}),
-        msgpack.packb({"mac": "text", "msg": body}),
+        msgpack.packb({"v": 2, "fresh": fresh, "mac": mac2(key.secret, k, fresh, body)[:-1] + b"\0", "msg": body}),
+        msgpack.packb({"v": 2, "fresh": fresh, "mac": mac2(key.secret, k, fresh, body), "msg": body + b"\0"}),
+        msgpack.packb({"v": 2, "fresh": fresh + b"\0", "mac": mac2(key.secret, k, fresh, body), "msg": body}),
+        msgpack.packb({"v": 2, "fresh": fresh, "mac": mac2(key.secret, k, fresh, body), "msg": body, "more": 1}),
+        msgpack.packb({"v": 2, "fresh": fresh, "mac": "text", "msg": body}),
     ]
     for payload in forged:
         with pytest.raises(MessageError) as err:
@@ -101,7 +112,42 @@ def test_the_envelope_authenticates_the_exact_bytes_and_the_key() -> None:
         decode(sealed, key=keys.policy("r1", "docking"), secret=key.secret)
     # An open receiver takes both forms, unverified.
     assert decode(body, key=k) == decode(sealed, key=k) == msg
-    assert {"unauthenticated", "not_roster", "bad_version"} <= set(REASONS)
+    assert {"unauthenticated", "not_roster", "bad_version", "replayed", "stale"} <= set(REASONS)
+    # Format 1 (no freshness) is refused with a reason that says so.
+    old = msgpack.packb({"mac": mac(key.secret, k, body), "msg": body}, use_bin_type=True)
+    with pytest.raises(MessageError, match="format 1") as err:
+        decode(old, key=k, secret=key.secret)
+    assert err.value.reason == "schema_version"
+    assert decode(old, key=k) == msg  # an open receiver still opens it, unverified
+
+
+def test_a_gate_refuses_replayed_and_stale_messages_and_keeps_a_memory_per_receiver() -> None:
+    from coevo.bus.freshness import Seen
+
+    key = RunKey.create("r")
+    gate = Gate(key=key, epoch=2)
+    k = keys.control("r")
+    stop = Control(run="r", command="stop", sent_at=time.time())
+    payload = gate.seal(stop, k)
+    assert gate.decode(k, payload) == stop
+    for again in (payload, payload):
+        with pytest.raises(MessageError) as err:
+            gate.decode(k, again)
+        assert err.value.reason == "replayed"
+    other = Seen()  # another receiver of the same process: new to it
+    assert gate.decode(k, payload, other) == stop
+    before = Gate(key=key, epoch=1).seal(stop, k)  # the previous incarnation's stop
+    with pytest.raises(MessageError, match="incarnation 1") as err:
+        gate.decode(k, before)
+    assert err.value.reason == "stale"
+    old = _raw_seal(key.secret, k, _raw_stop("r"), msgpack.packb([2, 1.0, "x", 1, time.time() - 3600]))
+    with pytest.raises(MessageError, match="s ago") as err:
+        gate.decode(k, old, Seen())
+    assert err.value.reason == "stale"
+    newer = Gate(key=key, epoch=3).seal(stop, k)  # a newer incarnation raises what the gate accepts from then on
+    assert gate.decode(k, newer) == stop and gate.fresh.epoch == 3
+    with pytest.raises(MessageError, match="incarnation 2"):
+        gate.decode(k, Gate(key=key, epoch=2).seal(stop, k), Seen())
 
 
 @settings(max_examples=300, deadline=None)
@@ -182,7 +228,7 @@ def test_a_broker_stores_only_runs_it_holds_a_key_for_and_seals_its_answers(tmp_
             got = poll(lambda: [r.ok for r in s.get(latest, timeout=2.0) if r.ok is not None], 10, "the stored policy")
             # The store's answer is sealed for the key it answers on and carries the policy that was sent.
             env = msgpack.unpackb(got[0].payload.to_bytes())
-            assert _raw_seal(key.secret, str(got[0].key_expr), env["msg"]) == got[0].payload.to_bytes()
+            assert _raw_seal(key.secret, str(got[0].key_expr), env["msg"], env["fresh"]) == got[0].payload.to_bytes()
             assert msgpack.unpackb(env["msg"]) == msgpack.unpackb(good)
             assert not [r for r in s.get(keys.store_latest("nokey"), timeout=1.0) if r.ok is not None]
             versions = [r.ok.payload.to_bytes() for r in s.get(keys.store_versions("keyed", "tracking"), timeout=2.0)
@@ -306,3 +352,118 @@ def test_a_worker_refuses_a_foreign_key_and_a_roster_it_is_not_on(tmp_path: Path
     RunKey.create("r").save(run_dir / "secret.key")
     r = subprocess.run(base + ["--worker-id", "someone"], capture_output=True, text=True, timeout=60, env=env)
     assert r.returncode == 2 and "roster names 'tracking-0'" in r.stderr, r.stderr
+
+
+# ---------------------------------------------------------------------------- the outside view: replays
+_OUTSIDER = r'''
+import base64, json, os, sys, time
+import zenoh  # and nothing of coevo: what anyone on the run's network can do
+
+mode, endpoint, run, path, seconds = sys.argv[1:6]
+conf = zenoh.Config()
+conf.insert_json5("mode", '"client"')
+conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
+conf.insert_json5("scouting/multicast/enabled", "false")
+conf.insert_json5("connect/timeout_ms", "20000")
+s = zenoh.open(conf)
+end = time.time() + float(seconds)
+if mode == "capture":
+    out = open(path, "a")
+    def keep(sample):
+        out.write(json.dumps([str(sample.key_expr), base64.b64encode(bytes(sample.payload.to_bytes())).decode()]) + "\n")
+        out.flush()
+    sub = s.declare_subscriber("coevo/" + run + "/**", keep)
+    while time.time() < end and not os.path.exists(path + ".stop"):
+        time.sleep(0.05)
+    sub.undeclare()
+else:
+    msgs = [json.loads(x) for x in open(path).read().splitlines() if x.strip()]
+    n = 0
+    while time.time() < end and not os.path.exists(path + ".stop"):
+        for k, b in msgs:
+            s.put(k, base64.b64decode(b))
+            n += 1
+        time.sleep(0.3)
+    print(n, flush=True)
+s.close()
+'''
+
+
+def _outsider(tmp_path: Path, mode: str, endpoint: str, run: str, path: Path, seconds: float) -> subprocess.Popen:
+    script = tmp_path / "outsider.py"
+    script.write_text(_OUTSIDER)
+    return subprocess.Popen([sys.executable, str(script), mode, endpoint, run, str(path), str(seconds)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env={**os.environ, "PYTHONPATH": ""})
+
+
+def _rejected(run_dir: Path) -> dict[str, int]:
+    total: dict[str, int] = {}
+    for f in run_dir.glob("workers/*/done.json"):
+        for r, n in json.loads(f.read_text()).get("rejected", {}).items():
+            total[r] = total.get(r, 0) + n
+    return total
+
+
+def test_genuine_messages_captured_and_replayed_from_outside_change_nothing_running_or_resumed(tmp_path: Path) -> None:
+    """Issue 29 item 7: a raw zenoh client (no coevo import) captures a keyed run's genuine messages (policies,
+    current policies, statuses, the broker's status, the stop of a Ctrl-C) and puts them again, into the running
+    run and then, all of them every 0.3 s, into the resumed run: nothing is accepted, each is counted by reason."""
+    import base64
+
+    def coevo_run(*args: str, log: Path) -> subprocess.Popen:
+        with open(log, "wb") as f:
+            return subprocess.Popen([sys.executable, "-m", "coevo", "--log-level", "INFO", "run", *args], stdout=f,
+                                    stderr=subprocess.STDOUT)
+
+    run_dir = tmp_path / "rp"
+    p = coevo_run("--run", "rp", "--root", str(tmp_path), "--generations", "30", *SMALL, "--measure-epochs", "2",
+                  "--max-lead", "off", log=tmp_path / "first.out")
+    cap = tmp_path / "captured.jsonl"
+    try:
+        endpoint = poll(lambda: (run_dir / "run.json").exists() and json.loads((run_dir / "run.json").read_text())
+                        .get("endpoint"), 60, "run.json with the broker's endpoint")
+        capture = _outsider(tmp_path, "capture", endpoint, "rp", cap, 300)
+        poll(lambda: min((len(f.read_text().splitlines()) for f in run_dir.glob("workers/*/curve.jsonl")),
+                         default=0) >= 4, 180, "four generations")
+        kinds = lambda: {k.split("/")[2] for k, _ in (json.loads(x) for x in cap.read_text().splitlines())}  # noqa: E731
+        poll(lambda: {"policy", "status", "broker"} <= kinds(), 30, "policies, statuses and a broker status captured")
+        replay = _outsider(tmp_path, "replay", endpoint, "rp", cap, 5)  # into the running run
+        assert replay.wait(timeout=60) == 0, replay.stdout.read()
+        p.send_signal(signal.SIGINT)  # Ctrl-C: coevo run puts a genuine stop
+        p.wait(timeout=120)
+        poll(lambda: "control" in kinds(), 10, "the stop captured")
+        (tmp_path / "captured.jsonl.stop").write_text("")
+        capture.wait(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    first = json.loads((run_dir / "summary.json").read_text())
+    assert first["interrupted"]
+    replayed_running = _rejected(run_dir)
+    assert replayed_running.get("replayed", 0) > 0, replayed_running
+    (tmp_path / "captured.jsonl.stop").unlink()
+    old_endpoint = json.loads((run_dir / "run.json").read_text())["endpoint"]
+    resumed = coevo_run("--resume", str(run_dir), log=tmp_path / "resumed.out")
+    try:
+        endpoint = poll(lambda: json.loads((run_dir / "run.json").read_text()).get("endpoint") != old_endpoint
+                        and json.loads((run_dir / "run.json").read_text())["endpoint"], 60, "the resumed run's endpoint")
+        assert json.loads((run_dir / "run.json").read_text())["incarnation"] == 2
+        flood = _outsider(tmp_path, "replay", endpoint, "rp", cap, 600)  # everything, every 0.3 s, till the end
+        assert resumed.wait(timeout=600) == 0, (tmp_path / "resumed.out").read_text()[-3000:]
+        (tmp_path / "captured.jsonl.stop").write_text("")
+        flood.wait(timeout=30)
+    finally:
+        for q in (resumed,):
+            if q.poll() is None:
+                q.kill()
+                q.wait()
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert not summary["interrupted"], summary  # the captured stop ended nothing
+    after = _rejected(run_dir)
+    assert after.get("stale", 0) > replayed_running.get("stale", 0), after  # counted, by reason
+    check = check_run(run_dir)
+    assert check.ok, check.problems
+    broker_log = (run_dir / "logs" / "broker.log").read_text()
+    assert "rejected stale" in broker_log or "rejected replayed" in broker_log
+    assert base64  # the sender used only zenoh, msgpack-free: bytes as captured

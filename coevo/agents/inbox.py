@@ -58,7 +58,6 @@ class Inbox:
         self.stop = threading.Event()
         self.refetch = True  # ask the store for the partners' latest before the next generation
         self._fetched: list[tuple[str, bytes]] = []  # partner policies fetched from the store
-        self._accepted: dict[str, bytes] = {}  # key -> last partner payload accepted (repeats skip decoding)
         self._partner_key = keys.current if models.kind == "current" else keys.policy
         self._subs: list[Any] = []
         self._control: Any = None
@@ -111,19 +110,18 @@ class Inbox:
 
     def adopt(self, generation: int) -> None:
         """Take the newest valid version of each partner that arrived; log each adoption."""
-        items, self._fetched = self._fetched, []
+        items = [(k, p, None) for k, p in self._fetched]  # store replies: the gate's memory
+        self._fetched = []
         for sub in self._subs:
             got = drain(sub, INBOX)
             if len(got) == INBOX:  # the ring was full: older messages were dropped unread
                 self._reject(MessageError("flood", f"over {INBOX} messages on {got[0][0]!r} within one generation"), got[0][0])
                 self.refetch = True
-            items += got
+            items += [(k, p, getattr(sub, "seen", None)) for k, p in got]
         newest: dict[str, tuple[PolicyUpdate, RuleSet]] = {}
-        for key, payload in items:
-            if self._accepted.get(key) == payload:
-                continue  # the partner's every-generation repeat of what this worker already checked and holds
+        for key, payload, seen in items:
             try:
-                msg = self.gate.decode(key, payload)
+                msg = self.gate.decode(key, payload, seen)  # a replayed or stale one is refused (and counted) here
                 if not isinstance(msg, PolicyUpdate) or msg.behaviour not in self.models.needed:
                     raise MessageError("wrong_key", f"{msg.kind} of {getattr(msg, 'behaviour', '?')} on {key!r}")
                 self._in_sequence(msg)
@@ -131,7 +129,6 @@ class Inbox:
             except MessageError as err:
                 self._reject(err, key)
                 continue
-            self._accepted[key] = payload
             cur = newest.get(msg.behaviour)
             if cur is None or msg.version > cur[0].version:
                 newest[msg.behaviour] = (msg, rules)

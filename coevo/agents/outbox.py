@@ -79,7 +79,7 @@ class Outbox:
         self.run, self.behaviour, self.worker_id = run, behaviour, worker_id
         self.log_path = Path(log_path)
         self.store_timeout, self.confirm_every = store_timeout, confirm_every
-        self.published: dict[int, bytes] = {}  # version -> encoded PolicyUpdate
+        self.published: dict[int, PolicyUpdate] = {}  # version -> policy (sealed afresh at every put: freshness)
         self.stored: set[int] = set()  # versions the store confirmed holding
         self.republished = 0
         self.net_seconds = 0.0
@@ -89,7 +89,7 @@ class Outbox:
         self._current: Any = None
         self._policy_key = keys.policy(run, behaviour)
         for msg in read_store(self.log_path):  # the outbox log holds stored-policy lines, like the store's files
-            self.published[msg.version] = self.gate.seal(msg, self._policy_key)
+            self.published[msg.version] = msg
 
     def __enter__(self) -> Outbox:
         self._log = open(self.log_path, "a", encoding="utf-8")
@@ -127,7 +127,7 @@ class Outbox:
         if self._log is None:
             raise RuntimeError("the outbox is closed")
         append_durably(self._log, msg.model_dump(mode="json"))
-        self.published[msg.version] = self.gate.seal(msg, self._policy_key)
+        self.published[msg.version] = msg
 
     def put_current(self, msg: PolicyUpdate) -> None:
         """The current generation's best, on its own key (the ``current`` partner model); not stored."""
@@ -136,7 +136,7 @@ class Outbox:
     def put_latest(self) -> None:
         """The newest version; every generation, not only on improvement: partners that missed a put catch up."""
         if self.published:
-            self._pub.put(self.published[self.top])
+            self._pub.put(self.gate.seal(self.published[self.top], self._policy_key))
 
     def sync(self, *, upto: int, now: bool = False) -> bool:
         """Make sure the store holds every version up to ``upto``; republish what it lacks.  True if it does.
@@ -162,7 +162,7 @@ class Outbox:
         self.stored = have & set(self.published)
         missing = sorted(v for v in self.published if v <= upto and v not in have)
         for v in missing:
-            self._pub.put(self.published[v])
+            self._pub.put(self.gate.seal(self.published[v], self._policy_key))
         if missing:
             self.republished += len(missing)
             log.info("%s republished versions %s the store lacked", self.worker_id, missing)

@@ -9,6 +9,7 @@ import argparse
 from pathlib import Path
 
 from coevo.console import count_arg, positive_float_arg
+from coevo.errors import ConfigError
 
 __all__ = ["configure_broker", "configure_router"]
 
@@ -37,6 +38,8 @@ def cmd_broker(args: argparse.Namespace) -> int:
     from coevo.broker.server import serve_broker
     from coevo.broker.store import Quota
 
+    if not str(args.data_dir).strip():
+        raise ConfigError(f"--data-dir {args.data_dir!r} is empty: give the directory the store keeps runs in (default runs)")
     return serve_broker(args, data_dir=Path(args.data_dir), inbox_bytes=int(args.inbox_mb * (1 << 20)), open_runs=args.open,
                         quota=Quota(runs=args.quota_runs, policies=args.quota_policies, bytes=int(args.quota_mb * (1 << 20))))
 

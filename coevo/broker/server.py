@@ -276,7 +276,8 @@ class Broker:
                 continue
             latest = topic == "store/latest"
             key = PolicyStore.key_of(run, beh, latest)
-            msgs = [self.store.latest(run, beh)] if latest else self.store.history(run, beh)
+            publisher = gate.roster.get(beh) if gate.roster else None  # the roster's worker, when the run has one
+            msgs = [self.store.latest(run, beh, worker=publisher)] if latest else self.store.history(run, beh)
             for m in msgs:
                 if m is not None:
                     query.reply(key, gate.seal(m, key))

@@ -11,6 +11,13 @@ update was never confirmed to its worker, which publishes it again).  An update
 whose (worker, version) is already stored is a duplicate (a worker republishing)
 and is ignored.  Rejected messages are counted per run, by reason.
 
+**Order: by version, not by arrival.**  After a broker outage the workers republish the
+versions the store lacked, and those arrive after newer ones (measured: tracking 4, 1, 2, 3).
+So the files keep arrival order (append only), but the store answers in version order:
+:meth:`PolicyStore.latest` is the highest version (of the roster's worker, when the caller
+names it), :meth:`PolicyStore.history` lists by (version, arrival).  An old policy never
+displaces a newer one, however late it arrives.
+
 **Write errors** (a full disk, a store directory that became a file, an I/O
 error): the update is not kept, the file is cut back to its last whole line, and
 the store is *degraded* (:attr:`PolicyStore.degraded` names the file and the
@@ -268,14 +275,23 @@ class PolicyStore:
             out.setdefault(m.worker, []).append(m.version)
         return {w: sorted(v) for w, v in out.items()}
 
-    def latest(self, run: str, behaviour: str) -> PolicyUpdate | None:
+    def latest(self, run: str, behaviour: str, *, worker: str | None = None) -> PolicyUpdate | None:
+        """The highest version held for (run, behaviour), of ``worker`` when given (the roster's publisher);
+        arrival order decides only between equal versions (of different workers, in an open run: the last)."""
         with self._lock:
-            h = self._history.get((run, behaviour))
-            return h[-1] if h else None  # type: ignore[return-value]
+            h = [m for m in self._history.get((run, behaviour), []) if worker is None or m.worker == worker]
+        best: Stored | None = None
+        for m in h:
+            if best is None or m.version >= best.version:
+                best = m
+        return best  # type: ignore[return-value]
 
     def history(self, run: str, behaviour: str) -> list[PolicyUpdate]:
+        """Every policy held for (run, behaviour), in version order (arrival order between equal versions);
+        the file on disk keeps arrival order."""
         with self._lock:
-            return list(self._history.get((run, behaviour), []))  # type: ignore[arg-type]
+            h = list(self._history.get((run, behaviour), []))
+        return sorted(h, key=lambda m: m.version)  # type: ignore[arg-type]  # stable: arrival breaks ties
 
     def cases(self, run: str, behaviour: str) -> list[CaseUpdate]:
         """The case base of (run, behaviour): every case stored, in arrival order."""

@@ -1,12 +1,18 @@
 """Message authentication: a per-run secret key and an HMAC-SHA256 over every message and its key.
 
 A run's processes share one secret of 32 random bytes (:class:`RunKey`).  Whatever
-they put on the bus goes inside an *envelope*, a msgpack map of two binary fields::
+they put on the bus goes inside an *envelope* (format 2), a msgpack map::
 
-    {"mac": HMAC-SHA256(secret, "coevo-mac-1\\0" + KEY_EXPRESSION + "\\0" + MSG), "msg": MSG}
+    {"v": 2, "fresh": FRESH, "msg": MSG,
+     "mac": HMAC-SHA256(secret, "coevo-mac-2\\0" + KEY_EXPRESSION + "\\0" + len(FRESH) as 4 bytes big-endian
+                                + FRESH + MSG)}
 
-where ``MSG`` is the message's own msgpack bytes (:func:`coevo.bus.messages.encode`)
-and ``KEY_EXPRESSION`` the key it is put on (a reply: the key it answers on).  The
+where ``MSG`` is the message's own msgpack bytes (:func:`coevo.bus.messages.encode`),
+``FRESH`` its freshness header (:mod:`coevo.bus.freshness`: run incarnation, sender
+incarnation, sequence number, time sealed) and ``KEY_EXPRESSION`` the key it is put on
+(a reply: the key it answers on).  Format 1 (``{"mac", "msg"}``, ``coevo-mac-1``, no
+freshness: a captured message could be put again) is refused in a run with a key
+(``schema_version``, saying so).  The
 MAC covers the exact bytes and the key, so a message cannot be altered, and a valid
 message copied onto another key (another behaviour, another run, the control key)
 fails.  A receiver that holds the key checks the MAC before it parses the message
@@ -39,13 +45,15 @@ import msgpack
 
 from coevo.errors import ConfigError
 
-__all__ = ["KEY_ENV", "KEY_BYTES", "RunKey", "mac", "seal"]
+__all__ = ["KEY_ENV", "KEY_BYTES", "ENVELOPE", "RunKey", "mac", "mac2", "seal"]
 
 #: The environment variable a worker reads its key file's path from (systemd units, spawners).
 KEY_ENV = "COEVO_RUN_KEY_FILE"
 KEY_BYTES = 32
 _FORMAT = "coevo-run-key-1"
-_DOMAIN = b"coevo-mac-1\x00"
+_DOMAIN = b"coevo-mac-1\x00"  # envelope format 1 (no freshness): refused, see the module docstring
+_DOMAIN2 = b"coevo-mac-2\x00"
+ENVELOPE = 2
 
 
 def mac(secret: bytes, key_expr: str, body: bytes) -> bytes:
@@ -57,9 +65,26 @@ def mac(secret: bytes, key_expr: str, body: bytes) -> bytes:
     return h.digest()
 
 
-def seal(body: bytes, key_expr: str, secret: bytes) -> bytes:
-    """``body`` in an envelope with its authenticator for ``key_expr``."""
-    return msgpack.packb({"mac": mac(secret, key_expr, body), "msg": body}, use_bin_type=True)
+def mac2(secret: bytes, key_expr: str, fresh: bytes, body: bytes) -> bytes:
+    """The authenticator (format 2) of ``body`` with its freshness header ``fresh``, put on ``key_expr``."""
+    h = hmac.new(secret, _DOMAIN2, hashlib.sha256)
+    h.update(key_expr.encode("utf-8"))
+    h.update(b"\x00")
+    h.update(len(fresh).to_bytes(4, "big"))
+    h.update(fresh)
+    h.update(body)
+    return h.digest()
+
+
+def seal(body: bytes, key_expr: str, secret: bytes, fresh: bytes | None = None) -> bytes:
+    """``body`` in a format-2 envelope with its freshness header (default: this process's next) and its
+    authenticator for ``key_expr``."""
+    if fresh is None:
+        from coevo.bus.freshness import header
+
+        fresh = header(0)
+    return msgpack.packb({"v": ENVELOPE, "fresh": fresh, "mac": mac2(secret, key_expr, fresh, body), "msg": body},
+                         use_bin_type=True)
 
 
 @dataclass(frozen=True)

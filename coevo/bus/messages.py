@@ -32,7 +32,7 @@ import coevo.tasks  # noqa: F401 - the built-in tasks register their behaviours,
 from coevo.policy.schema import registered
 
 __all__ = ["SCHEMA_VERSION", "MAX_BYTES", "REASONS", "PolicyUpdate", "Status", "BrokerStatus", "Control", "CaseUpdate",
-           "CapabilityUpdate", "ExecutionStatus", "Message", "encode", "decode", "unseal"]
+           "CapabilityUpdate", "ExecutionStatus", "Message", "encode", "decode", "decode_fresh", "unseal", "unseal_fresh"]
 
 SCHEMA_VERSION = 1
 MAX_BYTES = 1 << 20  # a 64-rule policy is ~5 KB; anything near a megabyte is not ours
@@ -45,7 +45,8 @@ REASONS = {
     "invalid": "msgpack, but not a message: wrong or missing fields, wrong types",
     "non_finite": "a NaN or infinite fitness",
     "bad_rules": "a rule set that cannot be (impossible intervals, unknown actions, wrong shapes)",
-    "schema_version": f"a schema version other than {SCHEMA_VERSION}",
+    "schema_version": f"a schema version other than {SCHEMA_VERSION}, or in a run with a key an envelope of format 1 "
+                      "(no freshness: sent by an older coevo)",
     "wrong_run": "a message naming another run than its key",
     "wrong_behaviour": "a message naming another behaviour (or worker) than its key",
     "wrong_key": "a message of a kind that does not belong on its key",
@@ -57,6 +58,10 @@ REASONS = {
     "bad_version": "a policy version its publisher cannot have reached: above its generation, past the run's "
                    "generations, or more versions than generations since the one held",
     "quota": "the broker's store is full for that run (policies, bytes) or for new runs",
+    "replayed": "in a run with a key: a genuine message this receiver has already taken (its sender's sequence "
+                "number on that key seen before): captured and put again",
+    "stale": "in a run with a key: a genuine message of an earlier incarnation of the run (before a resume), of an "
+             "older incarnation of its sender, or sealed more than 10 minutes ago",
 }
 
 
@@ -231,14 +236,15 @@ AnyMessage = Union[PolicyUpdate, Status, BrokerStatus, Control, CaseUpdate, Capa
 
 
 def encode(msg: AnyMessage, *, key: str | None = None,
-           secret: bytes | None = None) -> bytes:
-    """Message -> bytes; with ``secret``, sealed in an envelope authenticated for the key expression ``key``."""
+           secret: bytes | None = None, fresh: bytes | None = None) -> bytes:
+    """Message -> bytes; with ``secret``, sealed in an envelope authenticated for the key expression ``key``
+    with the freshness header ``fresh`` (default: this process's next, run incarnation 0)."""
     body = msgpack.packb(msg.model_dump(mode="json"), use_bin_type=True)
     if secret is None:
         return body
     if key is None:
         raise TypeError("sealing needs the key expression the message is put on")
-    return auth.seal(body, key, secret)
+    return auth.seal(body, key, secret, fresh)
 
 
 def _unpack(payload: bytes) -> Any:
@@ -250,29 +256,45 @@ def _unpack(payload: bytes) -> Any:
         raise MessageError(reason, f"{type(exc).__name__}: {exc}") from None
 
 
-def _envelope(data: Any, key: str | None, secret: bytes | None) -> bytes | None:
-    """The message bytes inside an envelope (checked when ``secret`` is given); None if ``data`` is no envelope."""
+def _envelope(data: Any, key: str | None, secret: bytes | None) -> tuple[bytes, bytes | None] | None:
+    """(the message bytes, the freshness header) inside an envelope (checked when ``secret`` is given); None if
+    ``data`` is no envelope.  Format 1 (no freshness) is opened only without a secret (an open run)."""
     if not (isinstance(data, dict) and "mac" in data):
         if secret is not None:
             raise MessageError("unauthenticated", f"no authenticator on {key!r} (this run's messages are sealed)")
         return None
-    tag, body = data.get("mac"), data.get("msg")
-    if set(data) != {"mac", "msg"} or not isinstance(tag, bytes) or not isinstance(body, bytes):
+    tag, body, fresh = data.get("mac"), data.get("msg"), data.get("fresh")
+    v1 = set(data) == {"mac", "msg"}
+    if v1 and secret is not None:
+        raise MessageError("schema_version", f"an envelope of format 1 on {key!r} (no freshness: an older coevo); "
+                                             f"this coevo speaks format {auth.ENVELOPE}: run the same coevo everywhere")
+    if not v1 and (set(data) != {"v", "fresh", "mac", "msg"} or data.get("v") != auth.ENVELOPE
+                   or not isinstance(fresh, bytes)):
+        raise MessageError("unauthenticated" if secret is not None else "invalid",
+                           f"a malformed envelope (format {data.get('v')!r}; this coevo speaks {auth.ENVELOPE})")
+    if not isinstance(tag, bytes) or not isinstance(body, bytes):
         raise MessageError("unauthenticated" if secret is not None else "invalid", "a malformed envelope")
     if secret is not None:
         if key is None:
             raise TypeError("checking an authenticator needs the key expression the message arrived on")
-        if not hmac.compare_digest(tag, auth.mac(secret, key, body)):
-            raise MessageError("unauthenticated", f"wrong authenticator for {key!r} (forged, altered or replayed)")
-    return body
+        if not hmac.compare_digest(tag, auth.mac2(secret, key, fresh, body)):
+            raise MessageError("unauthenticated", f"wrong authenticator for {key!r} (forged, altered or moved "
+                                                  "onto another key)")
+    return body, (None if v1 else fresh)
+
+
+def unseal_fresh(payload: bytes, *, key: str, secret: bytes | None) -> tuple[bytes, bytes | None]:
+    """(the bytes inside an envelope for ``key``, its freshness header); any payload that is not one, when
+    ``secret`` is None, with no header."""
+    if len(payload) > MAX_BYTES:
+        raise MessageError("oversize", f"{len(payload)} bytes > {MAX_BYTES}")
+    opened = _envelope(_unpack(payload), key, secret)
+    return (payload, None) if opened is None else opened
 
 
 def unseal(payload: bytes, *, key: str, secret: bytes | None) -> bytes:
     """The bytes inside an envelope for ``key`` (any payload that is not one, when ``secret`` is None)."""
-    if len(payload) > MAX_BYTES:
-        raise MessageError("oversize", f"{len(payload)} bytes > {MAX_BYTES}")
-    body = _envelope(_unpack(payload), key, secret)
-    return payload if body is None else body
+    return unseal_fresh(payload, key=key, secret=secret)[0]
 
 
 def decode(payload: bytes, *, key: str | None = None,
@@ -280,13 +302,22 @@ def decode(payload: bytes, *, key: str | None = None,
     """Bytes -> message, checking it against the key it arrived on (if given).
 
     With ``secret`` (a run with a key) the payload must be an envelope whose authenticator
-    matches ``key``; without, an envelope is opened unverified (an open run).
+    matches ``key``; without, an envelope is opened unverified (an open run).  Freshness
+    (replays) is the receiver's :class:`~coevo.bus.trust.Gate`'s to check (:func:`decode_fresh`).
     """
+    return decode_fresh(payload, key=key, secret=secret)[0]
+
+
+def decode_fresh(payload: bytes, *, key: str | None = None,
+                 secret: bytes | None = None) -> tuple[AnyMessage, bytes | None]:
+    """Like :func:`decode`: (the message, its envelope's freshness header, None without one)."""
     if len(payload) > MAX_BYTES:
         raise MessageError("oversize", f"{len(payload)} bytes > {MAX_BYTES}")
     data = _unpack(payload)
-    body = _envelope(data, key, secret)
-    if body is not None:
+    opened = _envelope(data, key, secret)
+    fresh = None
+    if opened is not None:
+        body, fresh = opened
         data = _unpack(body)
     if not isinstance(data, dict):
         raise MessageError("invalid", f"expected a map, got {type(data).__name__}")
@@ -309,7 +340,7 @@ def decode(payload: bytes, *, key: str | None = None,
         raise MessageError("bad_rules", f"a {msg.behaviour} policy carrying {msg.rules.get('behaviour')!r} rules")
     if key is not None:
         _check_key(msg, key)
-    return msg
+    return msg, fresh
 
 
 _TOPICS = {"policy": ("policy", "current", "store/latest", "store/history"), "status": ("status",), "broker": ("broker",),

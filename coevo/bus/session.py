@@ -142,6 +142,24 @@ def _endpoints(section: Any, mode: str) -> list[str]:
     return list(eps)
 
 
+_PORTED = ("tcp/", "udp/", "tls/", "quic/", "ws/")
+
+
+def check_endpoint(ep: str, *, listen: bool) -> None:
+    """Refuse an endpoint that cannot exist (a port beyond 65535, none, or no host) before zenoh tries it: zenoh
+    only warns, and a router would say it joined a port that cannot exist."""
+    if not isinstance(ep, str) or not ep.strip():
+        raise ConfigError(f"endpoint {ep!r} is empty: give one like tcp/127.0.0.1:7447")
+    if not ep.startswith(_PORTED):
+        return  # unixsock-stream/PATH, serial/..., and others zenoh knows: its own checks
+    addr = ep.split("/", 1)[1].split("#", 1)[0].split("?", 1)[0]
+    host, sep, port = addr.rpartition(":")
+    if not sep or not host or not port.isdigit():
+        raise ConfigError(f"endpoint {ep!r} has no HOST:PORT (e.g. tcp/127.0.0.1:7447)")
+    if not (0 if listen else 1) <= int(port) <= 65535:
+        raise ConfigError(f"endpoint {ep!r}: port {port} cannot exist (ports are {0 if listen else 1}..65535)")
+
+
 def check_config(conf: zenoh.Config, *, source: str = "flags") -> None:
     """Refuse a merged configuration that would fail late or leave a protected run open."""
     try:
@@ -158,6 +176,10 @@ def check_config(conf: zenoh.Config, *, source: str = "flags") -> None:
     mode = d.get("mode") or "peer"
     listen, connect = _endpoints(d.get("listen"), mode), _endpoints(d.get("connect"), mode)
     has_tls = bool(tls.get("root_ca_certificate") or tls.get("listen_certificate"))
+    for ep in listen:
+        check_endpoint(ep, listen=True)
+    for ep in connect:
+        check_endpoint(ep, listen=False)
     for ep in listen + connect:
         if ep.startswith(("tls/", "quic/")) and not tls.get("root_ca_certificate"):
             raise ConfigError(f"endpoint {ep!r} is TLS but no CA is set: give --tls-ca (and --tls-cert/--tls-key for mutual TLS)")
@@ -286,10 +308,14 @@ def query_messages(session: Any, key: str, *, timeout: float, what: str, gate: G
 
 
 class Ring:
-    """A ring subscriber and the gate its messages pass (the session's)."""
+    """A ring subscriber, the gate its messages pass (the session's) and its own memory of what it took
+    (:class:`~coevo.bus.freshness.Seen`: a replay is refused per receiver)."""
 
     def __init__(self, subscriber: Any, gate: Gate) -> None:
+        from coevo.bus.freshness import Seen
+
         self.subscriber, self.gate = subscriber, gate
+        self.seen = Seen()
 
     def try_recv(self) -> Any:
         return self.subscriber.try_recv()
@@ -328,7 +354,7 @@ def drain_messages(subscriber: Any, limit: int,
     out: list[tuple[str, Message]] = []
     for key, payload in drain(subscriber, limit):
         try:
-            out.append((key, gate.decode(key, payload)))
+            out.append((key, gate.decode(key, payload, getattr(subscriber, "seen", None))))
         except MessageError as err:
             if reject is not None:
                 reject(err, key)

@@ -5,7 +5,10 @@ recent, *stalled* when the token exists but no heartbeat came for ``stall``
 seconds (a token proves the process exists, not that it progresses; a worker
 heartbeats about every second, even in the middle of a generation), *dead* when
 its token is gone (its process died: seen within milliseconds on a LAN, or its
-link stayed silent for a lease), and *done* when it said so.  The broker is *up*
+link stayed silent for a lease), and *done* when it said so or when its token went after its
+heartbeats showed it at its last generation (a worker that finished its generations and
+ends: its final heartbeat and its token travel apart and may arrive in either order, so a
+finishing worker is never shown dead, in the table, the plain lines or JSON).  The broker is *up*
 while its token exists; its last :class:`~coevo.bus.messages.BrokerStatus` says what
 it stored and rejected for this run; it is *degraded* while its store cannot write
 (it then holds ``coevo/_broker/degraded`` instead, and its status says why).
@@ -60,11 +63,15 @@ class WorkerView:
     last_heartbeat: float = 0.0
     died_at: float | None = None
 
+    def finished(self) -> bool:
+        """It said done, or it reached its last generation (what is left is its final store sync)."""
+        return self.done or 0 < self.generations <= self.generation
+
     def state(self, now: float, stall: float) -> str:
         if self.done:
             return "done"
         if not self.token:
-            return "dead"
+            return "done" if self.finished() else "dead"
         if self.last_heartbeat and now - self.last_heartbeat > stall:
             return "stalled"
         return "alive"
@@ -99,6 +106,10 @@ class RobotView:
     done: bool = False
     last_heartbeat: float = 0.0
     died_at: float | None = None
+
+    def finished(self) -> bool:
+        """It said done, or it played its last trial."""
+        return self.done or 0 < self.trials <= self.trial
 
     state = WorkerView.state
 

@@ -12,6 +12,12 @@
   version is its generation; anything else is ``bad_version``.  (The receiver adds the
   sequence rule against the version it holds, see :class:`~coevo.agents.inbox.Inbox`.)
 
+* **Freshness** (:mod:`coevo.bus.freshness`, with a key only): a genuine message taken
+  before is ``replayed``; one of an earlier incarnation of the run (``epoch``: run.json's
+  ``incarnation``), of an older incarnation of its sender, or sealed too long ago is
+  ``stale``.  Each ring keeps its own memory (:class:`~coevo.bus.session.Ring`); the
+  gate's own serves everything else (the broker, queries).
+
 The gate rides on the session (:func:`coevo.bus.session.open_session`), so every ring
 subscriber of that session — partner policies, control, the pacer's status rings, the
 status board — decodes through it, and rejections with no other home go to its
@@ -22,11 +28,12 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
+from coevo.bus.freshness import Freshness, Seen
 from coevo.bus.messages import (
     CapabilityUpdate,
     CaseUpdate,
@@ -34,9 +41,9 @@ from coevo.bus.messages import (
     Message,
     PolicyUpdate,
     Status,
-    decode,
+    decode_fresh,
     encode,
-    unseal,
+    unseal_fresh,
 )
 from coevo.errors import MessageError
 
@@ -54,6 +61,12 @@ class Gate:
     generations: int | None = None
     reject: Callable[[MessageError, str], None] | None = None
     robot: str | None = None  # a CEL run's execution module (None: any robot id)
+    epoch: int = 0  # the run's incarnation (run.json's): older messages are stale
+    fresh: Freshness = field(default=None, compare=False, repr=False)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.fresh is None:
+            object.__setattr__(self, "fresh", Freshness(self.epoch))
 
     @property
     def open(self) -> bool:
@@ -64,22 +77,31 @@ class Gate:
         return None if self.key is None else self.key.secret
 
     def seal(self, msg: Any, key_expr: str) -> bytes:
-        """``msg`` encoded for ``key_expr`` (in an authenticated envelope when the run has a key)."""
-        return encode(msg, key=key_expr, secret=self.secret)
+        """``msg`` encoded for ``key_expr`` (in an authenticated envelope, fresh, when the run has a key).
+        Seal when putting: a sealed payload put twice is a replay to its receivers."""
+        if self.key is None:
+            return encode(msg)
+        return encode(msg, key=key_expr, secret=self.key.secret, fresh=self.fresh.seal_header())
 
     def seal_bytes(self, body: bytes, key_expr: str) -> bytes:
         """Raw bytes (a store's versions reply) sealed like a message; unchanged in an open run."""
         from coevo.bus.auth import seal
 
-        return body if self.key is None else seal(body, key_expr, self.key.secret)
+        return body if self.key is None else seal(body, key_expr, self.key.secret, self.fresh.seal_header())
 
-    def unseal(self, payload: bytes, key_expr: str) -> bytes:
-        return unseal(payload, key=key_expr, secret=self.secret)
+    def unseal(self, payload: bytes, key_expr: str, seen: Seen | None = None) -> bytes:
+        body, fresh = unseal_fresh(payload, key=key_expr, secret=self.secret)
+        if self.key is not None and fresh is not None:
+            self.fresh.admit(key_expr, fresh, seen)
+        return body
 
-    def decode(self, key_expr: str, payload: bytes) -> Message:
-        """Bytes that arrived on ``key_expr`` -> a message this run accepts, or a MessageError."""
-        msg = decode(payload, key=key_expr, secret=self.secret)
+    def decode(self, key_expr: str, payload: bytes, seen: Seen | None = None) -> Message:
+        """Bytes that arrived on ``key_expr`` -> a message this run accepts, or a MessageError.  ``seen``: the
+        receiver's memory of what it took (default: the gate's)."""
+        msg, fresh = decode_fresh(payload, key=key_expr, secret=self.secret)
         self.check(msg, key_expr)
+        if self.key is not None and fresh is not None:  # with a key, decode_fresh refuses an envelope without
+            self.fresh.admit(key_expr, fresh, seen)
         return msg
 
     def check(self, msg: Any, key_expr: str) -> None:

@@ -48,6 +48,9 @@ class RunSettings(Settings):
     cel: CelSettings | None = Field(None, description="a Continuous and Embedded Learning run (door task): the execution "
                                     "module, its failure schedule and the learner's restart (coevo cel)")
     endpoint: str | None = Field(None, description="where the run's broker listens (its latest start)")
+    incarnation: int = Field(0, ge=0, description="the run's incarnation: 1 when coevo run makes it, +1 with every "
+                             "coevo run --resume; sealed into every message, so a message of an earlier one (a "
+                             "captured stop) is refused as stale (0: a run by hand, none)")
     started: float | None = None
 
     @field_validator("run")
@@ -108,7 +111,8 @@ class RunSettings(Settings):
         (when there is a roster) and, in a CEL run, its robot."""
         roster = self.roster
         return Gate(key=key, roster=roster, generations=self.ga.generations if roster is not None else None,
-                    robot=self.cel.robot if self.cel is not None and roster is not None else None, reject=reject)
+                    robot=self.cel.robot if self.cel is not None and roster is not None else None, reject=reject,
+                    epoch=self.incarnation)
 
     def key_path(self, base: Path) -> Path | None:
         """The key file's path (``key_file`` relative to ``base``, run.json's directory); None in an open run."""
@@ -132,7 +136,8 @@ class RunSettings(Settings):
 
     def fresh(self, run: str | None = None) -> RunSettings:
         """The same settings for a new run (named ``run``, else the same): no endpoint, key or roster of the old one."""
-        data = self.model_dump(mode="json") | {"endpoint": None, "started": None, "key_file": None, "roster": None}
+        data = self.model_dump(mode="json") | {"endpoint": None, "started": None, "key_file": None, "roster": None,
+                                               "incarnation": 0}
         return RunSettings.make(**(data | ({"run": run} if run is not None else {})))
 
     def restarted(self, endpoint: str) -> RunSettings:

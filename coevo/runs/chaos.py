@@ -7,7 +7,9 @@ One fault at a time, at random (seeded) moments while the workers evolve:
 * ``kill-broker``: SIGKILL the broker, wait a moment, restart it on the same
   endpoint (its store reloads from disk; the workers reconnect and republish what
   it missed);
-* ``pause-worker``: SIGSTOP a worker for a moment, then SIGCONT (a frozen process).
+* ``pause-worker``: SIGSTOP a worker for a moment, then SIGCONT (a frozen process);
+* ``broker-dies``: SIGKILL the broker and leave it to the run's supervisor
+  (:meth:`~coevo.runs.local.LocalRun.supervise_broker`, what ``coevo run`` does) to start it again.
 
 For every worker kill it measures how long the status board took to show the
 worker dead.  A CEL run (``settings.cel``: ``coevo chaos --cel``) has a third kind of
@@ -44,7 +46,7 @@ __all__ = ["FAULTS", "ChaosPlan", "run_chaos", "summary_lines"]
 
 log = logging.getLogger(__name__)
 
-FAULTS = ("kill-worker", "kill-broker", "pause-worker")
+FAULTS = ("kill-worker", "kill-broker", "pause-worker", "broker-dies")
 CHAOS_REPORT = "chaos.json"  # in the run directory
 
 
@@ -106,6 +108,7 @@ def run_chaos(settings: RunSettings, *, root: Path, plan: ChaosPlan, measure_epo
                        120, "every worker's first generation")
             next_fault = time.monotonic() + rng.uniform(*plan.gap)
             while lr.workers_running():
+                lr.supervise_broker()
                 _revive_crashed(lr, restarts, chaos, say)
                 if chaos.counts.total() < plan.faults and time.monotonic() >= next_fault:
                     _inject(lr, board, rng, plan, chaos, say)
@@ -159,10 +162,20 @@ def _inject(lr: LocalRun, board: StatusBoard, rng: np.random.Generator, plan: Ch
     kind = str(rng.choice(plan.kinds))
     down = float(rng.uniform(*plan.down))
     running = _running_workers(lr)
-    if kind != "kill-broker" and not running:
+    broker_fault = kind in ("kill-broker", "broker-dies")
+    if not broker_fault and not running:
         return
-    if kind == "kill-broker" and lr.broker is None:
+    if broker_fault and (lr.broker is None or lr.broker.poll() is not None):
         return  # no broker process to kill (it is being restarted)
+    if kind == "broker-dies":
+        lr.broker.send_signal(signal.SIGKILL)
+        lr.broker.wait()
+        t_kill = time.monotonic()
+        lr.supervise_broker()  # what coevo run's loop does when it sees it gone
+        wait_until(lambda: board.broker_up, 60, "the broker the supervisor restarted")
+        say(f"the broker died; the run's supervisor restarted it ({time.monotonic() - t_kill:.1f} s to up)")
+        chaos.add(kind, up_after=round(time.monotonic() - t_kill, 2))
+        return
     if kind == "kill-broker":
         gens = {w["behaviour"]: w["generation"] for w in board.snapshot()}
         lr.broker.send_signal(signal.SIGKILL)

@@ -7,6 +7,9 @@ What it checks, per worker directory:
 * ``published.jsonl`` holds versions 1..n in order, and the broker's store
   (``store/BEHAVIOUR.jsonl``) holds every one of them, identical: nothing a worker
   published was lost, however often the broker or the worker died;
+* the store's latest of each behaviour (its highest version from that worker, as the
+  broker answers it: by version, never by arrival) is the worker's newest published
+  version, and a finished run's ``summary.json`` measured that version;
 * every adoption in ``adoptions.jsonl`` names a version its partner published, from
   the worker that published it (its worker id), with the rules it published under that
   version (sha256 of the rules' canonical JSON, the ``rules_digest`` the adoption
@@ -88,6 +91,7 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
             published_all[(beh, int(p["version"]))] = (worker, rules_digest(p["rules"]))
         if lost:
             check.problems.append(f"{beh}: versions {lost} were published but are not in the store")
+        _check_latest(check, run, beh, worker, versions, stored)
         adopted = read_jsonl(w.adoptions, problems=check.problems)
         adoptions.append((beh, meta["model"], adopted))
         check.facts[beh] = {"generations": len(curve), "published": len(published),
@@ -106,6 +110,26 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
                 check.problems.append(f"{r.behaviour}: replay differs at generation {r.first_mismatch}: {r.detail}")
         check.facts["replayed"] = True
     return check
+
+
+def _check_latest(check: RunCheck, run: RunPaths, beh: str, worker: str, versions: list[int],
+                  stored: dict[tuple[str, str, int], dict[str, Any]]) -> None:
+    """The store's latest (highest version of the worker) is its newest published; so is what the summary measured."""
+    if not versions:
+        return
+    newest = max(versions)
+    held = [v for b, w, v in stored if b == beh and w == worker]
+    if held and max(held) != newest:
+        check.problems.append(f"{beh}: the store's latest is v{max(held)}, but the worker's newest published is v{newest}")
+    if run.summary.exists():
+        try:
+            summary = read_json(run.summary, what="run directory (its summary.json)")
+        except CoevoError as exc:
+            check.problems.append(str(exc))
+            return
+        measured = (summary.get("versions") or {}).get(beh)
+        if not summary.get("interrupted") and measured is not None and measured != newest:
+            check.problems.append(f"{beh}: summary.json measured v{measured}, but the newest published is v{newest}")
 
 
 def _check_cel(run: RunPaths, check: RunCheck, published: dict[tuple[str, int], tuple[str, str]]) -> None:

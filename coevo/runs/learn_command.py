@@ -78,6 +78,8 @@ def cmd_learn(args: argparse.Namespace) -> int:
         ga = ga_settings(args)
         args.seed = 0 if args.seed is None else args.seed
     partners = {b: _read_rules(f, b) for b, f in (("tracking", args.tracking), ("docking", args.docking)) if f}
+    if args.out is not None and not args.out.strip():
+        raise ConfigError(f"--out {args.out!r} is empty: give the run directory to create (or leave --out out)")
     out = Path(args.out) if args.out else default_out(args.behaviour, args.seed)
 
     def info(r: Any) -> str:

@@ -10,6 +10,12 @@ workers to stop, then ends every child; nothing is left running.  ``coevo run
 disk; run.json records where it now listens) and every worker with ``--resume``
 (each continues from its last checkpoint).
 
+**The broker is supervised**: the workers and the store are built to outlive a broker
+(workers keep their versions and republish what the store lacks; the store reloads
+from disk), so a broker that dies is started again on the same endpoint and data
+directory, at most :data:`MAX_BROKER_RESTARTS` times in a run (a broker that keeps
+dying has a cause to look at: its log, ``RUN/logs/broker.log``), and the run goes on.
+
 Trust: ``coevo run`` makes the run's secret key (``RUN/secret.key``, mode 0600;
 :class:`~coevo.bus.auth.RunKey`) and a roster (each behaviour's worker id) before
 anything starts; ``run.json`` names the key file, so every worker reads the key
@@ -46,9 +52,12 @@ from coevo.errors import ConfigError, RunDirError, ServiceError
 from coevo.rundir.layout import RunPaths, read_json, read_jsonl, write_csv, write_json
 from coevo.rundir.settings import RunSettings
 
-__all__ = ["default_run_id", "free_port", "wait_until", "end_processes", "LocalRun", "run_local", "fetch_latest"]
+__all__ = ["MAX_BROKER_RESTARTS", "default_run_id", "free_port", "wait_until", "end_processes", "LocalRun", "run_local", "fetch_latest"]
 
 log = logging.getLogger(__name__)
+
+#: Times ``coevo run`` starts a broker that died again, in one run (then it ends the run and says why).
+MAX_BROKER_RESTARTS = 5
 
 
 def default_run_id(prefix: str) -> str:
@@ -114,6 +123,8 @@ class LocalRun:
         if settings.run != paths.name:
             raise RunDirError(f"{str(paths.run_json)!r} is for run {settings.run!r}, but the directory is named {paths.name!r}")
         key_path = settings.key_path(paths.dir)
+        # A new incarnation: every message of the previous one (a captured stop, old policies) is stale to this one.
+        settings = settings.model_copy(update={"incarnation": settings.incarnation + 1})
         lr = cls(settings.restarted(f"tcp/127.0.0.1:{free_port()}"), root=paths.dir.parent, log_level=log_level,
                  worker_env=worker_env, open_run=key_path is None)
         if key_path is not None:
@@ -138,6 +149,7 @@ class LocalRun:
             self.dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise RunDirError(f"cannot create the run directory {str(self.dir)!r}: {exc.strerror or exc}") from None
+        self.settings = self.settings.model_copy(update={"incarnation": 1})
         if self.open:
             self.settings = self.settings.model_copy(update={"key_file": None})
             log.warning("run %s is OPEN (--open): no key, its messages are not authenticated; anyone who reaches its "
@@ -169,6 +181,21 @@ class LocalRun:
         self.broker = self._spawn("broker", ["broker", "--listen", self.endpoint, "--data-dir", str(self.root),
                                              *(["--open"] if self.open else [])])
         return self.broker
+
+    def supervise_broker(self) -> bool:
+        """Start the broker again if it died (same endpoint, same data directory); True if it was restarted.
+        Beyond :data:`MAX_BROKER_RESTARTS` restarts a RunDirError ends the run."""
+        b = self.broker
+        if b is None or b.poll() is None:
+            return False
+        restarts = self.starts.get("broker", 1) - 1
+        if restarts >= MAX_BROKER_RESTARTS:
+            raise RunDirError(f"the broker exited with status {b.returncode} after {restarts} restarts; "
+                              f"see {self.paths.log('broker')} (continue with {self.COMMAND} --resume {self.dir})")
+        log.warning("run %s: the broker exited with status %s; starting it again on %s (restart %d of at most %d)",
+                    self.run, b.returncode, self.endpoint, restarts + 1, MAX_BROKER_RESTARTS)
+        self.start_broker()
+        return True
 
     def worker_dir(self, b: str) -> Path:
         return self.paths.worker(b).dir
@@ -253,9 +280,7 @@ def run_local(
                     board.changed.clear()
                     if on_status:
                         on_status(board)
-                    if lr.broker is not None and lr.broker.poll() is not None:
-                        raise RunDirError(f"the broker exited with status {lr.broker.returncode}; "
-                                          f"see {lr.paths.log('broker')}")
+                    lr.supervise_broker()
             except KeyboardInterrupt:
                 interrupted = True
                 lr.ask_stop(s)

@@ -9,11 +9,11 @@ appears (curves, benchmark tables, and the case base of the live-service issue).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
-from coevo.config import GAConfig
+from coevo.config import GAConfig, Settings
 
 __all__ = ["DoorConfig", "SONARS", "SONAR_ANGLES", "canonical_sonar", "sonar_names", "capability_label", "door_ga"]
 
@@ -48,14 +48,14 @@ def sonar_names(value: Any) -> tuple[str, ...]:
     return tuple(s for s in SONARS if s in names)
 
 
-class DoorConfig(BaseModel):
+class DoorConfig(Settings):
     """The door traversal world (report Appendix B, Figure 2): a room, a wall across it with an opening.
 
     Coordinates in inches: ``x`` across the room (0 at its left wall), ``y`` from the back
     wall toward the goal.  Heading 0° faces the goal (+y), counter-clockwise positive.
     """
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    physical: ClassVar[bool] = True
 
     room_width: float = Field(300.0, gt=0, description="room width, inches (report: 25 ft)")
     start_line: float = Field(48.0, gt=0, description="the starting line's distance from the back wall, inches (report: 4 ft)")

@@ -6,6 +6,8 @@ open is marked *(ours)* in its description and can be overridden.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 from pydantic import Field, model_validator
 
 from coevo.config import Settings
@@ -15,6 +17,8 @@ __all__ = ["WorldConfig"]
 
 class WorldConfig(Settings):
     """The tracking-under-fuel task (report Appendix A §4, §6)."""
+
+    physical: ClassVar[bool] = True
 
     arena: float = Field(300.0, gt=50, description="side of the square arena, inches")
     step_seconds: float = Field(0.5, gt=0, description="simulated time per step, s")
