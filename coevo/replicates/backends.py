@@ -180,7 +180,8 @@ class DaskBackend(Backend):
                     pass
 
 
-def _jobqueue(kind: str, n: int | None, config: Path | None) -> Any:
+def _jobqueue(kind: str, config: Path | None) -> Any:
+    """A SLURMCluster or PBSCluster (no job submitted yet) from the dask-jobqueue YAML ``config``."""
     import dask.config
     import yaml
 
@@ -192,9 +193,7 @@ def _jobqueue(kind: str, n: int | None, config: Path | None) -> Any:
         dask.config.update(dask.config.config, values or {}, priority="new")
     from dask_jobqueue import PBSCluster, SLURMCluster
 
-    cluster = (SLURMCluster if kind == "slurm" else PBSCluster)()
-    cluster.scale(jobs=n or 1)
-    return cluster
+    return (SLURMCluster if kind == "slurm" else PBSCluster)()
 
 
 def open_backend(*, jobs: int, cluster: str | None = None, cluster_config: Path | None = None,
@@ -218,7 +217,8 @@ def open_backend(*, jobs: int, cluster: str | None = None, cluster_config: Path 
                                 silence_logs=logging.ERROR)
             address, label = made, f"local:{n}"
         elif kind in ("slurm", "pbs"):
-            made = _jobqueue(kind, n, cluster_config)
+            made = _jobqueue(kind, cluster_config)
+            made.scale(jobs=n or 1)  # submits the batch jobs; workers join as the jobs start
             address, label = made, f"{kind} ({n or 1} jobs)"
         else:
             address, label = cluster, cluster
