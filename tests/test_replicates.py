@@ -196,3 +196,17 @@ def test_a_tiny_comparison_on_a_local_dask_cluster_writes_the_report_it_writes_h
     for run in (dask / "runs").iterdir():
         c = coevo("check", str(run))
         assert c.returncode == 0 and "complete" in c.stdout, c.stdout + c.stderr
+
+
+@pytest.mark.service
+def test_the_evolvability_grid_on_a_local_dask_cluster_gives_the_same_curves(tmp_path: Path) -> None:
+    import numpy as np
+
+    grid = ["--landscapes", "2", "--runs", "2", "--generations", "20", "--rates", "0.1", "--models", "fm", "gh", "--quiet"]
+    for where, flags in (("here", []), ("dask", ["--cluster", "local:2"])):
+        r = coevo("evolvability", "--out", str(tmp_path / where), *grid, *flags)
+        assert r.returncode == 0, r.stdout + r.stderr
+    here, dask = (np.load(tmp_path / w / "curves.npz") for w in ("here", "dask"))
+    assert sorted(here.files) == sorted(dask.files)
+    for k in here.files:
+        assert np.array_equal(here[k], dask[k], equal_nan=True), k

@@ -143,9 +143,12 @@ def pack(root: Path, *relative: str) -> bytes:
 
 
 def unpack(data: bytes, root: Path, *, replace: str | None = None) -> None:
-    """Unpack a :func:`pack` tar under ``root``; ``replace``: a folder removed first (a half-done copy)."""
-    if replace is not None and (Path(root) / replace).exists():
-        shutil.rmtree(Path(root) / replace)
+    """Unpack a :func:`pack` tar under ``root``; ``replace``: a folder or file removed first (a half-done copy)."""
+    old = None if replace is None else Path(root) / replace
+    if old is not None and old.is_dir():
+        shutil.rmtree(old)
+    elif old is not None and old.exists():
+        old.unlink()
     with tarfile.open(fileobj=io.BytesIO(data), mode="r") as tar:
         tar.extractall(root, filter="data")
 
