@@ -210,3 +210,19 @@ def test_the_evolvability_grid_on_a_local_dask_cluster_gives_the_same_curves(tmp
     assert sorted(here.files) == sorted(dask.files)
     for k in here.files:
         assert np.array_equal(here[k], dask[k], equal_nan=True), k
+
+
+@pytest.mark.service
+def test_coevo_seeds_on_a_local_dask_cluster_writes_its_report(tmp_path: Path) -> None:
+    tiny = ["--learn-arg=--generations=2", "--learn-arg=--population=4", "--learn-arg=--episodes=4",
+            "--learn-arg=--measure-epochs=2", "--quiet"]
+    out = tmp_path / "seeds"
+    r = coevo("seeds", "--seeds", "1", "--out", str(out), "--cluster", "local:2", *tiny)
+    assert r.returncode == 0, r.stdout + r.stderr
+    for name in ("report.md", "summary.json", "seeds.csv", "seeds.png"):
+        assert (out / name).stat().st_size > 0, name
+    res = json.loads((out / "summary.json").read_text())
+    assert res["runs_finished"] == res["runs_expected"] == 2
+    assert "docking: median docking_from_random_starts" in r.stdout
+    again = coevo("seeds", "--seeds", "1", "--out", str(out), *tiny)
+    assert again.returncode == 2 and "--resume" in again.stderr

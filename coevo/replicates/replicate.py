@@ -60,8 +60,9 @@ class Outcome:
     ok: bool
     reason: str = ""  # why not, in one line
     returncode: int | None = None
-    seconds: float = 0.0
+    seconds: float = 0.0  # inside execute, where it ran
     host: str = ""
+    wall: float = 0.0  # from submission to its output back in the experiment's folder (set by the runner)
     log: bytes | None = None  # the log, when it was written away from the experiment's folder
     payload: bytes | None = None  # the output folder as a tar, when it was written away from it
 
@@ -128,7 +129,7 @@ def execute(rep: Replicate, root: str | None = None, inputs: bytes | None = None
         log_file = Path(tmp) / "replicate.log"
         ok, code, why = _run(rep, work, log_file)
         payload = pack(work, rep.output) if (work / rep.output).exists() else None
-        return Outcome(rep.name, ok, why, code, time.perf_counter() - t0, host, log_file.read_bytes(), payload)
+        return Outcome(rep.name, ok, why, code, time.perf_counter() - t0, host, log=log_file.read_bytes(), payload=payload)
 
 
 def pack(root: Path, *relative: str) -> bytes:

@@ -61,6 +61,7 @@ def run_replicates(
     base = sum(r.cost for r in reps if r.name in finished)
     pending = [r for r in reps if r.name not in finished]
     active: dict[str, tuple[Replicate, Any]] = {}
+    started: dict[str, float] = {}
     (out / "logs").mkdir(parents=True, exist_ok=True)
     try:
         while pending or active:
@@ -76,6 +77,7 @@ def run_replicates(
                 if not backend.room(sum(r.weight for r, _ in active.values()), rep):
                     continue
                 pending.remove(rep)
+                started[rep.name] = time.perf_counter()
                 active[rep.name] = (rep, backend.submit(rep, out))
             time.sleep(poll)
             backend.check()
@@ -84,6 +86,7 @@ def run_replicates(
                     continue
                 del active[name]
                 res = backend.outcome(handle, rep, out)
+                res.wall = time.perf_counter() - started[name]
                 prog.outcomes.append(res)
                 if res.ok:
                     finished.add(name)
