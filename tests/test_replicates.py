@@ -82,7 +82,7 @@ def test_cluster_flag(text: str, parsed: tuple[str, int | None]) -> None:
     assert parse_cluster(text) == parsed
 
 
-@pytest.mark.parametrize("text", ["local:0", "local:x", "slurm:-1", ""])
+@pytest.mark.parametrize("text", ["local:0", "local:x", "slurm:-1", "", "nan", "/tmp/a-file", "tcp://host"])
 def test_bad_cluster_flag(text: str) -> None:
     with pytest.raises(ConfigError):
         parse_cluster(text)

@@ -115,8 +115,11 @@ def parse_cluster(text: str) -> tuple[str, int | None]:
         if not n.isdigit() or int(n) < 1:
             raise ConfigError(f"--cluster {text}: after {kind}: give a number of workers >= 1")
         return kind, int(n)
-    if not text or " " in text:
-        raise ConfigError(f"--cluster {text!r}: give local[:N], slurm[:N], pbs[:N] or a scheduler address")
+    import re
+
+    if not re.fullmatch(r"((tcp|tls|inproc|ucx)://)?[A-Za-z0-9_.\-\[\]:]+:[0-9]{1,5}", text):
+        raise ConfigError(f"--cluster {text!r}: give local[:N], slurm[:N], pbs[:N] or a scheduler address "
+                          "(tcp://HOST:PORT)")
     return "address", None
 
 
@@ -223,6 +226,10 @@ def open_backend(*, jobs: int, cluster: str | None = None, cluster_config: Path 
         else:
             address, label = cluster, cluster
         client = Client(address, timeout="30s")
+    except ValueError as exc:  # an address Dask cannot parse
+        if made is not None:
+            made.close()
+        raise ConfigError(f"--cluster {cluster!r}: {exc}") from exc
     except (OSError, TimeoutError) as exc:
         if made is not None:
             made.close()

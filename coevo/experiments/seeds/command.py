@@ -21,9 +21,11 @@ def cmd_seeds(args: argparse.Namespace) -> int:
     from coevo.replicates.runner import run_replicates
 
     out = Path(args.out) if args.out else Path("runs") / f"seeds-{time.strftime('%Y%m%d-%H%M%S')}"
-    if out.exists() and any(out.iterdir()) and not args.resume:
+    from coevo.rundir.layout import ensure_dir
+
+    if out.is_dir() and any(out.iterdir()) and not args.resume:
         raise RunDirError(f"--out {str(out)!r} is not empty; add --resume to continue the runs there")
-    out.mkdir(parents=True, exist_ok=True)
+    ensure_dir(out, what="--out")
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     extra = list(args.learn_args or [])
     reps = replicates(args.behaviours, seeds, extra)
