@@ -40,6 +40,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
             "Appendix B: a live CEL run (broker, learning module, execution module) with a failure schedule"),
     "execution": ("coevo.runs.cel_command",
                   "a CEL run's execution module (the robot, with its monitor) as its own process"),
+    "seeds": ("coevo.experiments.seeds.command",
+              "Tracking and Docking learned over seeds, against the learning targets, with a report"),
     "evolvability": ("coevo.experiments.evolvability.command",
                      "Appendix D: FM/GM/FH/GH mutation models on dynamic landscapes, with a report"),
     "earl": ("coevo.experiments.earl.command",

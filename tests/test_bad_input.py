@@ -67,7 +67,7 @@ def places(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> dict[str, Path]:
     p["cel-run"] = cel
     for mod, name in (("coevo.runs.local", "run_local"), ("coevo.runs.chaos", "run_chaos"),
                       ("coevo.experiments.compare.experiment", "run_all"), ("coevo.experiments.earl.experiment", "run_grid"),
-                      ("coevo.experiments.earl.td_tasks", "run_task")):
+                      ("coevo.experiments.earl.td_tasks", "run_task"), ("coevo.replicates.runner", "run_replicates")):
         monkeypatch.setattr(f"{mod}.{name}", _reached(name))
     return p
 
@@ -99,6 +99,7 @@ def _base(command: str, flag: str, places: dict[str, Path]) -> list[str]:
         "evolvability": ["--landscapes", "1", "--runs", "1", "--generations", "1", "--population", "2", "--classes",
                          "gradual", "--rates", "0.1", "--models", "fm", "--quiet", "--out", fresh],
         "earl": ["--runs", "1", "--generations", "0", "--quiet", "--out", fresh],
+        "seeds": ["--seeds", "1", "--behaviours", "docking", "--quiet", "--out", fresh],
         "td-baseline": ["--tasks", "door", "--seeds", "1", "--generations", "1", "--population", "2", "--episodes", "1",
                         "--trials", "1", "--quiet", "--out", fresh],
         "keygen": ["--run", "x", "--out", f"{fresh}.key"],

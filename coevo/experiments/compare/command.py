@@ -9,7 +9,6 @@ import argparse
 import sys
 import time
 from pathlib import Path
-from typing import Any
 
 from coevo.console import (
     ProgressBar,
@@ -24,6 +23,7 @@ from coevo.console import (
 )
 from coevo.config import DEFAULT_MAX_LEAD
 from coevo.errors import ConfigError
+from coevo.replicates.flags import add_backend_flags, backend_of
 
 __all__ = ["configure_compare", "cmd_compare"]
 
@@ -33,13 +33,13 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from coevo.experiments.compare.experiment import CompareSpec, prepare, run_all
     from coevo.experiments.compare.report import write_report
     from coevo.experiments.compare.experiment import default_jobs, replicates
+    from coevo.replicates.backends import ClusterLost
     from coevo.tasks.fuel.settings import WorldConfig
 
     rates = {} if args.rates is None else {"rates": tuple(args.rates)}
     spec = CompareSpec.make(regimes=tuple(args.regimes), **rates, runs=args.runs, seed=args.seed, model=args.model,
                             max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD), measure_epochs=args.measure_epochs,
                             world=build(WorldConfig, pairs(args.world, "world")), ga=ga_settings(args))
-    jobs = default_jobs() if args.jobs is None else args.jobs
     out = Path(args.out) if args.out else Path("runs") / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"
     t0 = time.time()
     if args.report_only:
@@ -49,24 +49,26 @@ def cmd_compare(args: argparse.Namespace) -> int:
         print(f"{len(todo)} runs unfinished; reporting on the rest")
     else:
         todo = prepare(out, spec, resume=args.resume)
+        backend = backend_of(args, default_jobs=default_jobs())
         total = len(replicates(spec))
-        print(f"comparison in {out}: {total - len(todo)} of {total} runs already done, {len(todo)} to run, {jobs} at a time",
-              flush=True)
+        print(f"comparison in {out}: {total - len(todo)} of {total} runs already done, {len(todo)} to run, "
+              f"{backend.description}", flush=True)
         with ProgressBar("compare", total=1, unit="worker generations", quiet=args.quiet) as bar:
-
-            def show(p: Any) -> None:
-                bar.update(p.done_generations, p.total_generations,
-                           info=f"runs {p.runs_done}/{p.runs_total}" + (f", {len(p.failed)} failed" if p.failed else ""))
-
             try:
-                failed = run_all(out, spec, todo, jobs=jobs, on_progress=show)
+                prog = run_all(out, spec, todo, backend=backend, on_progress=lambda p: bar.update(p.done, p.total, info=p.info))
             except KeyboardInterrupt:
                 print(f"interrupted; finished runs are kept: continue with the same command and --resume --out {out}",
                       file=sys.stderr)
                 return 130
-        if failed:
-            print(f"{len(failed)} runs failed ({', '.join(failed)}); their logs are in {out / 'logs'}. "
-                  f"Run again with --resume to retry them.", file=sys.stderr)
+            except ClusterLost as exc:
+                print(f"{exc}; finished runs are kept: continue with the same command and --resume --out {out}",
+                      file=sys.stderr)
+                return 3
+        if prog.failed:
+            print(f"{len(prog.failed)} runs failed; their logs are in {out / 'logs'}. Run again with --resume to retry them.",
+                  file=sys.stderr)
+            for name, why in prog.failed.items():
+                print(f"  {name}: {why}", file=sys.stderr)
     results = write_report(out, spec, elapsed=None if args.report_only else time.time() - t0)
     print(f"report: {out / 'report.md'}")
     for r, counts in results["table1"].items():
@@ -87,7 +89,8 @@ def configure_compare(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", help="comparison directory (default runs/compare-TIME)")
     p.add_argument("--resume", action="store_true", help="continue the comparison in --out, keeping its finished runs")
     p.add_argument("--report-only", action="store_true", help="only (re)write the report from the finished runs in --out")
-    p.add_argument("--jobs", type=count_arg(1, 1024), help="runs at once (default: one per two cores; an offline Executive counts half)")
+    add_backend_flags(p, jobs_help="runs at once on this machine (default: one per two cores; an offline Executive "
+                                   "counts half)")
     p.add_argument("--seed", type=seed_arg, default=0, help="base seed; run i of every regime uses seed + 1000 i")
     p.add_argument("--model", default="best", choices=["best", "current", "recent"])
     p.add_argument("--measure-epochs", type=count_arg(1, 100_000), default=100, help="fresh epochs measuring each final robot")

@@ -32,17 +32,20 @@ import json
 import logging
 import os
 import shutil
-import subprocess
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from coevo.config import MODELS
+from coevo.replicates.backends import Backend
+from coevo.replicates.replicate import Replicate as Job
+from coevo.replicates.runner import Progress, run_replicates
 from coevo.rundir.settings import RunSettings
 from coevo.tasks.fuel import FuelTask
 
@@ -54,7 +57,7 @@ from coevo.rundir.layout import LearnPaths, RunPaths, ensure_dir, write_json
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.settings import WorldConfig
 
-__all__ = ["CompareSpec", "Replicate", "prepare", "replicates", "groups", "run_all", "default_jobs", "OFFLINE",
+__all__ = ["CompareSpec", "Replicate", "prepare", "replicates", "groups", "run_all", "jobs_of", "default_jobs", "OFFLINE",
            "DEFAULT_RATES"]
 
 log = logging.getLogger(__name__)
@@ -260,18 +263,25 @@ def _settings_file(out: Path, spec: CompareSpec, rep: Replicate) -> Path:
     return f
 
 
-def _run_command(out: Path, spec: CompareSpec, rep: Replicate) -> list[str]:
-    d = run_dir(out, rep)
+def _run_command(spec_json: dict[str, Any], rep: Replicate, root: Path) -> list[str]:
+    """The command that runs ``rep`` under ``root`` (the comparison's folder where the replicate runs: here, a
+    shared directory or a Dask worker's temporary copy), decided there: a live run that got as far as its
+    ``run.json`` continues from its workers' checkpoints (``coevo run --resume``), one that stopped before is
+    started afresh."""
+    root = Path(root)
+    d = run_dir(root, rep)
+    settings = root / "settings" / f"{rep.run_id}.json"
+    epochs = str(spec_json["measure_epochs"])
     if rep.offline:  # the Executive learns with the seed it has in a live run (seed + its index)
         return [sys.executable, "-m", "coevo", "learn", "--quiet", "--behaviour", "executive",
-                "--settings", str(_settings_file(out, spec, rep)), "--history", str(run_dir(out, rep.depends_on)),
-                "--rate", repr(rep.rate), "--out", str(d), "--measure-epochs", str(spec.measure_epochs)]
+                "--settings", str(settings), "--history", str(run_dir(root, rep.depends_on)),
+                "--rate", repr(rep.rate), "--out", str(d), "--measure-epochs", epochs]
     if RunPaths(d).run_json.exists():  # interrupted: continue it from the workers' checkpoints
-        return [sys.executable, "-m", "coevo", "run", "--quiet", "--resume", str(d), "--measure-epochs", str(spec.measure_epochs)]
-    f = _settings_file(out, spec, rep)
-    cmd = [sys.executable, "-m", "coevo", "run", "--quiet", "--settings", str(f), "--root", str(Path(out) / "runs"),
-           "--measure-epochs", str(spec.measure_epochs)]
-    return cmd
+        return [sys.executable, "-m", "coevo", "run", "--quiet", "--resume", str(d), "--measure-epochs", epochs]
+    if d.exists():
+        shutil.rmtree(d)  # stopped before it began: run it again
+    return [sys.executable, "-m", "coevo", "run", "--quiet", "--settings", str(settings), "--root", str(root / "runs"),
+            "--measure-epochs", epochs]
 
 
 def generations_of(spec: CompareSpec, rep: Replicate) -> int:
@@ -295,15 +305,31 @@ def generations_done(out: Path, rep: Replicate) -> int:
     return n
 
 
-@dataclass
-class Progress:
-    """What a display needs: worker-generations done out of the total, runs done, runs failed."""
+def _finished_under(rep: Replicate, root: Path) -> bool:
+    return is_finished(Path(root), rep)
 
-    total_generations: int
-    done_generations: int = 0
-    runs_total: int = 0
-    runs_done: int = 0
-    failed: list[str] = field(default_factory=list)
+
+def _done_under(rep: Replicate, root: Path) -> int:
+    return generations_done(Path(root), rep)
+
+
+def jobs_of(out: Path, spec: CompareSpec) -> list[Job]:
+    """The comparison as replicates for :mod:`coevo.replicates`: each a ``coevo run`` (or, for
+    independent-offline, a ``coevo learn`` after the live run it learns on), its settings written here first
+    so that they are the same whichever backend runs it."""
+    spec_json = _spec_json(spec)
+    jobs = []
+    for rep in replicates(spec):
+        settings = f"settings/{rep.run_id}.json"
+        if not is_finished(out, rep):
+            _settings_file(out, spec, rep)
+        dep = rep.depends_on
+        jobs.append(Job(
+            name=rep.run_id, output=f"runs/{rep.run_id}", finished=partial(_finished_under, rep),
+            command=partial(_run_command, spec_json, rep), progress=partial(_done_under, rep),
+            inputs=(settings,) + ((f"runs/{dep.run_id}",) if dep is not None else ()),
+            after=(dep.run_id,) if dep is not None else (), weight=weight(rep), cost=generations_of(spec, rep)))
+    return jobs
 
 
 def run_all(
@@ -311,70 +337,15 @@ def run_all(
     spec: CompareSpec,
     todo: list[Replicate],
     *,
-    jobs: int,
+    backend: Backend,
     on_progress: Callable[[Progress], None] | None = None,
     poll: float = 1.0,
-) -> list[str]:
-    """Run the replicates, ``jobs`` at a time; returns the run ids that failed (their logs say why)."""
-    if jobs < 1:
-        raise ConfigError(f"--jobs must be at least 1, got {jobs}")
-    out = Path(out)
-    all_reps = replicates(spec)
-    finished_before = [r for r in all_reps if r not in todo]
-    prog = Progress(total_generations=sum(generations_of(spec, r) for r in all_reps), runs_total=len(all_reps),
-                    runs_done=len(finished_before))
-    base = sum(generations_of(spec, r) for r in finished_before)
-    pending = list(todo)
-    active: dict[Replicate, tuple[subprocess.Popen[bytes], Any]] = {}
-    logs = out / "logs"
-    logs.mkdir(exist_ok=True)
-
-    def ready(rep: Replicate) -> bool | None:
-        """True to start now, False to wait for the live run it needs, None if that run failed."""
-        dep = rep.depends_on
-        if dep is None or is_finished(out, dep):
-            return True
-        return None if dep.run_id in prog.failed else False
-
-    try:
-        while pending or active:
-            for rep in list(pending):
-                if sum(weight(r) for r in active) + weight(rep) > 2 * jobs:
-                    continue
-                go = ready(rep)
-                if go is None:
-                    pending.remove(rep)
-                    prog.failed.append(rep.run_id)
-                    log.error("run %s skipped: the run it learns on, %s, failed", rep.run_id, rep.depends_on.run_id)
-                elif go:
-                    pending.remove(rep)
-                    fh = open(logs / f"{rep.run_id}.log", "wb")
-                    active[rep] = (subprocess.Popen(_run_command(out, spec, rep), stdout=fh, stderr=subprocess.STDOUT,
-                                                    stdin=subprocess.DEVNULL), fh)
-            time.sleep(poll)
-            for rep, (p, fh) in list(active.items()):
-                if p.poll() is None:
-                    continue
-                fh.close()
-                del active[rep]
-                if p.returncode == 0 and is_finished(out, rep):
-                    prog.runs_done += 1
-                    base += generations_of(spec, rep)
-                else:
-                    prog.failed.append(rep.run_id)
-                    log.error("run %s failed with status %s; see %s", rep.run_id, p.returncode, logs / f"{rep.run_id}.log")
-            prog.done_generations = base + sum(min(generations_of(spec, r), generations_done(out, r)) for r in active)
-            if on_progress:
-                on_progress(prog)
-    finally:
-        for p, _fh in active.values():
-            if p.poll() is None:
-                p.terminate()  # coevo run turns SIGTERM into a clean stop of its broker and workers
-        for p, fh in active.values():
-            try:
-                p.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
-            fh.close()
-    return prog.failed
+) -> Progress:
+    """Run the comparison's unfinished replicates (``todo``, from :func:`prepare`) on ``backend``; the returned
+    :class:`~coevo.replicates.runner.Progress` says which failed and why (their logs are in ``OUT/logs``)."""
+    wanted = {r.run_id for r in todo}
+    jobs = [j for j in jobs_of(Path(out), spec)]
+    unknown = wanted - {j.name for j in jobs}
+    if unknown:
+        raise ConfigError(f"not replicates of this comparison: {sorted(unknown)}")
+    return run_replicates(jobs, Path(out), backend, on_progress=on_progress, poll=poll)

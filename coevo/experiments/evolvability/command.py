@@ -7,12 +7,14 @@ are :class:`~coevo.errors.ConfigError` and reach the user through ``coevo.cli.ma
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 from typing import Any
 
 from coevo.console import ProgressBar, seed_arg
 from coevo.errors import ConfigError
+from coevo.replicates.flags import add_backend_flags, backend_of
 
 __all__ = ["configure_evolvability", "cmd_evolvability"]
 
@@ -21,7 +23,7 @@ def cmd_evolvability(args: argparse.Namespace) -> int:
     """Run the grid (or only rewrite the report of a finished one) and print the claims' verdicts."""
     from coevo.experiments.evolvability.experiment import GridResults, GridSpec, run_grid
     from coevo.experiments.evolvability.report import write_report
-    from coevo.rundir.layout import ensure_dir
+    from coevo.replicates.backends import ClusterLost
 
     if args.report_only:
         if not args.out:
@@ -34,15 +36,51 @@ def cmd_evolvability(args: argparse.Namespace) -> int:
                          landscapes=args.landscapes, runs=args.runs, generations=args.generations,
                          population=args.population, seed=args.seed)
     out = Path(args.out) if args.out else Path("runs") / f"evolvability-{time.strftime('%Y%m%d-%H%M%S')}"
-    ensure_dir(out, what="--out")  # before the grid runs, not after
-    print(f"evolvability grid: {spec.total_runs} runs of {spec.generations} generations; output in {out}", flush=True)
+    _prepare(out, spec, resume=args.resume)  # before the grid runs, not after
+    backend = backend_of(args, default_jobs=1)
+    print(f"evolvability grid: {spec.total_runs} runs of {spec.generations} generations; output in {out}; "
+          f"{len(spec.classes) * spec.landscapes} landscapes {backend.description}", flush=True)
     with ProgressBar("evolvability", total=1, unit="batch-generations", quiet=args.quiet) as bar:
-        res = run_grid(spec, on_progress=lambda done, total: bar.update(done, total))
+        try:
+            res = run_grid(spec, out=out, backend=backend, on_progress=lambda done, total: bar.update(done, total))
+        except ClusterLost as exc:
+            print(f"{exc}; finished landscapes are kept: continue with the same command and --resume --out {out}",
+                  file=sys.stderr)
+            return 3
     results = write_report(res, out, elapsed=res.seconds)
     print(f"{res.seconds:.1f} s; report: {out / 'report.md'}")
     for c in results["claims"]:
         print(f"  {c['verdict']}: {c['claim']}")
     return 0
+
+
+def _prepare(out: Path, spec: Any, *, resume: bool) -> None:
+    """A fresh grid needs an --out without one; ``resume`` needs this very grid there (its finished landscapes are
+    kept)."""
+    import json
+
+    from coevo.errors import RunDirError
+    from coevo.rundir.layout import ensure_dir, write_json
+
+    marker = out / "evolvability.json"
+    held = None
+    if marker.exists():
+        try:
+            held = json.loads(marker.read_text())["spec"]
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise RunDirError(f"{marker} cannot be read ({exc}); choose another --out") from exc
+    mine = json.loads(json.dumps(spec.as_dict()))
+    if held is not None and held != mine:
+        diff = sorted(k for k in set(held) | set(mine) if held.get(k) != mine.get(k))
+        raise RunDirError(f"--out {str(out)!r} holds a different grid (differs in: {', '.join(diff)}); choose another "
+                          "--out or repeat the original settings with --resume")
+    if held is not None and not resume and (out / "landscapes").exists():
+        raise RunDirError(f"--out {str(out)!r} already holds this grid; add --resume to continue it")
+    if resume and held is None:
+        raise RunDirError(f"--resume: {str(out)!r} holds no grid (no evolvability.json)")
+    ensure_dir(out, what="--out")
+    if held is None:
+        write_json(marker, {"spec": mine, "created": time.time()})
 
 
 def _number(text: str) -> float | str:
@@ -69,5 +107,8 @@ def configure_evolvability(p: argparse.ArgumentParser) -> None:
     p.add_argument("--population", type=int, help="population size (default 100)")
     p.add_argument("--seed", type=seed_arg, default=0)
     p.add_argument("--report-only", action="store_true", help="only rewrite the report from the grid finished in --out")
+    p.add_argument("--resume", action="store_true", help="continue the grid in --out, keeping its finished landscapes")
+    add_backend_flags(p, jobs_help="landscapes at once on this machine (default 1: all its runs advance together "
+                                   "as one batch, which keeps a core busy)")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     p.set_defaults(func=cmd_evolvability)

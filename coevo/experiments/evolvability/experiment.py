@@ -14,10 +14,14 @@ GM ignores the base rate; it is run at every rate anyway, as in the report.
 from __future__ import annotations
 
 import json
+import os
+import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -25,8 +29,11 @@ from coevo.errors import ConfigError
 from coevo.experiments.evolvability.bitga import RunParams, run_batch
 from coevo.experiments.evolvability.landscape import CLASSES, DynamicLandscape
 from coevo.ga.mutation import MODEL_NAMES
+from coevo.replicates.backends import Backend, LocalBackend
+from coevo.replicates.replicate import Replicate
+from coevo.replicates.runner import run_replicates
 
-__all__ = ["GridSpec", "GridResults", "RATES", "run_grid"]
+__all__ = ["GridSpec", "GridResults", "RATES", "run_grid", "run_landscape", "replicates", "collect"]
 
 RATES = (0.001, 0.003, 0.01, 0.03, 0.06, 0.1, 0.2, 0.3)
 
@@ -117,32 +124,77 @@ class GridResults:
         return res
 
 
-def run_grid(spec: GridSpec, *, on_progress: Callable[[int, int], None] | None = None) -> GridResults:
-    """Run the whole grid; ``on_progress(done, total)`` counts generations of landscape batches."""
-    t0 = time.perf_counter()
-    M, K, L, N, T = len(spec.models), len(spec.rates), spec.landscapes, spec.runs, spec.generations
-    models = [m for m in spec.models for _ in spec.rates for _ in range(N)]
-    rates = [r for _ in spec.models for r in spec.rates for _ in range(N)]
-    params = RunParams.make(models, rates, alpha_m=spec.alpha_m, hyper=spec.hyper, alpha_h=spec.alpha_h)
-    res = GridResults(spec)
-    total, done = len(spec.classes) * L * T, 0
+def _part(root: Path, cname: str, li: int) -> Path:
+    return Path(root) / "landscapes" / f"{cname}-{li:02d}.npz"
+
+
+def run_landscape(root: Path, *, spec: dict[str, Any], cname: str, li: int) -> None:
+    """One replicate of the grid: every model, rate and run on landscape ``li`` of class ``cname``, as one batch;
+    its curves go to ``root/landscapes/CLASS-LI.npz`` (written whole or not at all)."""
+    g = GridSpec.make(**spec)
+    M, K, N, T = len(g.models), len(g.rates), g.runs, g.generations
+    models = [m for m in g.models for _ in g.rates for _ in range(N)]
+    rates = [r for _ in g.models for r in g.rates for _ in range(N)]
+    params = RunParams.make(models, rates, alpha_m=g.alpha_m, hyper=g.hyper, alpha_h=g.alpha_h)
+    ci = list(CLASSES).index(cname)
+    land = DynamicLandscape(CLASSES[cname], seed=np.random.SeedSequence([g.seed, ci, li]), generations=T)
+    tr = run_batch(land, params, population=g.population, generations=T, crossover_rate=g.crossover_rate,
+                   seed=np.random.SeedSequence([g.seed, ci, li, 1]))
+    f = _part(root, cname, li)
+    f.parent.mkdir(parents=True, exist_ok=True)
+    tmp = f.with_name(f.stem + ".partial.npz")
+    np.savez(tmp, changes=np.asarray(land.changes(), dtype=np.int64),
+             **{name: getattr(tr, name).reshape(M, K, N, T) for name in ("mean", "best", "control")})
+    os.replace(tmp, f)
+
+
+def _has_part(cname: str, li: int, root: Path) -> bool:
+    return _part(root, cname, li).exists()
+
+
+def replicates(spec: GridSpec) -> list[Replicate]:
+    """The grid as replicates for :mod:`coevo.replicates`: one per landscape (every model, rate and run on it
+    advance together as one batch, as before); a landscape's numbers do not depend on where it ran."""
+    out = []
     for cname in spec.classes:
-        ci = list(CLASSES).index(cname)
-        shape = (M, K, L, N, T)
-        res.mean[cname], res.best[cname], res.control[cname] = (np.empty(shape) for _ in range(3))
+        for li in range(spec.landscapes):
+            out.append(Replicate(name=f"{cname}-{li:02d}", output=f"landscapes/{cname}-{li:02d}.npz",
+                                 finished=partial(_has_part, cname, li), function=run_landscape,
+                                 kwargs={"spec": spec.as_dict(), "cname": cname, "li": li}, weight=2,
+                                 cost=spec.generations))
+    return out
+
+
+def collect(spec: GridSpec, out: Path) -> GridResults:
+    """The grid's results from its finished landscapes in ``out``."""
+    res = GridResults(spec)
+    L = spec.landscapes
+    for cname in spec.classes:
+        for kind in ("mean", "best", "control"):
+            getattr(res, kind)[cname] = np.empty((len(spec.models), len(spec.rates), L, spec.runs, spec.generations))
         for li in range(L):
-            land = DynamicLandscape(CLASSES[cname], seed=np.random.SeedSequence([spec.seed, ci, li]), generations=T)
-            if li == 0:
-                res.changes[cname] = [int(t) for t in land.changes()]
+            with np.load(_part(out, cname, li)) as part:
+                for kind in ("mean", "best", "control"):
+                    getattr(res, kind)[cname][:, :, li] = part[kind]
+                if li == 0:
+                    res.changes[cname] = [int(t) for t in part["changes"]]
+    return res
 
-            def tick(gen: int, _base: int = done) -> None:
-                if on_progress is not None:
-                    on_progress(_base + gen, total)
 
-            tr = run_batch(land, params, population=spec.population, generations=T, crossover_rate=spec.crossover_rate,
-                           seed=np.random.SeedSequence([spec.seed, ci, li, 1]), on_generation=tick)
-            for name in ("mean", "best", "control"):
-                getattr(res, name)[cname][:, :, li] = getattr(tr, name).reshape(M, K, N, T)
-            done += T
+def run_grid(spec: GridSpec, *, out: Path | None = None, backend: Backend | None = None,
+             on_progress: Callable[[int, int], None] | None = None) -> GridResults:
+    """Run the grid's unfinished landscapes (in ``out``, a temporary folder if None) on ``backend`` (this
+    machine, one at a time, if None); ``on_progress(done, total)`` counts batch-generations.  Raises
+    :class:`~coevo.errors.ConfigError` naming the landscapes that failed."""
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="coevo-evolvability-") as tmp:
+        where = Path(out) if out is not None else Path(tmp)
+        prog = run_replicates(replicates(spec), where, backend or LocalBackend(1),
+                              on_progress=None if on_progress is None else lambda p: on_progress(p.done, p.total),
+                              poll=0.05)
+        if prog.failed:
+            raise ConfigError("landscapes failed: " + "; ".join(f"{k}: {v}" for k, v in prog.failed.items())
+                              + (f" (logs in {where / 'logs'}; --resume runs them again)" if out is not None else ""))
+        res = collect(spec, where)
     res.seconds = time.perf_counter() - t0
     return res

@@ -1,0 +1,45 @@
+"""The flags every many-run command shares: ``--jobs``, ``--cluster``, ``--cluster-config``, ``--shared-dir``.
+
+Light on purpose (argparse only): commands declare these at ``coevo --help`` time.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+__all__ = ["add_backend_flags", "backend_of"]
+
+
+def add_backend_flags(p: argparse.ArgumentParser, *, jobs_help: str) -> None:
+    g = p.add_argument_group("where the runs go (docs/cluster.md)")
+    g.add_argument("--jobs", type=_count, help=jobs_help)
+    g.add_argument("--cluster", metavar="WHERE",
+                   help="run the replicates on Dask: local[:N] (N worker processes here, 1 thread each), "
+                        "slurm[:N] or pbs[:N] (N batch jobs, see --cluster-config), or a scheduler's address "
+                        "(tcp://host:8786); default: this machine, --jobs at a time")
+    g.add_argument("--cluster-config", type=Path, metavar="FILE",
+                   help="with --cluster slurm/pbs: a dask-jobqueue YAML (deploy/slurm/jobqueue.yaml)")
+    g.add_argument("--shared-dir", type=Path, metavar="DIR",
+                   help="with --cluster: the workers see --out at DIR (a shared filesystem); runs are written "
+                        "there in place instead of coming back as archives")
+
+
+def _count(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid number {text!r}: give a whole number") from None
+    if not 1 <= v <= 1024:
+        raise argparse.ArgumentTypeError(f"invalid number {v}: give one from 1 to 1024")
+    return v
+
+
+def backend_of(args: argparse.Namespace, *, default_jobs: int) -> Any:
+    """The backend the flags ask for (imports Dask only for ``--cluster``)."""
+    from coevo.replicates.backends import open_backend
+
+    return open_backend(jobs=default_jobs if args.jobs is None else args.jobs, cluster=args.cluster,
+                        cluster_config=args.cluster_config,
+                        shared_dir=None if args.shared_dir is None else args.shared_dir.resolve())
