@@ -178,6 +178,16 @@ def _status_measures(task: str, behaviour: str, row: dict[str, Any]) -> dict[str
         return {}
 
 
+def _task_of(behaviours: list[str]) -> str:
+    """The task whose behaviours these are ('?' if none is known)."""
+    from coevo.tasks import TASKS
+
+    for name, t in TASKS.items():
+        if any(b in t.behaviours for b in behaviours):
+            return name
+    return "?"
+
+
 def classify_dir(path: Path) -> str:
     """``run``, ``comparison`` or ``runs`` (a directory of runs), else a RunDirError saying what it is not."""
     from coevo.rundir.layout import RunPaths
@@ -389,6 +399,7 @@ class BusSource:
         state = ("done" if states and all(s == "done" for s in states) else
                  "running" if any(s in ("alive", "stalled") for s in states) else "stopped" if states else "starting")
         regimes = {w["regime"] for w in workers} - {"?"}
+        task = _task_of([w["behaviour"] for w in workers])
         problems = []
         if board.rejected:
             problems.append(f"{board.rejected} messages on run {run}'s status keys rejected: "
@@ -399,7 +410,7 @@ class BusSource:
                             else f"the broker's store cannot write: {broker['degraded']}")
         if self.only is not None and not workers and not robots and time.time() - self.started > 5:
             problems.append(f"no worker of run {run} seen on the bus yet (is it running, and connected to this broker?)")
-        return RunView(run=run, source="bus", regime=", ".join(sorted(regimes)) or "?", state=state, workers=workers,
+        return RunView(run=run, source="bus", task=task, regime=", ".join(sorted(regimes)) or "?", state=state, workers=workers,
                        robots=robots, broker=broker, curves=dict(curves), external=self.external.get(run),
                        problems=problems)
 

@@ -13,7 +13,7 @@ from typing import Any
 
 from coevo.dashboard.model import View
 
-__all__ = ["PALETTE", "problems_html", "runs_html", "workers_html", "comparison_html", "curve_lines", "behaviours",
+__all__ = ["PALETTE", "problems_html", "runs_html", "workers_html", "comparison_html", "curve_lines", "behaviours", "measure_names",
            "external_lines"]
 
 # Bokeh's Category10 (d3): distinct lines for up to ten runs, then repeated with another dash
@@ -124,13 +124,19 @@ def comparison_html(view: View) -> str:
 
 
 def behaviours(view: View) -> list[str]:
-    """The behaviours with a curve, in the order their workers first appear."""
-    out: list[str] = []
-    for r in view.runs:
-        for b, _ in r.curves.values():
-            if b not in out:
-                out.append(b)
-    return out
+    """The behaviours with a curve, in their task's order (Tracking, Docking, Executive)."""
+    from coevo.tasks import TASKS
+
+    order = [b for t in TASKS.values() for b in t.behaviours]
+    seen = {b for r in view.runs for b, _ in r.curves.values()}
+    return sorted(seen, key=lambda b: (order.index(b) if b in order else len(order), b))
+
+
+def measure_names(view: View, behaviour: str) -> str:
+    """What the lines of ``behaviour``'s measures plot are: 'picks-D (solid), docked (dotted)'."""
+    labels = _labels()
+    keys = sorted({k for r in view.runs for b, c in r.curves.values() if b == behaviour for k in c.measures})
+    return ", ".join(f"{labels.get(k, k)} ({DASHES[j % len(DASHES)] if j else 'solid'})" for j, k in enumerate(keys))
 
 
 def _clean(values: list[float | None]) -> list[float]:
@@ -161,7 +167,7 @@ def curve_lines(view: View, behaviour: str, what: str = "fitness") -> dict[str, 
                 cols["run"].append(r.run)
                 cols["line"].append(f"{wid} {name}")
                 cols["color"].append(colour)
-                cols["dash"].append(dash if j == 0 else DASHES[(j + 1) % len(DASHES)])
+                cols["dash"].append(dash if what == "fitness" or j == 0 else DASHES[j % len(DASHES)])
                 cols["width"].append(width)
     return cols
 

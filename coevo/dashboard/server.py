@@ -43,6 +43,7 @@ class _Page:
         self.measures_row = row(sizing_mode="stretch_width")
         self.external_row = row(sizing_mode="stretch_width")
         self.plots: dict[tuple[str, str], Any] = {}  # (behaviour, what) -> ColumnDataSource
+        self.figures: dict[tuple[str, str], Any] = {}
         doc.title = dash.title
         doc.add_root(column(self.title, self.banner, self.runs, self.workers, self.fitness_row, self.measures_row,
                             self.external_row, self.comparison, sizing_mode="stretch_width"))
@@ -61,19 +62,21 @@ class _Page:
         fig.add_tools(HoverTool(tooltips=[("run", "@run"), ("line", "@line")]))
         return fig, src
 
-    def _source(self, behaviour: str, what: str) -> Any:
+    def _source(self, behaviour: str, what: str, title: str = "") -> Any:
         key = (behaviour, what)
+        if key in self.plots and title:
+            self.figures[key].title.text = title
         if key not in self.plots:
             if what == "fitness":
                 fig, src = self._figure(f"curve-{behaviour}", f"{behaviour}: best fitness (thick: best so far)", "fitness")
                 self.fitness_row.children.append(fig)
             elif what == "measures":
-                fig, src = self._figure(f"measures-{behaviour}", f"{behaviour}: the task's measures", "%")
+                fig, src = self._figure(f"measures-{behaviour}", title or f"{behaviour}: the task's measures", "%")
                 self.measures_row.children.append(fig)
             else:
                 fig, src = self._figure("external", "CEL: external performance", "%")
                 self.external_row.children.append(fig)
-            self.plots[key] = src
+            self.plots[key], self.figures[key] = src, fig
         return self.plots[key]
 
     def update(self) -> None:
@@ -94,7 +97,7 @@ class _Page:
             self._source(b, "fitness").data = render.curve_lines(view, b, "fitness")
             lines = render.curve_lines(view, b, "measures")
             if lines["xs"] or (b, "measures") in self.plots:
-                self._source(b, "measures").data = lines
+                self._source(b, "measures", f"{b}: {render.measure_names(view, b)} (%)").data = lines
         ext = render.external_lines(view)
         if ext["xs"] or ("", "external") in self.plots:
             self._source("", "external").data = ext
