@@ -121,7 +121,11 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5, on_ready
 
     from coevo.errors import ConfigError
 
+    from bokeh.core.validation import silence
+    from bokeh.core.validation.warnings import EMPTY_LAYOUT
+
     settings.resources.set_value("server")  # BokehJS from this server, whatever BOKEH_RESOURCES says
+    silence(EMPTY_LAYOUT, True)  # the rows of plots are empty until a run's first generation
     problems: list[str] = []  # a refresh that failed: said on the page (and logged)
 
     def on_error(text: str | None) -> None:
