@@ -27,6 +27,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
                 "many real runs per regime: Table 1, learning curves, rank tests, verdict"),
     "show": ("coevo.show.command", "draw a robot's episodes (PNG, GIF) and print its rules with how often they fired"),
     "status": ("coevo.runs.command", "follow a run's workers"),
+    "dashboard": ("coevo.dashboard.command",
+                  "a read-only web page of the runs on the bus, or of a run or comparison directory: workers, curves, "
+                  "Table 1 so far"),
     "check": ("coevo.runs.check_command",
               "is a finished run directory complete? (every generation, every version stored, replay)"),
     "replay": ("coevo.runs.check_command", "re-run a finished run in one process from its adoption log"),

@@ -95,6 +95,7 @@ def _base(command: str, flag: str, places: dict[str, Path]) -> list[str]:
         "run": ([] if flag in ("--resume", "--settings") else ["--run", "sweep", *TINY, "--measure-epochs", "1"])
         + ([] if flag == "--resume" else ["--root", fresh]) + ["--quiet"],
         "status": ["--run", "x", *NO_ROUTER, "--duration", "1"],
+        "dashboard": ["--run=x", *NO_ROUTER],  # the first item is dropped when the positional directory is swept
         "compare": ["--out", fresh, "--runs", "1", *TINY, "--quiet"],
         "evolvability": ["--landscapes", "1", "--runs", "1", "--generations", "1", "--population", "2", "--classes",
                          "gradual", "--rates", "0.1", "--models", "fm", "--quiet", "--out", fresh],

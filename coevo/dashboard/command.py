@@ -1,0 +1,93 @@
+"""``coevo dashboard``: its arguments (declared here, light imports only) and what it runs."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from coevo.console import count_arg, positive_float_arg
+from coevo.errors import ConfigError, RunDirError
+
+__all__ = ["configure_dashboard", "cmd_dashboard"]
+
+DEFAULT_PORT = 5006  # Bokeh's own default
+
+
+def configure_dashboard(p: argparse.ArgumentParser) -> None:
+    """``coevo dashboard``'s arguments."""
+    p.add_argument("dir", nargs="?", metavar="RUN_OR_COMPARISON_DIR",
+                   help="show this run directory, comparison directory (coevo compare --out) or directory of runs from "
+                        "its files, as they grow (the bus is then followed only with --connect)")
+    p.add_argument("--run", help="follow only this run on the bus (default: every run whose workers are on it)")
+    p.add_argument("--runs-dir", metavar="ROOT",
+                   help="where the runs' directories are (coevo run --root, coevo broker --data-dir): the curves of a run "
+                        "seen on the bus are read whole from ROOT/RUN/workers/*/curve.jsonl")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="address to serve the page on (default 127.0.0.1: this machine only; the page is read-only)")
+    p.add_argument("--port", type=count_arg(1, 65535), default=DEFAULT_PORT, help=f"default {DEFAULT_PORT}")
+    p.add_argument("--every", type=positive_float_arg(maximum=3600), default=0.5,
+                   help="seconds between reads of the bus and the files (default 0.5)")
+    p.add_argument("--stall", type=positive_float_arg(maximum=86400), default=3.0,
+                   help="seconds without a heartbeat before a live worker counts as stalled (default 3)")
+    p.add_argument("--stale", type=positive_float_arg(maximum=86400), default=120.0,
+                   help="seen from its files only, seconds without a new line before a run counts as stopped (a "
+                        "comparison's replicate: failed) (default 120)")
+    p.add_argument("--key-file", metavar="FILE",
+                   help="the run's key (with --run): show only its authenticated heartbeats (default: unverified)")
+    from coevo.bus.flags import add_connection_args
+
+    add_connection_args(p)
+    p.set_defaults(func=cmd_dashboard)
+
+
+def cmd_dashboard(args: argparse.Namespace) -> int:
+    from coevo.dashboard.model import Dashboard, classify_dir
+
+    target = Path(args.dir) if args.dir else None
+    kind = classify_dir(target) if target else None
+    runs_dir = Path(args.runs_dir) if args.runs_dir else None
+    if runs_dir is not None and not runs_dir.is_dir():
+        raise RunDirError(f"--runs-dir {str(runs_dir)!r} is not a directory")
+    if args.key_file and not args.run:
+        raise ConfigError("--key-file is one run's key: give that run with --run")
+    on_bus = target is None or bool(args.connect)
+    title = f"coevo dashboard: {kind} {target}" if target else "coevo dashboard" + (f": run {args.run}" if args.run else "")
+
+    def ready(url: str) -> None:
+        print(f"dashboard: {url} (read-only; Ctrl-C stops it)", flush=True)
+
+    if not on_bus:
+        from coevo.dashboard.server import serve
+
+        serve(Dashboard(target=target, runs_dir=runs_dir, stale=args.stale, title=title), host=args.host, port=args.port,
+              every=args.every, on_ready=ready)
+        return 0
+    return _on_bus(args, target, runs_dir, title, ready)
+
+
+def _on_bus(args: argparse.Namespace, target: Path | None, runs_dir: Path | None, title: str, ready: object) -> int:
+    from coevo.bus import keys
+    from coevo.bus.session import config_from_args, open_session, sigterm_as_exit
+    from coevo.dashboard.model import BusSource, Dashboard
+    from coevo.dashboard.server import serve
+
+    gate = None
+    if args.run:
+        keys.check_id("run id", args.run)
+    if args.key_file:
+        from coevo.bus.auth import RunKey
+        from coevo.bus.trust import Gate
+
+        gate = Gate(key=RunKey.load(Path(args.key_file), run=args.run))
+    elif args.run:
+        title += " (unverified: no --key-file)"
+    conf = config_from_args(args)
+    sigterm_as_exit()
+    with open_session(conf, what="dashboard session", gate=gate) as session:
+        source = BusSource(session, run=args.run, stall=args.stall)
+        try:
+            serve(Dashboard(bus=source, target=target, runs_dir=runs_dir, stale=args.stale, title=title),
+                  host=args.host, port=args.port, every=args.every, on_ready=ready)
+        finally:
+            source.close()
+    return 0

@@ -1,0 +1,370 @@
+"""coevo dashboard: its data model (runs, workers, curves from heartbeats and from files, a comparison's replicates
+and Table 1), its page pieces, its bad input; and, marked service, the page in a real headless Chromium following a
+real run."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from coevo.cli import main
+from coevo.dashboard import render
+from coevo.dashboard.model import BusSource, Curve, Dashboard, RunFiles, Tail, View, classify_dir
+from coevo.errors import RunDirError
+
+
+# ---------------------------------------------------------------- curves and logs
+def test_a_curve_takes_each_generation_once_in_order_with_the_best_so_far_and_aligned_measures() -> None:
+    c = Curve()
+    assert c.add(1, 0.5, {"quality_tracking": 20.0})
+    assert c.add(2, 0.3)  # no measures this time: a gap, not a shift
+    assert not c.add(2, 0.9) and not c.add(1, 0.9) and not c.add(0, 1.0)  # repeated, older, generation 0
+    assert c.add(4, 0.7, {"quality_tracking": 40.0, "dock_choice": 5.0})
+    assert c.generation == [1, 2, 4] and c.best == [0.5, 0.3, 0.7] and c.best_so_far == [0.5, 0.5, 0.7]
+    assert c.measures == {"quality_tracking": [20.0, None, 40.0], "dock_choice": [None, None, 5.0]}
+
+
+def test_a_tail_reads_only_complete_new_lines_and_starts_again_when_the_log_is_cut_back(tmp_path: Path) -> None:
+    f = tmp_path / "curve.jsonl"
+    t = Tail(f)
+    assert t.read() == []  # missing: nothing yet
+    f.write_text('{"a": 1}\n{"a": 2}\n{"a": ')
+    assert t.read() == [{"a": 1}, {"a": 2}]
+    with open(f, "a") as fh:
+        fh.write('3}\nnot json\n[1]\n')
+    assert t.read() == [{"a": 3}] and t.bad == 2 and not t.reset
+    f.write_text('{"a": 9}\n')  # a resumed worker cut its log back to its checkpoint
+    assert t.read() == [{"a": 9}] and t.reset
+
+
+def _row(g: int, best: float, qt: float = 10.0) -> str:
+    return json.dumps({"generation": g, "best_fitness": best, "best_so_far": best, "quality_tracking": qt,
+                       "dock_choice": 3.0, "docking_success_rate": 50.0, "docking_from_random": None}) + "\n"
+
+
+def _run_dir(root: Path, run: str = "r1", generations: int = 3) -> Path:
+    d = root / run
+    (d / "store").mkdir(parents=True)
+    (d / "run.json").write_text(json.dumps({"run": run, "task": "fuel", "regime": "mutual", "key_file": None}))
+    for i, b in enumerate(("tracking", "docking", "executive")):
+        w = d / "workers" / b
+        w.mkdir(parents=True)
+        (w / "worker.json").write_text(json.dumps({"behaviour": b, "worker": f"{b}-{i}", "regime": "mutual",
+                                                   "ga": {"generations": 10}}))
+        (w / "curve.jsonl").write_text("".join(_row(g, 0.1 * g) for g in range(1, generations + 1)))
+    (d / "workers" / "executive" / "adoptions.jsonl").write_text(
+        json.dumps({"partner": "tracking", "version": 2}) + "\n" + json.dumps({"partner": "docking", "version": 1}) + "\n")
+    (d / "store" / "tracking.jsonl").write_text("{}\n{}\n")
+    return d
+
+
+def test_a_run_directory_gives_workers_curves_and_partners_and_grows_as_its_logs_do(tmp_path: Path) -> None:
+    d = _run_dir(tmp_path)
+    files = RunFiles(d)
+    v = files.read()
+    assert (v.run, v.task, v.regime, v.state, v.source) == ("r1", "fuel", "mutual", "running", "files")
+    by = {w["worker"]: w for w in v.workers}
+    assert set(by) == {"tracking-0", "docking-1", "executive-2"}
+    assert by["executive-2"]["partner_versions"] == {"tracking": 2, "docking": 1}
+    assert by["tracking-0"]["generation"] == 3 and by["tracking-0"]["generations"] == 10
+    assert by["tracking-0"]["measures"] == {"quality_tracking": 10.0}  # the task's own measure of that behaviour
+    assert by["executive-2"]["measures"] == {"dock_choice": 3.0, "docking_success_rate": 50.0}
+    assert v.broker["stored"] == {"tracking": 2}
+    assert v.curves["tracking-0"][0] == "tracking" and v.curves["tracking-0"][1].generation == [1, 2, 3]
+    with open(d / "workers" / "tracking" / "curve.jsonl", "a") as fh:
+        fh.write(_row(4, 0.9, qt=70.0))
+    (d / "workers" / "docking" / "done.json").write_text(json.dumps({"rejected": {"wrong_key": 2}, "unconfirmed": []}))
+    v = files.read()
+    by = {w["worker"]: w for w in v.workers}
+    assert v.curves["tracking-0"][1].best_so_far[-1] == 0.9 and by["tracking-0"]["measures"] == {"quality_tracking": 70.0}
+    assert by["docking-1"]["state"] == "done" and by["docking-1"]["rejected_by_reason"] == {"wrong_key": 2}
+    (d / "summary.json").write_text(json.dumps({"interrupted": False, "measures": {"quality_tracking": 55.0}}))
+    v = files.read()
+    assert v.state == "done" and v.final == {"quality_tracking": 55.0}
+
+
+def test_a_run_quiet_for_longer_than_stale_counts_as_stopped(tmp_path: Path) -> None:
+    d = _run_dir(tmp_path)
+    old = time.time() - 1000
+    for f in d.rglob("*"):
+        os.utime(f, (old, old))
+    v = RunFiles(d, stale=60).read()
+    assert v.state == "stopped" and {w["state"] for w in v.workers} == {"stopped"}
+
+
+def test_what_is_not_a_run_is_one_clear_error(tmp_path: Path) -> None:
+    (tmp_path / "a-file").write_text("x")
+    (tmp_path / "empty").mkdir()
+    for p, needle in ((tmp_path / "a-file", "not a directory"), (tmp_path / "empty", "not a coevo run directory"),
+                      (tmp_path / "missing", "not a directory")):
+        with pytest.raises(RunDirError, match=needle):
+            classify_dir(p)
+    _run_dir(tmp_path / "root")
+    assert classify_dir(tmp_path / "root") == "runs" and classify_dir(tmp_path / "root" / "r1") == "run"
+
+
+def test_the_dashboard_moves_its_version_only_when_the_page_would_change(tmp_path: Path) -> None:
+    d = _run_dir(tmp_path / "root")
+    _run_dir(tmp_path / "root", "r2")
+    dash = Dashboard(target=tmp_path / "root")
+    assert dash.refresh() and not dash.refresh()
+    version, view = dash.current()
+    assert [r.run for r in view.runs] == ["r1", "r2"] and version == 1
+    with open(d / "workers" / "docking" / "curve.jsonl", "a") as fh:
+        fh.write(_row(4, 0.2))
+    assert dash.refresh() and dash.current()[0] == 2
+
+
+# ---------------------------------------------------------------- the bus, through StatusBoard's model
+class FakeBoard:
+    """What BusSource reads of a StatusBoard (its public snapshot methods), driven by the test."""
+
+    def __init__(self, session: Any, run: str, *, stall: float) -> None:
+        self.run, self.rejected, self.open, self.closed = run, 0, True, False
+        self.workers: list[dict[str, Any]] = []
+        self.broker = {"state": "up", "open": True, "stored": {"tracking": 1}, "rejected": {"flood": 3}, "dropped": 0,
+                       "degraded": ""}
+
+    def snapshot(self) -> list[dict[str, Any]]:
+        return [dict(w) for w in self.workers]
+
+    def robots_view(self) -> list[dict[str, Any]]:
+        return []
+
+    def broker_view(self) -> dict[str, Any]:
+        return dict(self.broker)
+
+    def close(self) -> None:
+        self.closed = True
+
+
+def _worker(g: int, best: float, state: str = "alive") -> dict[str, Any]:
+    return {"behaviour": "tracking", "worker": "tracking-0", "regime": "mutual", "generation": g, "generations": 6,
+            "best_fitness": best, "measures": {"quality_tracking": 10.0 * g}, "partner_versions": {"docking": g},
+            "rejected": 0, "rejected_by_reason": {}, "buffered": 0, "open": True, "state": state, "heartbeat_age": 0.1}
+
+
+def test_curves_grow_from_heartbeats_and_the_page_says_what_is_wrong() -> None:
+    src = BusSource(object(), run="r1")
+    src._board_type = FakeBoard  # a board per run, as the real StatusBoard
+    dash = Dashboard(bus=src)
+    dash.refresh()
+    board = src.boards["r1"]
+    for g, best in ((1, 0.2), (1, 0.2), (2, 0.1), (3, 0.4)):
+        board.workers = [_worker(g, best)]
+        dash.refresh()
+    v = dash.current()[1].runs[0]
+    c = v.curves["tracking-0"][1]
+    assert c.generation == [1, 2, 3] and c.best_so_far == [0.2, 0.2, 0.4] and c.measures["quality_tracking"][-1] == 30.0
+    assert v.state == "running" and v.source == "bus" and v.regime == "mutual" and v.problems == []
+    board.rejected = 4
+    board.open = False
+    board.broker = {**board.broker, "state": "down"}
+    dash.refresh()
+    text = render.problems_html(dash.current()[1])
+    assert "4 messages on run r1" in text and "--key-file is not this run" in text and "no broker on the bus" in text
+    src.close()
+    assert board.closed
+
+
+def test_a_run_seen_on_the_bus_takes_its_curves_from_its_directory_with_runs_dir(tmp_path: Path) -> None:
+    _run_dir(tmp_path, "r1", generations=5)
+    src = BusSource(object(), run="r1")
+    src._board_type = FakeBoard
+    dash = Dashboard(bus=src, runs_dir=tmp_path)
+    dash.refresh()
+    src.boards["r1"].workers = [_worker(5, 0.5)]
+    dash.refresh()
+    v = dash.current()[1].runs[0]
+    assert v.source == "bus+files" and v.curves["tracking-0"][1].generation == [1, 2, 3, 4, 5]
+    assert v.workers[0]["state"] == "alive" and v.broker["rejected"] == {"flood": 3}  # live state from the bus
+
+
+# ---------------------------------------------------------------- the page's pieces
+def test_the_tables_show_what_coevo_status_shows_escaped() -> None:
+    from coevo.dashboard.model import RunView
+
+    c = Curve()
+    c.add(1, 0.25, {"quality_tracking": 12.0})
+    w = {**_worker(1, 0.25), "worker": "<script>x</script>", "rejected_by_reason": {"wrong_key": 2}}
+    view = View("t", runs=[RunView(run="r1", source="bus", state="running", workers=[w], broker={
+        "state": "up", "stored": {"tracking": 1}, "rejected": {"flood": 3}}, curves={"tracking-0": ("tracking", c)})])
+    html = render.workers_html(view)
+    assert "<script>" not in html and "&lt;script&gt;" in html
+    for text in ("1/6", "0.250", "QT=10%", "Dv1", "wrong_key 2", "alive"):
+        assert text in html, text
+    assert "flood 3" in render.runs_html(view) and "tracking:1" in render.runs_html(view)
+    lines = render.curve_lines(view, "tracking")
+    assert lines["xs"] == [[1], [1]] and lines["ys"] == [[0.25], [0.25]] and lines["run"] == ["r1", "r1"]
+    assert render.curve_lines(view, "tracking", "measures")["ys"] == [[12.0]]
+
+
+# ---------------------------------------------------------------- a comparison directory
+def _comparison(tmp_path: Path) -> Path:
+    from coevo.experiments.compare.experiment import CompareSpec
+
+    out = tmp_path / "cmp"
+    (out / "logs").mkdir(parents=True)
+    spec = CompareSpec.make(regimes=("mutual", "independent"), runs=2)
+    (out / "compare.json").write_text(json.dumps({"spec": json.loads(spec.model_dump_json()), "created": 0}))
+    good = {"docking_success_rate": 40.0, "dock_choice": 20.0, "quality_tracking": 70.0}
+    starved = {"docking_success_rate": 0.0, "dock_choice": 1.0, "quality_tracking": 40.0}
+    for run, m in (("mutual-00", starved), ("independent-00", good)):
+        d = _run_dir(out / "runs", run)
+        (d / "summary.json").write_text(json.dumps({"interrupted": False, "measures": m}))
+    _run_dir(out / "runs", "mutual-01", generations=2)  # running: its logs are fresh
+    (out / "logs" / "independent-01.log").write_text("Traceback ...\n")
+    old = time.time() - 1000
+    os.utime(out / "logs" / "independent-01.log", (old, old))  # started, then nothing for long: failed
+    return out
+
+
+def test_a_comparison_shows_replicates_by_state_and_table_1_so_far(tmp_path: Path) -> None:
+    out = _comparison(tmp_path)
+    assert classify_dir(out) == "comparison"
+    dash = Dashboard(target=out, stale=60)
+    dash.refresh()
+    view = dash.current()[1]
+    c = view.comparison
+    states = {r["run"]: r["state"] for r in c["replicates"]}
+    assert states == {"mutual-00": "done", "independent-00": "done", "mutual-01": "running", "independent-01": "failed"}
+    assert c["counts"] == {"done": 2, "running": 1, "failed": 1, "waiting": 0}
+    assert c["table1"]["mutual"]["No Docking / Med"] == 1 and c["table1"]["independent"]["Good Docking / Hi"] == 1
+    assert {r.run for r in view.runs} == {"mutual-00", "independent-00", "mutual-01"}  # their curves are on the page
+    html = render.comparison_html(view)
+    assert "Table 1 so far" in html and "No Docking / Med" in html and "failed" in html
+
+
+def test_a_directory_claiming_to_be_a_comparison_but_broken_is_a_run_dir_error(tmp_path: Path) -> None:
+    out = tmp_path / "cmp"
+    out.mkdir()
+    (out / "compare.json").write_text('{"spec": {"runs": "many"}}')
+    with pytest.raises(RunDirError, match="not a comparison's settings"):
+        Dashboard(target=out).refresh()
+
+
+# ---------------------------------------------------------------- the command line's bad input
+def _coevo(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
+    code = main(["--log-level", "ERROR", *argv])
+    return code, capsys.readouterr().err
+
+
+def test_bad_input_is_one_line_and_status_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from coevo.runs.local import free_port
+
+    (tmp_path / "empty").mkdir()
+    key = tmp_path / "bad.key"
+    key.write_text("not a key")
+    key.chmod(0o600)
+    cases = [
+        (["dashboard", str(tmp_path / "empty")], "RunDirError: "),
+        (["dashboard", "--key-file", str(key)], "ConfigError: --key-file is one run's key"),
+        (["dashboard", "--run", "r1", "--key-file", str(key), "--connect", "tcp/127.0.0.1:9"], "ConfigError: key file"),
+        (["dashboard", "--run", "r1", "--connect", f"tcp/127.0.0.1:{free_port()}", "--connect-timeout", "0"],
+         "ServiceError: cannot open the zenoh dashboard session"),
+        (["dashboard", "--runs-dir", str(tmp_path / "missing"), "--connect", "tcp/127.0.0.1:9"], "RunDirError: --runs-dir"),
+    ]
+    for argv, start in cases:
+        code, err = _coevo(argv, capsys)
+        lines = err.strip().splitlines()
+        assert code == 2 and len(lines) == 1 and lines[0].startswith(start), (argv, err)
+
+
+# ---------------------------------------------------------------- the page in a real browser
+CHROMIUM, CHROMEDRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
+
+DEEP_TEXT = """
+function deep(n) {
+  let t = '';
+  if (n.shadowRoot) t += deep(n.shadowRoot);
+  for (const c of n.childNodes) t += c.nodeType === 3 ? c.textContent + ' ' : deep(c);
+  return t;
+}
+return deep(document.body);
+"""
+# The points a curve's plot holds, as BokehJS has them (the plot itself is drawn on a canvas)
+CURVE_POINTS = """
+const doc = window.Bokeh && Bokeh.documents[0];
+const src = doc && doc.get_model_by_name(arguments[0]);
+if (!src) return -1;
+const xs = src.data.xs;
+let n = 0;
+for (let i = 0; i < xs.length; i++) n += xs[i].length;
+return n;
+"""
+
+
+def _browser(tmp_path: Path) -> Any:
+    if not (os.path.exists(CHROMIUM) and os.path.exists(CHROMEDRIVER)):
+        pytest.skip(f"no headless browser: {CHROMIUM} and {CHROMEDRIVER} are Debian's chromium and chromium-driver "
+                    "(.ci/run installs them; apt-get install -y chromium chromium-driver)")
+    webdriver = pytest.importorskip("selenium.webdriver", reason="selenium is in the test extra: pip install -e '.[test]'")
+    from selenium.webdriver.chrome.service import Service
+
+    opts = webdriver.ChromeOptions()
+    opts.binary_location = CHROMIUM
+    for flag in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                 "--disable-dev-shm-usage", "--window-size=1400,1200", f"--user-data-dir={tmp_path / 'chromium'}"):
+        opts.add_argument(flag)
+    return webdriver.Chrome(service=Service(CHROMEDRIVER), options=opts)  # the driver given: selenium downloads nothing
+
+
+def _generations(text: str) -> dict[str, int]:
+    """worker -> generation, from the workers' table as the page shows it ("tracking-0 tracking 3/30 ...")."""
+    import re
+
+    return {m.group(1): int(m.group(2)) for m in re.finditer(r"\b((?:tracking|docking|executive)-\d+) \S+ (\d+)/\d+", text)}
+
+
+@pytest.mark.service
+def test_the_page_in_headless_chromium_follows_a_real_run(tmp_path: Path) -> None:
+    from procs import coevo_proc, poll, stop
+
+    from coevo.runs.local import free_port
+
+    browser = _browser(tmp_path)
+    procs: list[subprocess.Popen] = []
+    try:
+        run = coevo_proc("run", "--generations", "30", "--population", "6", "--episodes", "6", "--open", "--root",
+                         str(tmp_path / "runs"), "--run", "watched", "--quiet", log=tmp_path / "run.log")
+        procs.append(run)
+        settings = tmp_path / "runs" / "watched" / "run.json"
+        poll(settings.exists, 60, "the run's run.json")
+        endpoint = json.loads(settings.read_text())["endpoint"]
+        port = free_port()
+        dash = coevo_proc("dashboard", "--connect", endpoint, "--port", str(port), log=tmp_path / "dashboard.log")
+        procs.append(dash)
+        poll(lambda: "dashboard: http" in (tmp_path / "dashboard.log").read_text(), 60, "the dashboard's address")
+        browser.get(f"http://127.0.0.1:{port}/")
+        text = lambda: browser.execute_script(DEEP_TEXT)  # noqa: E731
+        first = poll(lambda: (g := _generations(text())) and len(g) == 3 and g, 60,
+                     lambda: f"the three workers on the page: {text()[-600:]}")
+        assert set(first) == {"tracking-0", "docking-1", "executive-2"}
+        assert "watched" in text() and "read-only" in text()
+        points = poll(lambda: browser.execute_script(CURVE_POINTS, "curve-tracking") > 0 and
+                      browser.execute_script(CURVE_POINTS, "curve-tracking"), 30, "a point on Tracking's curve")
+        poll(lambda: any(_generations(text()).get(w, 0) > g for w, g in first.items()), 60,
+             lambda: f"a generation moving on from {first}: {text()[-600:]}")
+        poll(lambda: browser.execute_script(CURVE_POINTS, "curve-tracking") > points, 60, "Tracking's curve growing")
+        time.sleep(1.5)
+        shot = tmp_path / "dashboard.png"
+        browser.save_screenshot(str(shot))
+        assert shot.stat().st_size > 10_000
+        if os.environ.get("COEVO_DASHBOARD_SCREENSHOT"):  # docs/dashboard.png is made this way
+            shutil.copy(shot, os.environ["COEVO_DASHBOARD_SCREENSHOT"])
+        page = browser.page_source
+        assert "cdn.bokeh.org" not in page and "https://" not in page.split("<body")[0]  # nothing from the internet
+    finally:
+        browser.quit()
+        for p in reversed(procs):
+            stop(p)
+    assert procs[1].returncode == 0, (tmp_path / "dashboard.log").read_text()
