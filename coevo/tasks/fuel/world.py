@@ -96,7 +96,6 @@ class BatchWorld:
         dock_f = pymunk.ShapeFilter(categories=_DOCK, mask=_ROBOT)
         robot_f = pymunk.ShapeFilter(categories=_ROBOT, mask=_WALL | _DOCK)
         corners = [(0, 0), (A, 0), (A, A), (0, A)]
-        self._robots: list[pymunk.Body] = []
         statics: list[pymunk.Shape] = []
         for i in range(n):
             ox, oy = self.origin[i]
@@ -106,33 +105,27 @@ class BatchWorld:
             box = [(ox + self.dock_x0, oy), (ox + self.dock_x1, oy), (ox + self.dock_x1, oy + c.dock_depth), (ox + self.dock_x0, oy + c.dock_depth)]
             statics.append(self._static(pymunk.Poly(space.static_body, box), _DOCK, dock_f))
         space.add(*statics)
-        for i in range(n):
-            body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
-            body.position = tuple(self.origin[i] + A / 2)
-            shape = pymunk.Circle(body, c.robot_radius)
-            shape.sensor = True
-            shape.collision_type = _ROBOT
-            shape.filter = robot_f
-            shape.lane = i  # read back by the contact callbacks
-            space.add(body, shape)
-            self._robots.append(body)
-        self._contacts: dict[int, list[int]] = {_WALL: [], _DOCK: []}
-        for other in (_WALL, _DOCK):
-            space.on_collision(_ROBOT, other, begin=self._on_contact, data=self._contacts[other])
-
-        # Row of each body in pymunk's batch buffers (its own iteration order).
-        buf = pb.Buffer()
-        pb.get_space_bodies(space, pb.BodyFields.BODY_ID, buf)
-        ids = np.frombuffer(buf.int_buf(), dtype=np.uintp)
-        row = {int(b): r for r, b in enumerate(ids)}
-        self._nbodies = len(ids)
-        self._robot_row = np.array([row[b.id] for b in self._robots])
-        self._in_order = self._nbodies == n and np.array_equal(self._robot_row, np.arange(n))
-        self._io = np.zeros((self._nbodies, 3))  # x, y, angle  or  vx, vy, omega
-        # Two buffers: one pointed at our numpy array for writes, one owned by pymunk for
-        # reads (a read may grow its array, which must never be memory numpy owns).
+        # Robots (see _sense_contacts): each lane's pose as pymunk would hold it for a kinematic body,
+        # global coordinates, integrated here with pymunk's own arithmetic; pymunk tests contacts with
+        # a pool of probe bodies lent to the lanes that are within reach of a wall or the dock.
+        self._robot_f = robot_f
+        self._gx = self.origin[:, 0] + A / 2
+        self._gy = self.origin[:, 1] + A / 2
+        self._ga = np.zeros(n)
+        self._lane_probe = np.full(n, -1, dtype=np.int64)
+        self._probe_lane = np.zeros(0, dtype=np.int64)
+        self._probes: list[pymunk.Body] = []
+        self._probe_row = np.zeros(0, dtype=np.int64)
+        self._void = np.zeros((0, 2))
+        self._io = np.zeros((0, 2))
         self._wbuf = pb.Buffer()
-        self._rbuf = pb.Buffer()
+        self._hits: dict[int, list[int]] = {_WALL: [], _DOCK: []}  # probes, filled by the callbacks
+        self._contacts: dict[int, list[int]] = {_WALL: [], _DOCK: []}  # their lanes
+        for other in (_WALL, _DOCK):
+            space.on_collision(_ROBOT, other, begin=self._on_contact, data=self._hits[other])
+        r, m = c.robot_radius, _REACH_MARGIN
+        self._near_lo, self._near_hi = r + m, A - r - m  # a centre outside [lo, hi] may touch a wall
+        self._near_dock = (self.dock_x0 - r - m, self.dock_x1 + r + m, c.dock_depth + r + m)
 
         # State, in arena-local coordinates; headings in radians (pymunk's angle).
         self.rx = np.zeros(n)
@@ -157,7 +150,36 @@ class BatchWorld:
     @staticmethod
     def _on_contact(arbiter: pymunk.Arbiter, space: pymunk.Space, hits: list[int]) -> None:
         a, b = arbiter.shapes
-        hits.append(a.lane if a.collision_type == _ROBOT else b.lane)
+        hits.append(a.probe if a.collision_type == _ROBOT else b.probe)
+
+    def _grow(self, k: int) -> None:
+        """``k`` more probe bodies, parked in the void (below the grid, a hash cell apart)."""
+        c, space = self.cfg, self.space
+        j0 = len(self._probes)
+        for j in range(j0, j0 + k):
+            body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+            body.position = self._void_point(j)
+            shape = pymunk.Circle(body, c.robot_radius)
+            shape.sensor = True
+            shape.collision_type = _ROBOT
+            shape.filter = self._robot_f
+            shape.probe = j  # read back by the contact callbacks
+            space.add(body, shape)
+            self._probes.append(body)
+        self._probe_lane = np.concatenate([self._probe_lane, np.full(k, -1, dtype=np.int64)])
+        self._void = np.array([self._void_point(j) for j in range(len(self._probes))])
+        # Row of each probe in pymunk's batch buffers (its own iteration order).
+        buf = pb.Buffer()
+        pb.get_space_bodies(space, pb.BodyFields.BODY_ID, buf)
+        ids = np.frombuffer(buf.int_buf(), dtype=np.uintp)
+        row = {int(b): r for r, b in enumerate(ids)}
+        self._probe_row = np.array([row[b.id] for b in self._probes], dtype=np.int64)
+        self._io = np.zeros((len(ids), 2))
+        self._io[self._probe_row] = self._void
+
+    def _void_point(self, j: int) -> tuple[float, float]:
+        step = max(self.cfg.hash_cell, 4 * self.cfg.robot_radius) * 2
+        return (float(j * step), float(-4 * self.pitch - 10 * step))
 
     # ----------------------------------------------------------------- placement
     def random_starts(self, m: int, rng: np.random.Generator) -> np.ndarray:
@@ -242,19 +264,11 @@ class BatchWorld:
             self.fuel[lanes] = fuel
         self._push_positions()
 
-    def _write(self, col: int, values: np.ndarray) -> None:
-        if self._in_order:
-            self._io[:, col] = values
-        else:
-            self._io[self._robot_row, col] = values
-
     def _push_positions(self) -> None:
-        self._io[:] = 0.0
-        self._write(0, self.rx + self.origin[:, 0])
-        self._write(1, self.ry + self.origin[:, 1])
-        self._write(2, self.rh)
-        self._wbuf.set_float_buf(self._io.reshape(-1))
-        pb.set_space_bodies(self.space, pb.BodyFields.POSITION | pb.BodyFields.ANGLE, self._wbuf)
+        """Every robot's pymunk pose set from the state (as a kinematic body's position and angle would be)."""
+        self._gx = self.rx + self.origin[:, 0]
+        self._gy = self.ry + self.origin[:, 1]
+        self._ga = self.rh.copy()
 
     # ----------------------------------------------------------------- sensing
     def observe(self, names: tuple[str, ...] = SENSOR_NAMES) -> dict[str, np.ndarray]:
@@ -324,19 +338,13 @@ class BatchWorld:
         dt = c.step_seconds
         speed = np.where(active, speed, 0.0)
         turn = np.where(active, turn, 0.0)
-        self._write(0, speed * np.cos(self.rh))
-        self._write(1, speed * np.sin(self.rh))
-        self._write(2, np.radians(turn))
-        self._wbuf.set_float_buf(self._io.reshape(-1))
-        pb.set_space_bodies(self.space, pb.BodyFields.VELOCITY | pb.BodyFields.ANGULAR_VELOCITY, self._wbuf)
-        for hits in self._contacts.values():
-            hits.clear()
-        self.space.step(dt)
-        self._rbuf.clear()
-        pb.get_space_bodies(self.space, pb.BodyFields.POSITION | pb.BodyFields.ANGLE, self._rbuf)
-        state = np.frombuffer(self._rbuf.float_buf(), dtype=np.float64).reshape(-1, 3)
-        if not self._in_order:
-            state = state[self._robot_row]
+        # pymunk's integration of a kinematic body (cpBodyUpdatePosition), operation for operation:
+        # p += (v + v_bias) * dt, a += (w + w_bias) * dt, the biases zero.
+        gx = self._gx = self._gx + speed * np.cos(self.rh) * dt
+        gy = self._gy = self._gy + speed * np.sin(self.rh) * dt
+        ga = self._ga = self._ga + np.radians(turn) * dt
+        self._sense_contacts(dt)
+        state = np.stack([gx, gy, ga], axis=1)
         np.copyto(self.rx, state[:, 0] - self.origin[:, 0], where=active)
         np.copyto(self.ry, state[:, 1] - self.origin[:, 1], where=active)
         np.copyto(self.rh, _signed_rad(state[:, 2]), where=active)
@@ -368,8 +376,55 @@ class BatchWorld:
         Their episode is over; left in contact they would cost pymunk a narrow-phase
         test every step until the next episode repositions them.
         """
-        for i in set(lanes):
-            self._robots[i].position = tuple(self.origin[i] + self._centre)
+        i = np.unique(np.asarray(lanes, dtype=np.int64))
+        self._gx[i] = self.origin[i, 0] + self._centre[0]
+        self._gy[i] = self.origin[i, 1] + self._centre[1]
+
+    def _sense_contacts(self, dt: float) -> None:
+        """pymunk's contact tests of the robots at their new poses (``self._g*``); fills ``self._contacts``
+        with the lanes whose robot began touching a wall or the dock.
+
+        A robot far from its arena's walls and dock cannot touch them (pymunk reports a contact only
+        where bounding boxes meet), so only the lanes within reach get a probe: a kinematic body of
+        the robot's shape, put at the robot's pose.  A lane keeps its probe as long as it stays within
+        reach, so the probe's contact pairs are the lane's, and pymunk's "begin" (touching now, not at
+        the previous step) means what it meant with one body per lane.  Free probes wait in the void.
+        """
+        lx, ly = self._gx - self.origin[:, 0], self._gy - self.origin[:, 1]
+        lo, hi = self._near_lo, self._near_hi
+        dx0, dx1, dy = self._near_dock
+        near = (lx < lo) | (lx > hi) | (ly < lo) | (ly > hi) | ((ly < dy) & (lx > dx0) & (lx < dx1))
+        lp, pl = self._lane_probe, self._probe_lane
+        gone = np.flatnonzero((lp >= 0) & ~near)
+        if gone.size:
+            pl[lp[gone]] = -1
+            self._io[self._probe_row[lp[gone]]] = self._void[lp[gone]]
+            lp[gone] = -1
+        need = np.flatnonzero(near & (lp < 0))
+        if need.size:
+            free = np.flatnonzero(pl < 0)
+            if free.size < need.size:
+                self._grow(max(need.size - free.size, len(self._probes) // 2, 16))
+                pl = self._probe_lane
+                free = np.flatnonzero(pl < 0)
+            got = free[: need.size]
+            pl[got] = need
+            lp[need] = got
+        self._contacts = {_WALL: [], _DOCK: []}
+        if not (near.any() or gone.size):
+            return
+        mine = np.flatnonzero(pl >= 0)
+        rows = self._probe_row[mine]
+        self._io[rows, 0] = self._gx[pl[mine]]
+        self._io[rows, 1] = self._gy[pl[mine]]
+        self._wbuf.set_float_buf(self._io.reshape(-1))
+        pb.set_space_bodies(self.space, pb.BodyFields.POSITION, self._wbuf)
+        for hits in self._hits.values():
+            hits.clear()
+        self.space.step(dt)  # the probes stand still (velocity zero): pymunk only tests contacts
+        for k, hits in self._hits.items():
+            if hits:
+                self._contacts[k] = pl[np.asarray(hits, dtype=np.int64)].tolist()
 
     def _docking_accepted(self, lanes: np.ndarray, speed: np.ndarray) -> np.ndarray:
         """Contact with the dock docks only on its front face, head-on within the angle, slowly enough."""
@@ -401,4 +456,5 @@ class BatchWorld:
         np.copyto(self.th, th, where=active)
 
 
+_REACH_MARGIN = 1.0  # inches: the bounding-box reach test is this much generous (rounding is ~1e-12)
 _WALL_DIR = np.array([180.0, 0.0, -90.0, 90.0, 0.0])  # west, east, south, north walls; dock filled in
