@@ -291,14 +291,20 @@ class BatchWorld:
             qx = np.clip(x, self.dock_x0, self.dock_x1)
             qy = np.minimum(y, c.dock_depth)
             dock_gap = _norm(x - qx, y - qy)
-            gaps = np.stack([x, A - x, y, A - y, dock_gap, t_dist - c.target_radius]) - c.robot_radius
-            which = np.argmin(gaps, axis=0)
-            out["range"] = np.maximum(gaps[which, self._rows], 0.0)
-            obj_dir = _WALL_DIR[np.minimum(which, 4)]
-            obj_dir = np.where(which == 5, t_dir, obj_dir)
-            at_dock = np.flatnonzero(which == 4)
+            r = c.robot_radius
+            gaps = (x - r, (A - x) - r, y - r, (A - y) - r, dock_gap - r, (t_dist - c.target_radius) - r)
+            nearest = gaps[0]
+            for g in gaps[1:]:
+                nearest = np.minimum(nearest, g)
+            out["range"] = np.maximum(nearest, 0.0)
+            # The direction of the nearest object, the first of equals winning (argmin's rule): Target,
+            # then dock, then the walls, later ones overwriting.
+            obj_dir = t_dir.copy()
+            at_dock = np.flatnonzero(gaps[4] == nearest)
             if at_dock.size:
                 obj_dir[at_dock] = np.degrees(np.arctan2(qy[at_dock] - y[at_dock], qx[at_dock] - x[at_dock]))
+            for k in (3, 2, 1, 0):
+                obj_dir[gaps[k] == nearest] = _WALL_DIR[k]
             out["bearing"] = wrap_deg(obj_dir - h)
         if "heading" in want:
             out["heading"] = wrap_deg(np.degrees(self.th) - t_dir)
