@@ -39,6 +39,7 @@ __all__ = ["Trivial", "Rules", "Trace", "Outcome", "run_lanes", "ALWAYS_TRACK", 
 _TURN = np.array(schema(Behaviour.TRACKING).actions[0].values, dtype=np.float64)
 _SPEED = np.array(schema(Behaviour.TRACKING).actions[1].values, dtype=np.float64)
 _ONE = np.uint64(1)
+_RANKS = 64  # rank slots per policy in CompiledPolicies' tables
 
 
 @dataclass(frozen=True)
@@ -287,6 +288,16 @@ def _play_episode(s: _Lanes, c: _Controls, k: int, live: np.ndarray) -> None:
         active &= ~(ev.collided | ev.docked | ev.dry)
 
 
+def _command_tables(compiled: CompiledPolicies) -> tuple[np.ndarray, np.ndarray]:
+    """Turn rate and speed of every (policy, rank), flat at ``policy * 64 + rank``: one gather per command
+    instead of indexing the (P, 64, A) action table and then the value lists; made once per compiled set."""
+    tables = getattr(compiled, "_commands", None)
+    if tables is None:
+        a = compiled.actions.reshape(-1, compiled.actions.shape[-1])
+        tables = compiled._commands = (_TURN[a[:, 0]], _SPEED[a[:, 1]])
+    return tables
+
+
 def _decide(s: _Lanes, c: _Controls, k: int, t: int, active: np.ndarray, obs: dict[str, np.ndarray], beh: Behaviour,
             ctrl: Rules, sel: np.ndarray | None, pol: np.ndarray, turn: np.ndarray, speed: np.ndarray) -> None:
     """One controller's decisions at step ``t`` on its lanes (``sel``; None: all); the learner's are logged."""
@@ -294,10 +305,11 @@ def _decide(s: _Lanes, c: _Controls, k: int, t: int, active: np.ndarray, obs: di
     if sel is not None:
         bins = bins[sel]
     rank, full = ctrl.compiled.decide(pol, bins, conflict=c.conflict, rng=c.rng)
-    act = ctrl.compiled.action_values(pol, rank)
+    turn_of, speed_of = _command_tables(ctrl.compiled)
     where = slice(None) if sel is None else sel
-    turn[where] = _TURN[act[:, 0]]
-    speed[where] = _SPEED[act[:, 1]]
+    flat = pol * _RANKS + rank
+    turn[where] = turn_of.take(flat)
+    speed[where] = speed_of.take(flat)
     if c.record is None and c.learner != beh:
         return
     lanes = np.arange(s.L) if sel is None else sel

@@ -346,14 +346,19 @@ class BatchWorld:
         turn = np.where(active, turn, 0.0)
         # pymunk's integration of a kinematic body (cpBodyUpdatePosition), operation for operation:
         # p += (v + v_bias) * dt, a += (w + w_bias) * dt, the biases zero.
-        gx = self._gx = self._gx + speed * np.cos(self.rh) * dt
-        gy = self._gy = self._gy + speed * np.sin(self.rh) * dt
+        if active.all():
+            cos, sin = np.cos(self.rh), np.sin(self.rh)
+        else:  # a standing robot's velocity is zero whatever its heading: cosines of the moving ones only
+            cos, sin = np.zeros(self.n), np.zeros(self.n)
+            a = np.flatnonzero(active)
+            cos[a], sin[a] = np.cos(self.rh[a]), np.sin(self.rh[a])
+        gx = self._gx = self._gx + speed * cos * dt
+        gy = self._gy = self._gy + speed * sin * dt
         ga = self._ga = self._ga + np.radians(turn) * dt
         self._sense_contacts(dt)
-        state = np.stack([gx, gy, ga], axis=1)
-        np.copyto(self.rx, state[:, 0] - self.origin[:, 0], where=active)
-        np.copyto(self.ry, state[:, 1] - self.origin[:, 1], where=active)
-        np.copyto(self.rh, _signed_rad(state[:, 2]), where=active)
+        np.copyto(self.rx, gx - self.origin[:, 0], where=active)
+        np.copyto(self.ry, gy - self.origin[:, 1], where=active)
+        np.copyto(self.rh, _signed_rad(ga), where=active)
         self._target_walk(active, target_noise)
         self.speed[:] = speed
         self.turn[:] = turn
@@ -442,24 +447,29 @@ class BatchWorld:
         return on_front & head_on & slow
 
     def _target_walk(self, active: np.ndarray, noise_deg: np.ndarray) -> None:
-        """Move the active Targets: a random walk that turns away from walls and the dock."""
+        """Move the active Targets: a random walk that turns away from walls and the dock.
+
+        Computed on the active lanes only (all of them when all are): the others keep their Target.
+        """
         c = self.cfg
-        th = _signed_rad(self.th + np.radians(noise_deg))
+        a = slice(None) if active.all() else np.flatnonzero(active)
+        tx, ty, noise = self.tx[a], self.ty[a], noise_deg[a]
+        th = _signed_rad(self.th[a] + np.radians(noise))
         cos, sin = np.cos(th), np.sin(th)
-        ahead_x = self.tx + c.target_avoid * cos
-        ahead_y = self.ty + c.target_avoid * sin
+        ahead_x = tx + c.target_avoid * cos
+        ahead_y = ty + c.target_avoid * sin
         lo = c.target_radius + 2.0
         hi = c.arena - lo
         near_dock = (ahead_y < c.dock_depth + lo + c.target_avoid / 2) & (np.abs(ahead_x - c.arena / 2) < c.dock_width)
-        blocked = active & ((ahead_x < lo) | (ahead_x > hi) | (ahead_y < lo) | (ahead_y > hi) | near_dock)
+        blocked = (ahead_x < lo) | (ahead_x > hi) | (ahead_y < lo) | (ahead_y > hi) | near_dock
         if blocked.any():
             k = np.flatnonzero(blocked)
-            th[k] = _signed_rad(np.arctan2(self._centre[1] - self.ty[k], self._centre[0] - self.tx[k]) + np.radians(noise_deg[k]))
+            th[k] = _signed_rad(np.arctan2(self._centre[1] - ty[k], self._centre[0] - tx[k]) + np.radians(noise[k]))
             cos[k], sin[k] = np.cos(th[k]), np.sin(th[k])
         step = c.target_speed * c.step_seconds
-        np.copyto(self.tx, self.tx + step * cos, where=active)
-        np.copyto(self.ty, self.ty + step * sin, where=active)
-        np.copyto(self.th, th, where=active)
+        self.tx[a] = tx + step * cos
+        self.ty[a] = ty + step * sin
+        self.th[a] = th
 
 
 _REACH_MARGIN = 1.0  # inches: the bounding-box reach test is this much generous (rounding is ~1e-12)
