@@ -37,6 +37,7 @@ MAX_TURN = 24.0  # deg/s
 DOCK_HEADING = -90.0  # deg: facing south, into the dock
 
 _ROBOT, _WALL, _DOCK = 1, 4, 8  # collision types, also filter categories
+_PROBE_TYPES = 1000  # collision type of probe j: _PROBE_TYPES + j (its filter category is _ROBOT)
 
 
 SENSOR_NAMES = (
@@ -121,11 +122,11 @@ class BatchWorld:
         self._wbuf = pb.Buffer()
         self._hits: dict[int, list[int]] = {_WALL: [], _DOCK: []}  # probes, filled by the callbacks
         self._contacts: dict[int, list[int]] = {_WALL: [], _DOCK: []}  # their lanes
-        for other in (_WALL, _DOCK):
-            space.on_collision(_ROBOT, other, begin=self._on_contact, data=self._hits[other])
         r, m = c.robot_radius, _REACH_MARGIN
-        self._near_lo, self._near_hi = r + m, A - r - m  # a centre outside [lo, hi] may touch a wall
-        self._near_dock = (self.dock_x0 - r - m, self.dock_x1 + r + m, c.dock_depth + r + m)
+        self._mid = self.origin + A / 2
+        self._near_half = A / 2 - r - m  # a centre farther than this from the middle (in x or y) may touch a wall
+        self._near_dock_y = c.dock_depth + r + m - A / 2  # ... one below this and within this of the middle, the dock
+        self._near_dock_x = c.dock_width / 2 + r + m
 
         # State, in arena-local coordinates; headings in radians (pymunk's angle).
         self.rx = np.zeros(n)
@@ -148,9 +149,8 @@ class BatchWorld:
         return shape
 
     @staticmethod
-    def _on_contact(arbiter: pymunk.Arbiter, space: pymunk.Space, hits: list[int]) -> None:
-        a, b = arbiter.shapes
-        hits.append(a.probe if a.collision_type == _ROBOT else b.probe)
+    def _on_contact(arbiter: pymunk.Arbiter, space: pymunk.Space, data: tuple[list[int], int]) -> None:
+        data[0].append(data[1])
 
     def _grow(self, k: int) -> None:
         """``k`` more probe bodies, parked in the void (below the grid, a hash cell apart)."""
@@ -161,10 +161,13 @@ class BatchWorld:
             body.position = self._void_point(j)
             shape = pymunk.Circle(body, c.robot_radius)
             shape.sensor = True
-            shape.collision_type = _ROBOT
+            # A collision type of its own, so that its handlers know the probe without asking the arbiter
+            # for its shapes (half of a callback's cost).
+            shape.collision_type = _PROBE_TYPES + j
             shape.filter = self._robot_f
-            shape.probe = j  # read back by the contact callbacks
             space.add(body, shape)
+            for other in (_WALL, _DOCK):
+                space.on_collision(_PROBE_TYPES + j, other, begin=self._on_contact, data=(self._hits[other], j))
             self._probes.append(body)
         self._probe_lane = np.concatenate([self._probe_lane, np.full(k, -1, dtype=np.int64)])
         self._void = np.array([self._void_point(j) for j in range(len(self._probes))])
@@ -401,10 +404,14 @@ class BatchWorld:
         reach, so the probe's contact pairs are the lane's, and pymunk's "begin" (touching now, not at
         the previous step) means what it meant with one body per lane.  Free probes wait in the void.
         """
-        lx, ly = self._gx - self.origin[:, 0], self._gy - self.origin[:, 1]
-        lo, hi = self._near_lo, self._near_hi
-        dx0, dx1, dy = self._near_dock
-        near = (lx < lo) | (lx > hi) | (ly < lo) | (ly > hi) | ((ly < dy) & (lx > dx0) & (lx < dx1))
+        # Centres relative to the arena's middle; |.| beyond half: within reach of a wall.
+        mx, my = self._gx - self._mid[:, 0], self._gy - self._mid[:, 1]
+        np.abs(mx, out=mx)
+        near = mx > self._near_half
+        near |= np.abs(my) > self._near_half
+        dock = my < self._near_dock_y
+        if dock.any():
+            near |= dock & (mx < self._near_dock_x)
         lp, pl = self._lane_probe, self._probe_lane
         gone = np.flatnonzero((lp >= 0) & ~near)
         if gone.size:
