@@ -270,12 +270,22 @@ def _play_episode(s: _Lanes, c: _Controls, k: int, live: np.ndarray) -> None:
         c.record.state(world, k, 0, live)
     turn = np.zeros(L)
     speed = np.zeros(L)
+    # One controller on every lane, strongest-rule conflict resolution, nothing recorded: only the active
+    # lanes are sensed and decide (a standing lane's command is never used, and 'strongest' draws no
+    # random numbers); the same decisions, fewer of them.
+    only_active = len(groups) == 1 and groups[0][2] is None and c.conflict == "strongest" and c.record is None
     for t in range(T):
         if not active.any():
             break
-        obs = world.observe(names)
-        for beh, ctrl, sel, pol in groups:
-            _decide(s, c, k, t, active, obs, beh, ctrl, sel, pol, turn, speed)
+        if only_active and not active.all():
+            beh, ctrl, _, pol = groups[0]
+            lanes = np.flatnonzero(active)
+            _decide(s, c, k, t, active, world._observe(names, lanes), beh, ctrl, lanes, pol[lanes], turn, speed,
+                    all_active=True)
+        else:
+            obs = world.observe(names)
+            for beh, ctrl, sel, pol in groups:
+                _decide(s, c, k, t, active, obs, beh, ctrl, sel, pol, turn, speed)
         noise = c.rng.normal(0.0, s.cfg.target_turn_sd, s.g)[s.slot]
         ev = world.step(active, turn, speed, noise)
         s.steps[:, k] += active
@@ -299,10 +309,13 @@ def _command_tables(compiled: CompiledPolicies) -> tuple[np.ndarray, np.ndarray]
 
 
 def _decide(s: _Lanes, c: _Controls, k: int, t: int, active: np.ndarray, obs: dict[str, np.ndarray], beh: Behaviour,
-            ctrl: Rules, sel: np.ndarray | None, pol: np.ndarray, turn: np.ndarray, speed: np.ndarray) -> None:
-    """One controller's decisions at step ``t`` on its lanes (``sel``; None: all); the learner's are logged."""
+            ctrl: Rules, sel: np.ndarray | None, pol: np.ndarray, turn: np.ndarray, speed: np.ndarray, *,
+            all_active: bool = False) -> None:
+    """One controller's decisions at step ``t`` on its lanes (``sel``; None: all); the learner's are logged.
+
+    ``obs`` holds every lane's sensors, or with ``all_active`` only those of ``sel``, all of them active."""
     bins = ctrl.compiled.schema.discretise(obs)
-    if sel is not None:
+    if sel is not None and not all_active:
         bins = bins[sel]
     rank, full = ctrl.compiled.decide(pol, bins, conflict=c.conflict, rng=c.rng)
     turn_of, speed_of = _command_tables(ctrl.compiled)
@@ -313,13 +326,16 @@ def _decide(s: _Lanes, c: _Controls, k: int, t: int, active: np.ndarray, obs: di
     if c.record is None and c.learner != beh:
         return
     lanes = np.arange(s.L) if sel is None else sel
-    mine = active[lanes]
-    lanes, rule = lanes[mine], ctrl.compiled.rule_index(pol[mine], rank[mine])
+    if all_active:
+        rule = ctrl.compiled.rule_index(pol, rank)
+    else:
+        mine = active[lanes]
+        lanes, rule, bins, full = lanes[mine], ctrl.compiled.rule_index(pol[mine], rank[mine]), bins[mine], full[mine]
     if c.record is not None:
         c.record.fired(k, t, lanes, rule)
     if c.learner == beh:
         tr = s.trace
-        tr.bins[k, t, lanes], tr.rule[k, t, lanes], tr.full[k, t, lanes] = bins[mine], rule, full[mine]
+        tr.bins[k, t, lanes], tr.rule[k, t, lanes], tr.full[k, t, lanes] = bins, rule, full
         s.fired[lanes, k] |= _ONE << rule.astype(np.uint64)
 
 

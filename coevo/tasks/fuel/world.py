@@ -280,16 +280,26 @@ class BatchWorld:
         Ranges in inches; bearings, headings and orientations in degrees in [0, 360);
         fuel in percent.  Only what is asked for is computed.
         """
+        return self._observe(names, None)
+
+    def _observe(self, names: tuple[str, ...], lanes: np.ndarray | None) -> dict[str, np.ndarray]:
+        """:meth:`observe` of ``lanes`` only (None: all), the same numbers for them."""
         c = self.cfg
         out: dict[str, np.ndarray] = {}
         want = set(names)
-        h = np.degrees(self.rh)
-        dx, dy = self.tx - self.rx, self.ty - self.ry
+        if lanes is None:
+            rx, ry, rh, tx, ty, th, fuel = self.rx, self.ry, self.rh, self.tx, self.ty, self.th, self.fuel
+        else:
+            rx, ry, rh, tx, ty = self.rx[lanes], self.ry[lanes], self.rh[lanes], self.tx[lanes], self.ty[lanes]
+            th = self.th[lanes] if "heading" in want else None
+            fuel = self.fuel[lanes] if "fuel" in want else None
+        h = np.degrees(rh)
+        dx, dy = tx - rx, ty - ry
         t_dist = _norm(dx, dy)
         if want & {"heading", "target_bearing", "range", "bearing"}:
             t_dir = np.degrees(np.arctan2(dy, dx))
         if want & {"range", "bearing"}:
-            x, y = self.rx, self.ry
+            x, y = rx, ry
             A = c.arena
             qx = np.clip(x, self.dock_x0, self.dock_x1)
             qy = np.minimum(y, c.dock_depth)
@@ -310,20 +320,20 @@ class BatchWorld:
                 obj_dir[gaps[k] == nearest] = _WALL_DIR[k]
             out["bearing"] = wrap_deg(obj_dir - h)
         if "heading" in want:
-            out["heading"] = wrap_deg(np.degrees(self.th) - t_dir)
+            out["heading"] = wrap_deg(np.degrees(th) - t_dir)
         if "target_range" in want:
             out["target_range"] = t_dist
         if "target_bearing" in want:
             out["target_bearing"] = wrap_deg(t_dir - h)
         if want & {"dock_range", "dock_bearing"}:
-            ddx, ddy = self.dock_point[0] - self.rx, self.dock_point[1] - self.ry
+            ddx, ddy = self.dock_point[0] - rx, self.dock_point[1] - ry
             out["dock_range"] = _norm(ddx, ddy)
             if "dock_bearing" in want:
                 out["dock_bearing"] = wrap_deg(np.degrees(np.arctan2(ddy, ddx)) - h)
         if "dock_orientation" in want:
             out["dock_orientation"] = wrap_deg(h - DOCK_HEADING)
         if "fuel" in want:
-            out["fuel"] = 100.0 * np.clip(self.fuel, 0.0, 1.0)
+            out["fuel"] = 100.0 * np.clip(fuel, 0.0, 1.0)
         return {k: out[k] for k in names}
 
     def min_dock_steps(self, lanes: np.ndarray) -> np.ndarray:
