@@ -357,22 +357,22 @@ class BatchWorld:
         dt = c.step_seconds
         speed = np.where(active, speed, 0.0)
         turn = np.where(active, turn, 0.0)
+        # Robots and Targets of standing lanes do not move, so everything below is computed on the
+        # active lanes only (all of them: ``a`` a slice, no copies).
+        a = slice(None) if active.all() else np.flatnonzero(active)
         # pymunk's integration of a kinematic body (cpBodyUpdatePosition), operation for operation:
-        # p += (v + v_bias) * dt, a += (w + w_bias) * dt, the biases zero.
-        if active.all():
-            cos, sin = np.cos(self.rh), np.sin(self.rh)
-        else:  # a standing robot's velocity is zero whatever its heading: cosines of the moving ones only
-            cos, sin = np.zeros(self.n), np.zeros(self.n)
-            a = np.flatnonzero(active)
-            cos[a], sin[a] = np.cos(self.rh[a]), np.sin(self.rh[a])
-        gx = self._gx = self._gx + speed * cos * dt
-        gy = self._gy = self._gy + speed * sin * dt
-        ga = self._ga = self._ga + np.radians(turn) * dt
+        # p += (v + v_bias) * dt, a += (w + w_bias) * dt, the biases zero.  A standing robot's velocity
+        # is zero, which leaves its pose as it is.
+        rh, sp, tu = self.rh[a], speed[a], turn[a]
+        gx = self._gx[a] + sp * np.cos(rh) * dt
+        gy = self._gy[a] + sp * np.sin(rh) * dt
+        ga = self._ga[a] + np.radians(tu) * dt
+        self._gx[a], self._gy[a], self._ga[a] = gx, gy, ga
         self._sense_contacts(dt)
-        np.copyto(self.rx, gx - self.origin[:, 0], where=active)
-        np.copyto(self.ry, gy - self.origin[:, 1], where=active)
-        np.copyto(self.rh, _signed_rad(ga), where=active)
-        self._target_walk(active, target_noise)
+        rx = self.rx[a] = gx - self.origin[a, 0]
+        ry = self.ry[a] = gy - self.origin[a, 1]
+        self.rh[a] = _signed_rad(ga)
+        self._target_walk(active, target_noise, a)
         self.speed[:] = speed
         self.turn[:] = turn
 
@@ -380,8 +380,9 @@ class BatchWorld:
         dock = self._contacts[_DOCK]
         if wall or dock:
             self._park(wall + dock)
-        dist = _norm(self.tx - self.rx, self.ty - self.ry)
-        collided = active & (dist < c.robot_radius + c.target_radius)
+        dist = _norm(self.tx[a] - rx, self.ty[a] - ry)
+        collided = np.zeros(self.n, dtype=bool)
+        collided[a] = dist < c.robot_radius + c.target_radius
         collided[wall] = True
         docked = np.zeros(self.n, dtype=bool)
         if dock:
@@ -389,9 +390,12 @@ class BatchWorld:
             ok = self._docking_accepted(lanes, speed[lanes]) & ~collided[lanes]
             docked[lanes[ok]] = True
             collided[lanes[~ok]] = True
-        self.fuel -= np.where(active, c.fuel_idle + c.fuel_per_ips * np.abs(speed) + c.fuel_per_dps * np.abs(turn), 0.0)
-        dry = active & (self.fuel <= 0.0) & ~docked & ~collided
-        tracking = active & (dist >= c.tracking_min) & (dist <= c.tracking_max) & ~collided
+        fuel = self.fuel[a] = self.fuel[a] - (c.fuel_idle + c.fuel_per_ips * np.abs(sp) + c.fuel_per_dps * np.abs(tu))
+        going = ~collided[a]
+        dry = np.zeros(self.n, dtype=bool)
+        dry[a] = (fuel <= 0.0) & going & ~docked[a]
+        tracking = np.zeros(self.n, dtype=bool)
+        tracking[a] = (dist >= c.tracking_min) & (dist <= c.tracking_max) & going
         return StepEvents(collided=collided, docked=docked, dry=dry, tracking=tracking)
 
     def _park(self, lanes: list[int]) -> None:
@@ -463,13 +467,14 @@ class BatchWorld:
         slow = (speed > 0) & (speed <= c.dock_max_speed)
         return on_front & head_on & slow
 
-    def _target_walk(self, active: np.ndarray, noise_deg: np.ndarray) -> None:
+    def _target_walk(self, active: np.ndarray, noise_deg: np.ndarray, a: slice | np.ndarray | None = None) -> None:
         """Move the active Targets: a random walk that turns away from walls and the dock.
 
-        Computed on the active lanes only (all of them when all are): the others keep their Target.
+        Computed on the active lanes ``a`` only (a slice when all are): the others keep their Target.
         """
         c = self.cfg
-        a = slice(None) if active.all() else np.flatnonzero(active)
+        if a is None:
+            a = slice(None) if active.all() else np.flatnonzero(active)
         tx, ty, noise = self.tx[a], self.ty[a], noise_deg[a]
         th = _signed_rad(self.th[a] + np.radians(noise))
         cos, sin = np.cos(th), np.sin(th)
