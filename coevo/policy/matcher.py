@@ -28,6 +28,7 @@ from coevo.policy.schema import Schema
 __all__ = ["CompiledPolicies", "lowest_bit"]
 
 _ONE = np.uint64(1)
+_FEW = 256  # up to this many unmatched situations, the best partial match is counted from unpacked bits
 
 
 def lowest_bit(mask: np.ndarray) -> np.ndarray:
@@ -96,15 +97,17 @@ class CompiledPolicies:
         Returns ``(rank, full)``: the winning rule's strength rank per situation and
         whether it matched fully (False: it was the best partial match).
         """
-        base = np.asarray(policy, dtype=np.int64) * self._stride
-        per = [self._flat.take(base + (off + bins[:, s])) for s, off in enumerate(self._offsets)]
-        match = per[0].copy()
-        for m in per[1:]:
-            match &= m
+        # One (S, n) index array and one gather for all sensors (bins often come as the transpose of
+        # an (S, n) array, whose .T is then contiguous), and one AND-reduction over the sensors.
+        idx = np.asarray(bins).T.astype(np.int64)
+        idx += self._offsets[:, None]
+        idx += np.asarray(policy, dtype=np.int64) * self._stride
+        per = self._flat.take(idx)
+        match = np.bitwise_and.reduce(per, axis=0)
         full = match != 0
         if not full.all():
             miss = np.flatnonzero(~full)
-            match[miss] = self._best_partial([m[miss] for m in per], self.valid[policy[miss]])
+            match[miss] = self._best_partial(list(per[:, miss]), self.valid[policy[miss]])
         if conflict == "strongest":
             return lowest_bit(match), full
         if conflict == "proportional":
@@ -115,6 +118,8 @@ class CompiledPolicies:
 
     def _best_partial(self, per: list[np.ndarray], valid: np.ndarray) -> np.ndarray:
         """Mask of the rules that satisfy the most conditions (bit-sliced count, MSB-first max)."""
+        if valid.size <= _FEW:
+            return self._best_partial_few(per, valid)
         planes = [np.zeros_like(valid) for _ in range(self._planes)]
         for m in per:
             carry = m & valid
@@ -127,6 +132,17 @@ class CompiledPolicies:
             narrowed = cand & plane
             cand = np.where(narrowed != 0, narrowed, cand)
         return cand
+
+    @staticmethod
+    def _best_partial_few(per: list[np.ndarray], valid: np.ndarray) -> np.ndarray:
+        """:meth:`_best_partial` for a few situations: conditions counted per rule from the unpacked bits
+        (one pass of whole-array operations instead of ~S * log2(S) small ones); the same mask."""
+        m = np.stack(per, axis=1) & valid[:, None]  # (n, S)
+        bits = np.unpackbits(m.astype("<u8").view(np.uint8).reshape(m.shape + (8,)), axis=-1, bitorder="little")
+        count = bits.reshape(m.shape[0], m.shape[1], 64).sum(axis=1, dtype=np.int64)  # (n, 64): bit k = rule rank k
+        best = count == count.max(axis=1, keepdims=True)
+        best &= np.unpackbits(valid.astype("<u8").view(np.uint8).reshape(-1, 8), axis=-1, bitorder="little").astype(bool)
+        return np.packbits(best, axis=-1, bitorder="little").view("<u8")[:, 0].astype(np.uint64)
 
     def _draw(self, policy: np.ndarray, match: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         bits = ((match[:, None] >> np.arange(64, dtype=np.uint64)[None, :]) & _ONE).astype(bool)
