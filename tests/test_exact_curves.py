@@ -151,6 +151,20 @@ def test_same_seed_same_numbers() -> None:
     assert not diffs, f"{len(diffs)} differences, first: " + "\n".join(diffs[:15])
 
 
+def test_reused_world_runs_like_a_fresh_one() -> None:
+    """Evaluators share worlds (coevo.tasks.fuel.evaluate): a world that already ran gives what a new one gives."""
+    world = WorldConfig()
+    rng = np.random.default_rng(2)
+    for beh, ex in ((Behaviour.TRACKING, ALWAYS_TRACK), (Behaviour.DOCKING, ALWAYS_DOCK)):
+        ctrl = Rules(CompiledPolicies([random_ruleset(beh, 24, rng) for _ in range(4)]), np.arange(120) % 4)
+        kw = dict(tracking=ctrl, docking=None) if beh == Behaviour.TRACKING else dict(tracking=None, docking=ctrl)
+        used = BatchWorld(world, 120)
+        run_lanes(used, lane_episodes=4, executive=ex, restart_epochs=True, rng=np.random.default_rng(1), learner=beh, **kw)
+        a, b = (run_lanes(w, lane_episodes=3, executive=ex, restart_epochs=False, rng=np.random.default_rng(3),
+                          learner=beh, **kw) for w in (used, BatchWorld(world, 120)))
+        assert _outcome(a) == _outcome(b)
+
+
 def test_best_partial_paths_agree() -> None:
     """The matcher's two ways to the best partial match (bit-sliced counters; unpacked bits for a few
     situations) give the same masks."""
