@@ -165,27 +165,6 @@ def test_reused_world_runs_like_a_fresh_one() -> None:
         assert _outcome(a) == _outcome(b)
 
 
-def test_best_partial_paths_agree() -> None:
-    """The matcher's two ways to the best partial match (bit-sliced counters; unpacked bits for a few
-    situations) give the same masks."""
-    import coevo.policy.matcher as matcher
-
-    rng = np.random.default_rng(0)
-    for beh in ("docking", "tracking", "executive"):
-        for n_rules in (1, 20, 64):
-            cp = CompiledPolicies([random_ruleset(beh, n_rules, rng) for _ in range(7)])
-            pol = rng.integers(0, 7, 500)
-            bins = np.stack([rng.integers(0, s.bins, 500) for s in cp.schema.sensors], 1)
-            per = [cp._flat.take(pol * cp._stride + off + bins[:, s]) for s, off in enumerate(cp._offsets)]
-            few = cp._best_partial_few(per, cp.valid[pol])
-            saved, matcher._FEW = matcher._FEW, -1
-            try:
-                sliced = cp._best_partial(per, cp.valid[pol])
-            finally:
-                matcher._FEW = saved
-            assert few.dtype == sliced.dtype and np.array_equal(few, sliced)
-
-
 if __name__ == "__main__":
     if sys.argv[1:] == ["--write"]:
         DATA.parent.mkdir(exist_ok=True)

@@ -28,7 +28,6 @@ from coevo.policy.schema import Schema
 __all__ = ["CompiledPolicies", "lowest_bit"]
 
 _ONE = np.uint64(1)
-_FEW = 256  # up to this many unmatched situations, the best partial match is counted from unpacked bits
 
 
 def lowest_bit(mask: np.ndarray) -> np.ndarray:
@@ -118,8 +117,6 @@ class CompiledPolicies:
 
     def _best_partial(self, per: list[np.ndarray], valid: np.ndarray) -> np.ndarray:
         """Mask of the rules that satisfy the most conditions (bit-sliced count, MSB-first max)."""
-        if valid.size <= _FEW:
-            return self._best_partial_few(per, valid)
         planes = [np.zeros_like(valid) for _ in range(self._planes)]
         for m in per:
             carry = m & valid
@@ -132,17 +129,6 @@ class CompiledPolicies:
             narrowed = cand & plane
             cand = np.where(narrowed != 0, narrowed, cand)
         return cand
-
-    @staticmethod
-    def _best_partial_few(per: list[np.ndarray], valid: np.ndarray) -> np.ndarray:
-        """:meth:`_best_partial` for a few situations: conditions counted per rule from the unpacked bits
-        (one pass of whole-array operations instead of ~S * log2(S) small ones); the same mask."""
-        m = np.stack(per, axis=1) & valid[:, None]  # (n, S)
-        bits = np.unpackbits(m.astype("<u8").view(np.uint8).reshape(m.shape + (8,)), axis=-1, bitorder="little")
-        count = bits.reshape(m.shape[0], m.shape[1], 64).sum(axis=1, dtype=np.int64)  # (n, 64): bit k = rule rank k
-        best = count == count.max(axis=1, keepdims=True)
-        best &= np.unpackbits(valid.astype("<u8").view(np.uint8).reshape(-1, 8), axis=-1, bitorder="little").astype(bool)
-        return np.packbits(best, axis=-1, bitorder="little").view("<u8")[:, 0].astype(np.uint64)
 
     def _draw(self, policy: np.ndarray, match: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         bits = ((match[:, None] >> np.arange(64, dtype=np.uint64)[None, :]) & _ONE).astype(bool)
