@@ -9,6 +9,7 @@ world, the runner, the evaluator and the matcher must reproduce it bit for bit:
   Docking rules), each with its best rule set and final population (hashed);
 * a Tracking curve with ``conflict=proportional`` (the strength-proportional draw);
 * the ``learn`` command's final measures of each best;
+* all of it again with the world's compiled (numba) sensing forced on for every batch size;
 * ``run_lanes`` outcomes (every array, the learner's trace included, hashed) for
   random 32-rule policies as ``coevo bench`` drives them, an Executive with rules,
   recorded runs (the Recorder's arrays) and raw sensor values of random states.
@@ -145,6 +146,21 @@ def _diff(a: object, b: object, path: str = "") -> list[str]:
 
 
 def test_same_seed_same_numbers() -> None:
+    expected = json.loads(DATA.read_text(encoding="utf-8"))
+    got = json.loads(json.dumps(compute()))
+    diffs = _diff(got, expected)
+    assert not diffs, f"{len(diffs)} differences, first: " + "\n".join(diffs[:15])
+
+
+def test_compiled_sensing_same_numbers(monkeypatch) -> None:
+    """The same numbers with BatchWorld's compiled sensing (numba) on every batch, however small."""
+    import coevo.tasks.fuel.world as world_mod
+
+    if world_mod._sense_kernel() is None:
+        import pytest
+
+        pytest.skip("numba is not installed: only numpy's sensing runs")
+    monkeypatch.setattr(world_mod, "SENSE_KERNEL_MIN_LANES", 0)
     expected = json.loads(DATA.read_text(encoding="utf-8"))
     got = json.loads(json.dumps(compute()))
     diffs = _diff(got, expected)

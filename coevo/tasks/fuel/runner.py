@@ -277,11 +277,12 @@ def _play_episode(s: _Lanes, c: _Controls, k: int, live: np.ndarray) -> None:
     for t in range(T):
         if not active.any():
             break
-        if only_active and not active.all():
+        if only_active:
             beh, ctrl, _, pol = groups[0]
-            lanes = np.flatnonzero(active)
-            _decide(s, c, k, t, active, world._observe(names, lanes), beh, ctrl, lanes, pol[lanes], turn, speed,
-                    all_active=True)
+            lanes = None if active.all() else np.flatnonzero(active)
+            bins = world._sense_bins(ctrl.compiled.schema, lanes)
+            _decide(s, c, k, t, active, None, beh, ctrl, lanes, pol if lanes is None else pol[lanes], turn, speed,
+                    all_active=True, bins=bins)
         else:
             obs = world.observe(names)
             for beh, ctrl, sel, pol in groups:
@@ -310,13 +311,15 @@ def _command_tables(compiled: CompiledPolicies) -> tuple[np.ndarray, np.ndarray]
 
 def _decide(s: _Lanes, c: _Controls, k: int, t: int, active: np.ndarray, obs: dict[str, np.ndarray], beh: Behaviour,
             ctrl: Rules, sel: np.ndarray | None, pol: np.ndarray, turn: np.ndarray, speed: np.ndarray, *,
-            all_active: bool = False) -> None:
+            all_active: bool = False, bins: np.ndarray | None = None) -> None:
     """One controller's decisions at step ``t`` on its lanes (``sel``; None: all); the learner's are logged.
 
-    ``obs`` holds every lane's sensors, or with ``all_active`` only those of ``sel``, all of them active."""
-    bins = ctrl.compiled.schema.discretise(obs)
-    if sel is not None and not all_active:
-        bins = bins[sel]
+    ``obs`` holds every lane's sensors, or ``bins`` their bins; with ``all_active`` only those of ``sel``
+    (None: all lanes), all of them active."""
+    if bins is None:
+        bins = ctrl.compiled.schema.discretise(obs)
+        if sel is not None and not all_active:
+            bins = bins[sel]
     rank, full = ctrl.compiled.decide(pol, bins, conflict=c.conflict, rng=c.rng)
     turn_of, speed_of = _command_tables(ctrl.compiled)
     where = slice(None) if sel is None else sel

@@ -28,6 +28,7 @@ import numpy as np
 import pymunk
 import pymunk.batch as pb
 
+from coevo.policy.schema import Schema
 from coevo.tasks.fuel.settings import WorldConfig
 
 __all__ = ["BatchWorld", "StepEvents", "MAX_SPEED", "MAX_TURN", "DOCK_HEADING", "SENSOR_NAMES"]
@@ -336,6 +337,35 @@ class BatchWorld:
             out["fuel"] = 100.0 * np.clip(fuel, 0.0, 1.0)
         return {k: out[k] for k in names}
 
+    def _sense_bins(self, sch: Schema, lanes: np.ndarray | None) -> np.ndarray:
+        """``sch.discretise(self._observe(sch.sensor_names, lanes))``, the same (n, S) uint8 bins: compiled
+        in one pass per lane for big batches (see :func:`_sense_bins_py`), else numpy's."""
+        m = self.n if lanes is None else len(lanes)
+        kernel = _sense_kernel() if m >= SENSE_KERNEL_MIN_LANES else None
+        if kernel is None:
+            return sch.discretise(self._observe(sch.sensor_names, lanes))
+        c = self.cfg
+        names = sch.sensor_names
+        pick = (lambda a: a) if lanes is None else (lambda a: a[lanes])
+        rx, ry, rh, tx, ty = pick(self.rx), pick(self.ry), pick(self.rh), pick(self.tx), pick(self.ty)
+        th = pick(self.th) if "heading" in names else rx
+        fuel = pick(self.fuel) if "fuel" in names else rx
+        t_dir = q_dir = d_dir = rx
+        if {"range", "bearing", "heading", "target_bearing"} & set(names):
+            t_dir = np.degrees(np.arctan2(ty - ry, tx - rx))
+        if "bearing" in names:
+            qx = np.clip(rx, self.dock_x0, self.dock_x1)
+            qy = np.minimum(ry, c.dock_depth)
+            q_dir = np.degrees(np.arctan2(qy - ry, qx - rx))
+        if "dock_bearing" in names:
+            d_dir = np.degrees(np.arctan2(self.dock_point[1] - ry, self.dock_point[0] - rx))
+        codes, inv_width, nbins, circular = _sensor_tables(sch)
+        out = np.empty((len(names), m), dtype=np.uint8)
+        kernel(codes, inv_width, nbins, circular, rx, ry, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir,
+               float(c.arena), float(self.dock_x0), float(self.dock_x1), float(c.dock_depth), float(c.robot_radius),
+               float(c.target_radius), float(self.dock_point[0]), float(self.dock_point[1]), out)
+        return out.T
+
     def min_dock_steps(self, lanes: np.ndarray) -> np.ndarray:
         """Estimated fewest steps to dock from now (the report's m): turn to face the dock at full rate, drive
         there at full speed, one step to touch.  A lower bound: it ignores the slow, head-on final approach."""
@@ -496,3 +526,116 @@ class BatchWorld:
 
 _REACH_MARGIN = 1.0  # inches: the bounding-box reach test is this much generous (rounding is ~1e-12)
 _WALL_DIR = np.array([180.0, 0.0, -90.0, 90.0, 0.0])  # west, east, south, north walls; dock filled in
+
+
+# ----------------------------------------------------------------- compiled sensing
+# BatchWorld.sense_bins: observe + Schema.discretise in one pass per lane, compiled with numba where
+# the batch is big enough to pay for it.  Every value is computed with the same floating-point
+# operations in the same order as observe() and Sensor.discretise (cos, sin, sqrt and floor are the
+# same libm/IEEE functions in numba; numba does not contract a*b+c into FMA), except arctan2, which
+# numpy computes with its own SIMD code: those arrays come from numpy.  tests/test_exact_curves.py
+# checks both paths against numbers recorded before this code existed.
+
+_SENSOR_CODE = {name: i for i, name in enumerate(SENSOR_NAMES)}
+SENSE_KERNEL_MIN_LANES = 1024  # below this many lanes numpy's passes are cheaper than numba's first use
+_kernel: list[object] = []  # [compiled function or None], filled on first use
+
+
+def _sense_bins_py(codes, inv_width, nbins, circular, rx, ry, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir,
+                   arena, x0, x1, depth, r, tr, dock_x, dock_y, out):  # pragma: no cover - compiled by numba
+    n = rx.shape[0]
+    for i in range(n):
+        x = rx[i]
+        y = ry[i]
+        h = np.degrees(rh[i])
+        dx = tx[i] - x
+        dy = ty[i] - y
+        t_dist = np.sqrt(dx * dx + dy * dy)
+        for j in range(codes.shape[0]):
+            code = codes[j]
+            if code == 0 or code == 1:  # range, bearing
+                qx = min(max(x, x0), x1)
+                qy = min(y, depth)
+                gx = x - qx
+                gy = y - qy
+                g4 = np.sqrt(gx * gx + gy * gy) - r
+                g0 = x - r
+                g1 = (arena - x) - r
+                g2 = y - r
+                g3 = (arena - y) - r
+                g5 = (t_dist - tr) - r
+                nearest = min(min(min(min(min(g0, g1), g2), g3), g4), g5)
+                if code == 0:
+                    v = nearest if nearest >= 0.0 else 0.0
+                else:
+                    if g0 == nearest:
+                        od = 180.0
+                    elif g1 == nearest:
+                        od = 0.0
+                    elif g2 == nearest:
+                        od = -90.0
+                    elif g3 == nearest:
+                        od = 90.0
+                    elif g4 == nearest:
+                        od = q_dir[i]
+                    else:
+                        od = t_dir[i]
+                    a = od - h
+                    v = a - 360.0 * np.floor(a * (1.0 / 360.0))
+            elif code == 2:  # heading
+                a = np.degrees(th[i]) - t_dir[i]
+                v = a - 360.0 * np.floor(a * (1.0 / 360.0))
+            elif code == 3:  # target_range
+                v = t_dist
+            elif code == 4:  # target_bearing
+                a = t_dir[i] - h
+                v = a - 360.0 * np.floor(a * (1.0 / 360.0))
+            elif code == 5:  # dock_range
+                ddx = dock_x - x
+                ddy = dock_y - y
+                v = np.sqrt(ddx * ddx + ddy * ddy)
+            elif code == 6:  # dock_bearing
+                a = d_dir[i] - h
+                v = a - 360.0 * np.floor(a * (1.0 / 360.0))
+            elif code == 7:  # dock_orientation
+                a = h - -90.0
+                v = a - 360.0 * np.floor(a * (1.0 / 360.0))
+            else:  # fuel
+                f = min(max(fuel[i], 0.0), 1.0)
+                v = 100.0 * f
+            # Sensor.discretise
+            if circular[j]:
+                k = int((v - 360.0 * np.floor(v * (1.0 / 360.0))) * inv_width[j])
+                if k >= nbins[j]:
+                    k -= nbins[j]
+            else:
+                k = int(min(max(v * inv_width[j], 0.0), nbins[j] - 1.0))
+            out[j, i] = k
+
+
+_TABLES: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+
+
+def _sensor_tables(sch: Schema) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A schema's sensors as the kernel's arrays: code, 1 / width (as Sensor.discretise computes it), bins, circular."""
+    t = _TABLES.get(sch.behaviour)
+    if t is None or len(t[0]) != sch.n_sensors:
+        t = _TABLES[sch.behaviour] = (
+            np.array([_SENSOR_CODE[s.name] for s in sch.sensors], dtype=np.int64),
+            np.array([1.0 / s.width for s in sch.sensors], dtype=np.float64),
+            np.array([s.bins for s in sch.sensors], dtype=np.int64),
+            np.array([s.circular for s in sch.sensors], dtype=np.bool_),
+        )
+    return t
+
+
+def _sense_kernel():
+    """The compiled sensing function, or None without numba (then numpy's observe + discretise)."""
+    if not _kernel:
+        try:
+            import numba
+        except ImportError:  # pragma: no cover - numba is a dependency; a stripped install still works
+            _kernel.append(None)
+        else:
+            _kernel.append(numba.njit(cache=True, nogil=True)(_sense_bins_py))
+    return _kernel[0]
