@@ -9,7 +9,7 @@ world, the runner, the evaluator and the matcher must reproduce it bit for bit:
   Docking rules), each with its best rule set and final population (hashed);
 * a Tracking curve with ``conflict=proportional`` (the strength-proportional draw);
 * the ``learn`` command's final measures of each best;
-* all of it again with the world's compiled (numba) sensing forced on for every batch size;
+* all of it again with the world's compiled (numba) sensing and stepping forced on for every batch size;
 * ``run_lanes`` outcomes (every array, the learner's trace included, hashed) for
   random 32-rule policies as ``coevo bench`` drives them, an Executive with rules,
   recorded runs (the Recorder's arrays) and raw sensor values of random states.
@@ -153,14 +153,14 @@ def test_same_seed_same_numbers() -> None:
 
 
 def test_compiled_sensing_same_numbers(monkeypatch) -> None:
-    """The same numbers with BatchWorld's compiled sensing (numba) on every batch, however small."""
+    """The same numbers with BatchWorld's compiled sensing and stepping (numba) on every batch, however small."""
     import coevo.tasks.fuel.world as world_mod
 
     if world_mod._sense_kernel() is None:
         import pytest
 
         pytest.skip("numba is not installed: only numpy's sensing runs")
-    monkeypatch.setattr(world_mod, "SENSE_KERNEL_MIN_LANES", 0)
+    monkeypatch.setattr(world_mod, "COMPILED_MIN_LANES", 0)
     expected = json.loads(DATA.read_text(encoding="utf-8"))
     got = json.loads(json.dumps(compute()))
     diffs = _diff(got, expected)

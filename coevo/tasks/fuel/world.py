@@ -341,7 +341,7 @@ class BatchWorld:
         """``sch.discretise(self._observe(sch.sensor_names, lanes))``, the same (n, S) uint8 bins: compiled
         in one pass per lane for big batches (see :func:`_sense_bins_py`), else numpy's."""
         m = self.n if lanes is None else len(lanes)
-        kernel = _sense_kernel() if m >= SENSE_KERNEL_MIN_LANES else None
+        kernel = _sense_kernel() if m >= COMPILED_MIN_LANES else None
         if kernel is None:
             return sch.discretise(self._observe(sch.sensor_names, lanes))
         c = self.cfg
@@ -387,9 +387,12 @@ class BatchWorld:
         dt = c.step_seconds
         speed = np.where(active, speed, 0.0)
         turn = np.where(active, turn, 0.0)
+        idx = np.flatnonzero(active)
+        if idx.size >= COMPILED_MIN_LANES and _compiled("_move_py") is not None:
+            return self._step_compiled(idx, speed, turn, target_noise)
         # Robots and Targets of standing lanes do not move, so everything below is computed on the
         # active lanes only (all of them: ``a`` a slice, no copies).
-        a = slice(None) if active.all() else np.flatnonzero(active)
+        a = slice(None) if idx.size == self.n else idx
         # pymunk's integration of a kinematic body (cpBodyUpdatePosition), operation for operation:
         # p += (v + v_bias) * dt, a += (w + w_bias) * dt, the biases zero.  A standing robot's velocity
         # is zero, which leaves its pose as it is.
@@ -426,6 +429,49 @@ class BatchWorld:
         dry[a] = (fuel <= 0.0) & going & ~docked[a]
         tracking = np.zeros(self.n, dtype=bool)
         tracking[a] = (dist >= c.tracking_min) & (dist <= c.tracking_max) & going
+        return StepEvents(collided=collided, docked=docked, dry=dry, tracking=tracking)
+
+    def _step_compiled(self, idx: np.ndarray, speed: np.ndarray, turn: np.ndarray, target_noise: np.ndarray) -> StepEvents:
+        """:meth:`step` of the active lanes ``idx`` with compiled loops (see :func:`_move_py`): the same
+        operations in the same order, pymunk's contacts and numpy's arctan2 in between."""
+        c = self.cfg
+        dt = c.step_seconds
+        lo = c.target_radius + 2.0
+        blocked = np.empty(idx.size, dtype=np.bool_)
+        _compiled("_move_py")(
+            idx, speed, turn, dt, self.rh, self._gx, self._gy, self._ga, self.origin[:, 0], self.origin[:, 1],
+            self.rx, self.ry, self.th, self.tx, self.ty, target_noise,
+            c.target_avoid, lo, c.arena - lo, c.dock_depth + lo + c.target_avoid / 2, c.arena / 2, c.dock_width,
+            c.target_speed * c.step_seconds, blocked)
+        if blocked.any():  # Targets turning away from a wall or the dock: as _target_walk does
+            k = idx[blocked]
+            tx, ty = self.tx[k], self.ty[k]
+            th = _signed_rad(np.arctan2(self._centre[1] - ty, self._centre[0] - tx) + np.radians(target_noise[k]))
+            step = c.target_speed * c.step_seconds
+            self.tx[k] = tx + step * np.cos(th)
+            self.ty[k] = ty + step * np.sin(th)
+            self.th[k] = th
+        self._sense_contacts(dt)
+        self.speed[:] = speed
+        self.turn[:] = turn
+        wall = self._contacts[_WALL]
+        dock = self._contacts[_DOCK]
+        if wall or dock:
+            self._park(wall + dock)
+        dist = np.empty(idx.size)
+        collided = np.zeros(self.n, dtype=bool)
+        _compiled("_near_target_py")(idx, self.rx, self.ry, self.tx, self.ty, c.robot_radius + c.target_radius, dist, collided)
+        collided[wall] = True
+        docked = np.zeros(self.n, dtype=bool)
+        if dock:
+            lanes = np.unique(np.asarray(dock, dtype=np.int64))
+            ok = self._docking_accepted(lanes, speed[lanes]) & ~collided[lanes]
+            docked[lanes[ok]] = True
+            collided[lanes[~ok]] = True
+        dry = np.zeros(self.n, dtype=bool)
+        tracking = np.zeros(self.n, dtype=bool)
+        _compiled("_spend_py")(idx, speed, turn, self.fuel, c.fuel_idle, c.fuel_per_ips, c.fuel_per_dps, dist,
+                               c.tracking_min, c.tracking_max, collided, docked, dry, tracking)
         return StepEvents(collided=collided, docked=docked, dry=dry, tracking=tracking)
 
     def _park(self, lanes: list[int]) -> None:
@@ -537,8 +583,8 @@ _WALL_DIR = np.array([180.0, 0.0, -90.0, 90.0, 0.0])  # west, east, south, north
 # checks both paths against numbers recorded before this code existed.
 
 _SENSOR_CODE = {name: i for i, name in enumerate(SENSOR_NAMES)}
-SENSE_KERNEL_MIN_LANES = 1024  # below this many lanes numpy's passes are cheaper than numba's first use
-_kernel: list[object] = []  # [compiled function or None], filled on first use
+COMPILED_MIN_LANES = 1024  # below this many lanes numpy's passes are cheaper than numba's first use
+_kernels: dict[str, object] = {}  # compiled functions (None without numba), made on first use
 
 
 def _sense_bins_py(codes, inv_width, nbins, circular, rx, ry, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir,
@@ -629,13 +675,76 @@ def _sensor_tables(sch: Schema) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     return t
 
 
-def _sense_kernel():
-    """The compiled sensing function, or None without numba (then numpy's observe + discretise)."""
-    if not _kernel:
+def _compiled(name: str):
+    """The numba-compiled version of the module function ``name``, or None without numba (then numpy)."""
+    if name not in _kernels:
         try:
             import numba
         except ImportError:  # pragma: no cover - numba is a dependency; a stripped install still works
-            _kernel.append(None)
+            _kernels[name] = None
         else:
-            _kernel.append(numba.njit(cache=True, nogil=True)(_sense_bins_py))
-    return _kernel[0]
+            _kernels[name] = numba.njit(cache=True, nogil=True)(globals()[name])
+    return _kernels[name]
+
+
+def _sense_kernel():
+    """The compiled sensing function, or None without numba (then numpy's observe + discretise)."""
+    return _compiled("_sense_bins_py")
+
+
+def _move_py(idx, speed, turn, dt, rh, gx, gy, ga, ox, oy, rx, ry, th, tx, ty, noise,
+             avoid, lo, hi, dock_y, half, dock_w, t_step, blocked):  # pragma: no cover - compiled by numba
+    """BatchWorld.step's moves of the lanes ``idx``: the robot's kinematic integration and state, and the
+    Target's random walk where it is not blocked (``blocked[j]`` set for idx[j]; numpy finishes those)."""
+    two_pi = 2 * np.pi
+    inv_two_pi = 0.5 / np.pi
+    for j in range(idx.shape[0]):
+        i = idx[j]
+        sp = speed[i]
+        r = rh[i]
+        x = gx[i] + sp * np.cos(r) * dt
+        y = gy[i] + sp * np.sin(r) * dt
+        a = ga[i] + np.radians(turn[i]) * dt
+        gx[i] = x
+        gy[i] = y
+        ga[i] = a
+        rx[i] = x - ox[i]
+        ry[i] = y - oy[i]
+        rh[i] = a - two_pi * np.floor((a + np.pi) * inv_two_pi)
+        t = th[i] + np.radians(noise[i])
+        t = t - two_pi * np.floor((t + np.pi) * inv_two_pi)
+        c = np.cos(t)
+        s = np.sin(t)
+        ax = tx[i] + avoid * c
+        ay = ty[i] + avoid * s
+        if ax < lo or ax > hi or ay < lo or ay > hi or (ay < dock_y and abs(ax - half) < dock_w):
+            blocked[j] = True
+        else:
+            blocked[j] = False
+            tx[i] = tx[i] + t_step * c
+            ty[i] = ty[i] + t_step * s
+            th[i] = t
+
+
+def _near_target_py(idx, rx, ry, tx, ty, reach, dist, collided):  # pragma: no cover - compiled by numba
+    """Robot-Target distances of the lanes ``idx`` (into ``dist[j]``) and their collisions."""
+    for j in range(idx.shape[0]):
+        i = idx[j]
+        dx = tx[i] - rx[i]
+        dy = ty[i] - ry[i]
+        d = np.sqrt(dx * dx + dy * dy)
+        dist[j] = d
+        collided[i] = d < reach
+
+
+def _spend_py(idx, speed, turn, fuel, idle, per_ips, per_dps, dist, t_min, t_max, collided, docked, dry,
+              tracking):  # pragma: no cover - compiled by numba
+    """Fuel spent by the lanes ``idx``, and which ran dry or tracked."""
+    for j in range(idx.shape[0]):
+        i = idx[j]
+        f = fuel[i] - (idle + per_ips * abs(speed[i]) + per_dps * abs(turn[i]))
+        fuel[i] = f
+        going = not collided[i]
+        dry[i] = f <= 0.0 and going and not docked[i]
+        d = dist[j]
+        tracking[i] = d >= t_min and d <= t_max and going
