@@ -113,6 +113,19 @@ def _lanes_checks() -> dict[str, object]:
                   rng=np.random.default_rng(9), learner="docking", conflict="proportional", record=rec)
     out["docking-proportional-recorded"] = _outcome(o)
     out["docking-proportional-recorder"] = {k: _h(getattr(rec, k)) for k in ("rx", "ry", "rh", "tx", "ty", "fuel", "rule")}
+    # Contacts in hand-made situations: a robot kept touching a wall for consecutive steps, put back into
+    # contact, in a corner, moving from one wall to another, at the dock, standing or driving.
+    w = BatchWorld(world, 6)
+    w.reset(np.arange(6), np.random.default_rng(1))
+    seq = [(0, (5.0, 150.0)), (0, (5.0, 150.0)), (1, (5.0, 5.0)), (1, (5.0, 5.0)), (1, (5.0, 150.0)),
+           (2, (150.0, 12.0)), (2, (150.0, 12.0)), (3, (295.0, 295.0)), (3, (295.0, 150.0)), (4, (-2.0, -2.0)),
+           (4, (150.0, 150.0)), (4, (-2.0, -2.0)), (5, (150.0, 19.5)), (5, (150.0, 19.0))]
+    events = []
+    for t, (lane, pos) in enumerate(seq * 2):
+        w.set_state([lane], robot=pos, heading=-90.0)
+        ev = w.step(np.full(6, t % 3 == 0), np.full(6, 4.0), np.full(6, 2.0), np.zeros(6))
+        events.append(np.concatenate([ev.collided, ev.docked, ev.dry, ev.tracking, w.rx, w.ry, w.rh]))
+    out["contacts-scenario"] = _h(np.array(events, dtype=np.float64))
     # Raw sensors of random states (incl. robots near walls and the dock).
     w = BatchWorld(world, 500)
     s = np.random.default_rng(3)

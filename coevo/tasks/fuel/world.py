@@ -38,7 +38,7 @@ MAX_TURN = 24.0  # deg/s
 DOCK_HEADING = -90.0  # deg: facing south, into the dock
 
 _ROBOT, _WALL, _DOCK = 1, 4, 8  # collision types, also filter categories
-_PROBE_TYPES = 1000  # collision type of probe j: _PROBE_TYPES + j (its filter category is _ROBOT)
+_DOCK_SIDE = 4  # arena sides 0-3: south, east, north, west walls; 4: the dock
 
 
 SENSOR_NAMES = (
@@ -98,15 +98,22 @@ class BatchWorld:
         dock_f = pymunk.ShapeFilter(categories=_DOCK, mask=_ROBOT)
         robot_f = pymunk.ShapeFilter(categories=_ROBOT, mask=_WALL | _DOCK)
         corners = [(0, 0), (A, 0), (A, A), (0, A)]
+        # One static body (at the origin, unrotated: shapes keep the coordinates they are given) per side
+        # of the arenas (south, east, north, west walls) and one for the docks: the body a robot's
+        # contact is with says which of its arena's five shapes it touches (see _sense_contacts).
+        self._sides = [pymunk.Body(body_type=pymunk.Body.STATIC) for _ in range(5)]
         statics: list[pymunk.Shape] = []
         for i in range(n):
             ox, oy = self.origin[i]
             for k in range(4):
                 (ax, ay), (bx, by) = corners[k], corners[(k + 1) % 4]
-                statics.append(self._static(pymunk.Segment(space.static_body, (ox + ax, oy + ay), (ox + bx, oy + by), 0.0), _WALL, wall_f))
+                statics.append(self._static(pymunk.Segment(self._sides[k], (ox + ax, oy + ay), (ox + bx, oy + by), 0.0), _WALL, wall_f))
             box = [(ox + self.dock_x0, oy), (ox + self.dock_x1, oy), (ox + self.dock_x1, oy + c.dock_depth), (ox + self.dock_x0, oy + c.dock_depth)]
-            statics.append(self._static(pymunk.Poly(space.static_body, box), _DOCK, dock_f))
-        space.add(*statics)
+            statics.append(self._static(pymunk.Poly(self._sides[_DOCK_SIDE], box), _DOCK, dock_f))
+        space.add(*self._sides, *statics)
+        self._side_ids = np.array([b.id for b in self._sides], dtype=np.uintp)
+        self._side_of_sorted = np.argsort(self._side_ids)
+        self._side_order_ids = self._side_ids[self._side_of_sorted]
         # Robots (see _sense_contacts): each lane's pose as pymunk would hold it for a kinematic body,
         # global coordinates, integrated here with pymunk's own arithmetic; pymunk tests contacts with
         # a pool of probe bodies lent to the lanes that are within reach of a wall or the dock.
@@ -121,8 +128,11 @@ class BatchWorld:
         self._void = np.zeros((0, 2))
         self._io = np.zeros((0, 2))
         self._wbuf = pb.Buffer()
-        self._hits: dict[int, list[int]] = {_WALL: [], _DOCK: []}  # probes, filled by the callbacks
-        self._contacts: dict[int, list[int]] = {_WALL: [], _DOCK: []}  # their lanes
+        self._probe_ids = np.zeros(0, dtype=np.uintp)  # pymunk body ids of the probes, sorted
+        self._probe_of_id = np.zeros(0, dtype=np.int64)  # ... and their probe index
+        self._abuf = pb.Buffer()
+        self._touching: set[int] = set()  # lane * 5 + side of every contact at the last step
+        self._contacts: dict[int, list[int]] = {_WALL: [], _DOCK: []}  # lanes that began touching a wall, the dock
         r, m = c.robot_radius, _REACH_MARGIN
         self._mid = self.origin + A / 2
         self._near_half = A / 2 - r - m  # a centre farther than this from the middle (in x or y) may touch a wall
@@ -149,10 +159,6 @@ class BatchWorld:
         shape.filter = filt
         return shape
 
-    @staticmethod
-    def _on_contact(arbiter: pymunk.Arbiter, space: pymunk.Space, data: tuple[list[int], int]) -> None:
-        data[0].append(data[1])
-
     def _grow(self, k: int) -> None:
         """``k`` more probe bodies, parked in the void (below the grid, a hash cell apart)."""
         c, space = self.cfg, self.space
@@ -162,13 +168,9 @@ class BatchWorld:
             body.position = self._void_point(j)
             shape = pymunk.Circle(body, c.robot_radius)
             shape.sensor = True
-            # A collision type of its own, so that its handlers know the probe without asking the arbiter
-            # for its shapes (half of a callback's cost).
-            shape.collision_type = _PROBE_TYPES + j
+            shape.collision_type = _ROBOT
             shape.filter = self._robot_f
             space.add(body, shape)
-            for other in (_WALL, _DOCK):
-                space.on_collision(_PROBE_TYPES + j, other, begin=self._on_contact, data=(self._hits[other], j))
             self._probes.append(body)
         self._probe_lane = np.concatenate([self._probe_lane, np.full(k, -1, dtype=np.int64)])
         self._void = np.array([self._void_point(j) for j in range(len(self._probes))])
@@ -178,6 +180,9 @@ class BatchWorld:
         ids = np.frombuffer(buf.int_buf(), dtype=np.uintp)
         row = {int(b): r for r, b in enumerate(ids)}
         self._probe_row = np.array([row[b.id] for b in self._probes], dtype=np.int64)
+        pid = np.array([b.id for b in self._probes], dtype=np.uintp)
+        order = np.argsort(pid)
+        self._probe_ids, self._probe_of_id = pid[order], order
         self._io = np.zeros((len(ids), 2))
         self._io[self._probe_row] = self._void
 
@@ -445,6 +450,7 @@ class BatchWorld:
             c.target_speed * c.step_seconds, blocked)
         if blocked.any():  # Targets turning away from a wall or the dock: as _target_walk does
             k = idx[blocked]
+            self._touching = set()
             tx, ty = self.tx[k], self.ty[k]
             th = _signed_rad(np.arctan2(self._centre[1] - ty, self._centre[0] - tx) + np.radians(target_noise[k]))
             step = c.target_speed * c.step_seconds
@@ -527,12 +533,30 @@ class BatchWorld:
         self._io[rows, 1] = self._gy[pl[mine]]
         self._wbuf.set_float_buf(self._io.reshape(-1))
         pb.set_space_bodies(self.space, pb.BodyFields.POSITION, self._wbuf)
-        for hits in self._hits.values():
-            hits.clear()
         self.space.step(dt)  # the probes stand still (velocity zero): pymunk only tests contacts
-        for k, hits in self._hits.items():
-            if hits:
-                self._contacts[k] = pl[np.asarray(hits, dtype=np.int64)].tolist()
+        # pymunk's arbiters after a step (collision_persistence 1) are the pairs touching in it: read
+        # them in one call (no Python callback per contact) as (probe body, side body) ids.  A contact
+        # *begins* where the lane did not touch that shape at the previous step: pymunk's "begin",
+        # per (robot, shape) pair, as with one body per lane.
+        self._abuf.clear()
+        pb.get_space_arbiters(self.space, pb.ArbiterFields.BODY_A_ID | pb.ArbiterFields.BODY_B_ID, self._abuf)
+        pairs = np.frombuffer(self._abuf.int_buf(), dtype=np.uintp).reshape(-1, 2)
+        if pairs.size == 0:
+            self._touching = set()
+            return
+        a, b = pairs[:, 0], pairs[:, 1]  # pymunk puts the circle (probe) first; checked, not assumed
+        last = len(self._probe_ids) - 1
+        i = np.minimum(np.searchsorted(self._probe_ids, a), last)
+        swap = self._probe_ids[i] != a
+        if swap.any():
+            a, b = np.where(swap, b, a), np.where(swap, a, b)
+            i = np.minimum(np.searchsorted(self._probe_ids, a), last)
+        side = self._side_of_sorted[np.searchsorted(self._side_order_ids, b)]
+        touching = set((pl[self._probe_of_id[i]] * 5 + side).tolist())  # lane * 5 + side, a few
+        began = touching - self._touching
+        self._touching = touching
+        self._contacts = {_WALL: [c // 5 for c in began if c % 5 != _DOCK_SIDE],
+                          _DOCK: [c // 5 for c in began if c % 5 == _DOCK_SIDE]}
 
     def _docking_accepted(self, lanes: np.ndarray, speed: np.ndarray) -> np.ndarray:
         """Contact with the dock docks only on its front face, head-on within the angle, slowly enough."""
