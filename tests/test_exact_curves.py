@@ -158,7 +158,12 @@ def _diff(a: object, b: object, path: str = "") -> list[str]:
     return [] if a == b else [f"{path}: expected {b!r}, got {a!r}"]
 
 
-def test_same_seed_same_numbers() -> None:
+def test_same_seed_same_numbers(monkeypatch) -> None:
+    """The recorded numbers with numpy's sensing and stepping (the compiled loops kept off)."""
+    import coevo.tasks.fuel.world as world_mod
+
+    monkeypatch.setattr(world_mod, "COMPILED_MIN_LANES", 1 << 62)
+    monkeypatch.setattr(world_mod, "COMPILED_WARM_MIN_LANES", 1 << 62)
     expected = json.loads(DATA.read_text(encoding="utf-8"))
     got = json.loads(json.dumps(compute()))
     diffs = _diff(got, expected)
@@ -174,6 +179,7 @@ def test_compiled_sensing_same_numbers(monkeypatch) -> None:
 
         pytest.skip("numba is not installed: only numpy's sensing runs")
     monkeypatch.setattr(world_mod, "COMPILED_MIN_LANES", 0)
+    monkeypatch.setattr(world_mod, "COMPILED_WARM_MIN_LANES", 0)
     expected = json.loads(DATA.read_text(encoding="utf-8"))
     got = json.loads(json.dumps(compute()))
     diffs = _diff(got, expected)

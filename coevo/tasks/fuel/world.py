@@ -346,7 +346,7 @@ class BatchWorld:
         """``sch.discretise(self._observe(sch.sensor_names, lanes))``, the same (n, S) uint8 bins: compiled
         in one pass per lane for big batches (see :func:`_sense_bins_py`), else numpy's."""
         m = self.n if lanes is None else len(lanes)
-        kernel = _sense_kernel() if m >= COMPILED_MIN_LANES else None
+        kernel = _sense_kernel() if _worth_compiling(m) else None
         if kernel is None:
             return sch.discretise(self._observe(sch.sensor_names, lanes))
         c = self.cfg
@@ -393,7 +393,7 @@ class BatchWorld:
         speed = np.where(active, speed, 0.0)
         turn = np.where(active, turn, 0.0)
         idx = np.flatnonzero(active)
-        if idx.size >= COMPILED_MIN_LANES and _compiled("_move_py") is not None:
+        if _worth_compiling(idx.size) and _compiled("_move_py") is not None:
             return self._step_compiled(idx, speed, turn, target_noise)
         # Robots and Targets of standing lanes do not move, so everything below is computed on the
         # active lanes only (all of them: ``a`` a slice, no copies).
@@ -518,7 +518,7 @@ class BatchWorld:
         if need.size:
             free = np.flatnonzero(pl < 0)
             if free.size < need.size:
-                self._grow(max(need.size - free.size, len(self._probes) // 2, 16))
+                self._grow(max(need.size - free.size, 16))
                 pl = self._probe_lane
                 free = np.flatnonzero(pl < 0)
             got = free[: need.size]
@@ -607,7 +607,8 @@ _WALL_DIR = np.array([180.0, 0.0, -90.0, 90.0, 0.0])  # west, east, south, north
 # checks both paths against numbers recorded before this code existed.
 
 _SENSOR_CODE = {name: i for i, name in enumerate(SENSOR_NAMES)}
-COMPILED_MIN_LANES = 1024  # below this many lanes numpy's passes are cheaper than numba's first use
+COMPILED_MIN_LANES = 1024  # numba is loaded (~0.35 s, ~90 MB) for a batch of at least this many lanes ...
+COMPILED_WARM_MIN_LANES = 8  # ... and once loaded, used from this many on (numpy's ~300 calls a step cost more)
 _kernels: dict[str, object] = {}  # compiled functions (None without numba), made on first use
 
 
@@ -697,6 +698,11 @@ def _sensor_tables(sch: Schema) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
             np.array([s.circular for s in sch.sensors], dtype=np.bool_),
         )
     return t
+
+
+def _worth_compiling(lanes: int) -> bool:
+    """Compiled loops for a batch of ``lanes``: a big one, or any but the tiniest once numba is loaded."""
+    return lanes >= COMPILED_MIN_LANES or (bool(_kernels) and lanes >= COMPILED_WARM_MIN_LANES)
 
 
 def _compiled(name: str):
