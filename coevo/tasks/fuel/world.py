@@ -1,13 +1,15 @@
 """The batched world: many tracking-under-fuel arenas in one pymunk space.
 
 Each lane ``i`` is an arena of its own, a cell of a grid laid out with gaps wider
-than a robot, so lanes cannot touch each other.  The robot is a kinematic pymunk
-body with a sensor shape: pymunk integrates its motion (velocity mode, report
-Appendix A §4) and detects its contacts with the walls and the dock, which are
-static shapes.  Contact is a mission failure, except a head-on slow contact with
-the dock's front, which is a docking.  State lives in numpy arrays of shape
-``(n, ...)`` and moves in and out of pymunk with its batch API, so a step costs a
-few whole-array calls whatever ``n`` is.
+than a robot, so lanes cannot touch each other.  The robot moves as a kinematic
+pymunk body in velocity mode (report Appendix A §4): its pose is integrated here with
+pymunk's own operations (``cpBodyUpdatePosition``), and pymunk detects its contacts
+with the walls and the dock, static shapes, through probe bodies lent to the lanes
+within reach of them (:meth:`BatchWorld._sense_contacts`).  Contact is a mission
+failure, except a head-on slow contact with the dock's front, which is a docking.
+State lives in numpy arrays of shape ``(n, ...)``; sensing and stepping are
+whole-array numpy passes, or for big batches compiled loops (numba) doing the same
+operations in the same order (see the end of this module).
 
 The Target is a point random walk kept in numpy, and Robot-Target contact is an
 exact circle-circle test there *(ours, for speed)*: the Target never touches the
@@ -150,7 +152,6 @@ class BatchWorld:
         self.speed = np.zeros(n)  # the last commanded speed, ips
         self.turn = np.zeros(n)  # the last commanded turn rate, deg/s
         self._centre = np.array([A / 2, A / 2])
-        self._rows = np.arange(n)
 
     @staticmethod
     def _static(shape: pymunk.Shape, ctype: int, filt: pymunk.ShapeFilter) -> pymunk.Shape:
