@@ -96,15 +96,17 @@ class CompiledPolicies:
         Returns ``(rank, full)``: the winning rule's strength rank per situation and
         whether it matched fully (False: it was the best partial match).
         """
-        base = np.asarray(policy, dtype=np.int64) * self._stride
-        per = [self._flat.take(base + (off + bins[:, s])) for s, off in enumerate(self._offsets)]
-        match = per[0].copy()
-        for m in per[1:]:
-            match &= m
+        # One (S, n) index array and one gather for all sensors (bins often come as the transpose of
+        # an (S, n) array, whose .T is then contiguous), and one AND-reduction over the sensors.
+        idx = np.asarray(bins).T.astype(np.int64)
+        idx += self._offsets[:, None]
+        idx += np.asarray(policy, dtype=np.int64) * self._stride
+        per = self._flat.take(idx)
+        match = np.bitwise_and.reduce(per, axis=0)
         full = match != 0
         if not full.all():
             miss = np.flatnonzero(~full)
-            match[miss] = self._best_partial([m[miss] for m in per], self.valid[policy[miss]])
+            match[miss] = self._best_partial(list(per[:, miss]), self.valid[policy[miss]])
         if conflict == "strongest":
             return lowest_bit(match), full
         if conflict == "proportional":

@@ -111,7 +111,7 @@ class RuleSet:
     def take(self, idx: np.ndarray | list[int]) -> RuleSet:
         """The rules at ``idx``, in that order."""
         idx = np.asarray(idx, dtype=np.int64)
-        return RuleSet(self.behaviour, self.lo[idx], self.hi[idx], self.action[idx], self.strength[idx])
+        return RuleSet._of_valid_rules(self._schema, self.lo[idx], self.hi[idx], self.action[idx], self.strength[idx])
 
     @staticmethod
     def concat(behaviour: str, parts: list[RuleSet], max_rules: int = MAX_RULES) -> RuleSet:
@@ -120,7 +120,27 @@ class RuleSet:
         if len(strength) > max_rules:
             keep = np.sort(np.argsort(-strength, kind="stable")[:max_rules])
             lo, hi, action, strength = lo[keep], hi[keep], action[keep], strength[keep]
+        sch = schema(behaviour)
+        if all(isinstance(p, RuleSet) and p._schema is sch for p in parts):
+            return RuleSet._of_valid_rules(sch, lo, hi, action, strength)
         return RuleSet(behaviour, lo, hi, action, strength)
+
+    @staticmethod
+    def _of_valid_rules(sch: Schema, lo: np.ndarray, hi: np.ndarray, action: np.ndarray, strength: np.ndarray) -> RuleSet:
+        """A rule set of rules taken from valid rule sets of ``sch``'s behaviour (new arrays of theirs):
+        each rule is valid and canonical already, so only the count is checked.  The GA's crossover
+        makes thousands per generation, and the full check cost ~40 us each (a third of a Docking
+        generation's time)."""
+        r = len(strength)
+        if not 1 <= r <= MAX_RULES:
+            raise RuleSetError(f"a rule set holds 1 to {MAX_RULES} rules; got {r}")
+        rs = object.__new__(RuleSet)
+        object.__setattr__(rs, "behaviour", sch.behaviour)
+        object.__setattr__(rs, "_schema", sch)
+        for name, a in (("lo", lo), ("hi", hi), ("action", action), ("strength", strength)):
+            a.flags.writeable = False
+            object.__setattr__(rs, name, a)
+        return rs
 
     def matches(self, bins: np.ndarray) -> np.ndarray:
         """Reference matcher, (n, S) sensor bins -> (n, R) bool; the batched one must agree."""

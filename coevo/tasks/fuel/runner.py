@@ -39,6 +39,7 @@ __all__ = ["Trivial", "Rules", "Trace", "Outcome", "run_lanes", "ALWAYS_TRACK", 
 _TURN = np.array(schema(Behaviour.TRACKING).actions[0].values, dtype=np.float64)
 _SPEED = np.array(schema(Behaviour.TRACKING).actions[1].values, dtype=np.float64)
 _ONE = np.uint64(1)
+_RANKS = 64  # rank slots per policy in CompiledPolicies' tables
 
 
 @dataclass(frozen=True)
@@ -269,12 +270,23 @@ def _play_episode(s: _Lanes, c: _Controls, k: int, live: np.ndarray) -> None:
         c.record.state(world, k, 0, live)
     turn = np.zeros(L)
     speed = np.zeros(L)
+    # One controller on every lane, strongest-rule conflict resolution, nothing recorded: only the active
+    # lanes are sensed and decide (a standing lane's command is never used, and 'strongest' draws no
+    # random numbers); the same decisions, fewer of them.
+    only_active = len(groups) == 1 and groups[0][2] is None and c.conflict == "strongest" and c.record is None
     for t in range(T):
         if not active.any():
             break
-        obs = world.observe(names)
-        for beh, ctrl, sel, pol in groups:
-            _decide(s, c, k, t, active, obs, beh, ctrl, sel, pol, turn, speed)
+        if only_active:
+            beh, ctrl, _, pol = groups[0]
+            lanes = None if active.all() else np.flatnonzero(active)
+            bins = world._sense_bins(ctrl.compiled.schema, lanes)
+            _decide(s, c, k, t, active, None, beh, ctrl, lanes, pol if lanes is None else pol[lanes], turn, speed,
+                    all_active=True, bins=bins)
+        else:
+            obs = world.observe(names)
+            for beh, ctrl, sel, pol in groups:
+                _decide(s, c, k, t, active, obs, beh, ctrl, sel, pol, turn, speed)
         noise = c.rng.normal(0.0, s.cfg.target_turn_sd, s.g)[s.slot]
         ev = world.step(active, turn, speed, noise)
         s.steps[:, k] += active
@@ -287,27 +299,46 @@ def _play_episode(s: _Lanes, c: _Controls, k: int, live: np.ndarray) -> None:
         active &= ~(ev.collided | ev.docked | ev.dry)
 
 
+def _command_tables(compiled: CompiledPolicies) -> tuple[np.ndarray, np.ndarray]:
+    """Turn rate and speed of every (policy, rank), flat at ``policy * 64 + rank``: one gather per command
+    instead of indexing the (P, 64, A) action table and then the value lists; made once per compiled set."""
+    tables = getattr(compiled, "_commands", None)
+    if tables is None:
+        a = compiled.actions.reshape(-1, compiled.actions.shape[-1])
+        tables = compiled._commands = (_TURN[a[:, 0]], _SPEED[a[:, 1]])
+    return tables
+
+
 def _decide(s: _Lanes, c: _Controls, k: int, t: int, active: np.ndarray, obs: dict[str, np.ndarray], beh: Behaviour,
-            ctrl: Rules, sel: np.ndarray | None, pol: np.ndarray, turn: np.ndarray, speed: np.ndarray) -> None:
-    """One controller's decisions at step ``t`` on its lanes (``sel``; None: all); the learner's are logged."""
-    bins = ctrl.compiled.schema.discretise(obs)
-    if sel is not None:
-        bins = bins[sel]
+            ctrl: Rules, sel: np.ndarray | None, pol: np.ndarray, turn: np.ndarray, speed: np.ndarray, *,
+            all_active: bool = False, bins: np.ndarray | None = None) -> None:
+    """One controller's decisions at step ``t`` on its lanes (``sel``; None: all); the learner's are logged.
+
+    ``obs`` holds every lane's sensors, or ``bins`` their bins; with ``all_active`` only those of ``sel``
+    (None: all lanes), all of them active."""
+    if bins is None:
+        bins = ctrl.compiled.schema.discretise(obs)
+        if sel is not None and not all_active:
+            bins = bins[sel]
     rank, full = ctrl.compiled.decide(pol, bins, conflict=c.conflict, rng=c.rng)
-    act = ctrl.compiled.action_values(pol, rank)
+    turn_of, speed_of = _command_tables(ctrl.compiled)
     where = slice(None) if sel is None else sel
-    turn[where] = _TURN[act[:, 0]]
-    speed[where] = _SPEED[act[:, 1]]
+    flat = pol * _RANKS + rank
+    turn[where] = turn_of.take(flat)
+    speed[where] = speed_of.take(flat)
     if c.record is None and c.learner != beh:
         return
     lanes = np.arange(s.L) if sel is None else sel
-    mine = active[lanes]
-    lanes, rule = lanes[mine], ctrl.compiled.rule_index(pol[mine], rank[mine])
+    if all_active:
+        rule = ctrl.compiled.rule_index(pol, rank)
+    else:
+        mine = active[lanes]
+        lanes, rule, bins, full = lanes[mine], ctrl.compiled.rule_index(pol[mine], rank[mine]), bins[mine], full[mine]
     if c.record is not None:
         c.record.fired(k, t, lanes, rule)
     if c.learner == beh:
         tr = s.trace
-        tr.bins[k, t, lanes], tr.rule[k, t, lanes], tr.full[k, t, lanes] = bins[mine], rule, full[mine]
+        tr.bins[k, t, lanes], tr.rule[k, t, lanes], tr.full[k, t, lanes] = bins, rule, full
         s.fired[lanes, k] |= _ONE << rule.astype(np.uint64)
 
 

@@ -1,13 +1,15 @@
 """The batched world: many tracking-under-fuel arenas in one pymunk space.
 
 Each lane ``i`` is an arena of its own, a cell of a grid laid out with gaps wider
-than a robot, so lanes cannot touch each other.  The robot is a kinematic pymunk
-body with a sensor shape: pymunk integrates its motion (velocity mode, report
-Appendix A §4) and detects its contacts with the walls and the dock, which are
-static shapes.  Contact is a mission failure, except a head-on slow contact with
-the dock's front, which is a docking.  State lives in numpy arrays of shape
-``(n, ...)`` and moves in and out of pymunk with its batch API, so a step costs a
-few whole-array calls whatever ``n`` is.
+than a robot, so lanes cannot touch each other.  The robot moves as a kinematic
+pymunk body in velocity mode (report Appendix A §4): its pose is integrated here with
+pymunk's own operations (``cpBodyUpdatePosition``), and pymunk detects its contacts
+with the walls and the dock, static shapes, through probe bodies lent to the lanes
+within reach of them (:meth:`BatchWorld._sense_contacts`).  Contact is a mission
+failure, except a head-on slow contact with the dock's front, which is a docking.
+State lives in numpy arrays of shape ``(n, ...)``; sensing and stepping are
+whole-array numpy passes, or for big batches compiled loops (numba) doing the same
+operations in the same order (see the end of this module).
 
 The Target is a point random walk kept in numpy, and Robot-Target contact is an
 exact circle-circle test there *(ours, for speed)*: the Target never touches the
@@ -28,6 +30,7 @@ import numpy as np
 import pymunk
 import pymunk.batch as pb
 
+from coevo.policy.schema import Schema
 from coevo.tasks.fuel.settings import WorldConfig
 
 __all__ = ["BatchWorld", "StepEvents", "MAX_SPEED", "MAX_TURN", "DOCK_HEADING", "SENSOR_NAMES"]
@@ -37,6 +40,7 @@ MAX_TURN = 24.0  # deg/s
 DOCK_HEADING = -90.0  # deg: facing south, into the dock
 
 _ROBOT, _WALL, _DOCK = 1, 4, 8  # collision types, also filter categories
+_DOCK_SIDE = 4  # arena sides 0-3: south, east, north, west walls; 4: the dock
 
 
 SENSOR_NAMES = (
@@ -96,43 +100,46 @@ class BatchWorld:
         dock_f = pymunk.ShapeFilter(categories=_DOCK, mask=_ROBOT)
         robot_f = pymunk.ShapeFilter(categories=_ROBOT, mask=_WALL | _DOCK)
         corners = [(0, 0), (A, 0), (A, A), (0, A)]
-        self._robots: list[pymunk.Body] = []
+        # One static body (at the origin, unrotated: shapes keep the coordinates they are given) per side
+        # of the arenas (south, east, north, west walls) and one for the docks: the body a robot's
+        # contact is with says which of its arena's five shapes it touches (see _sense_contacts).
+        self._sides = [pymunk.Body(body_type=pymunk.Body.STATIC) for _ in range(5)]
         statics: list[pymunk.Shape] = []
         for i in range(n):
             ox, oy = self.origin[i]
             for k in range(4):
                 (ax, ay), (bx, by) = corners[k], corners[(k + 1) % 4]
-                statics.append(self._static(pymunk.Segment(space.static_body, (ox + ax, oy + ay), (ox + bx, oy + by), 0.0), _WALL, wall_f))
+                statics.append(self._static(pymunk.Segment(self._sides[k], (ox + ax, oy + ay), (ox + bx, oy + by), 0.0), _WALL, wall_f))
             box = [(ox + self.dock_x0, oy), (ox + self.dock_x1, oy), (ox + self.dock_x1, oy + c.dock_depth), (ox + self.dock_x0, oy + c.dock_depth)]
-            statics.append(self._static(pymunk.Poly(space.static_body, box), _DOCK, dock_f))
-        space.add(*statics)
-        for i in range(n):
-            body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
-            body.position = tuple(self.origin[i] + A / 2)
-            shape = pymunk.Circle(body, c.robot_radius)
-            shape.sensor = True
-            shape.collision_type = _ROBOT
-            shape.filter = robot_f
-            shape.lane = i  # read back by the contact callbacks
-            space.add(body, shape)
-            self._robots.append(body)
-        self._contacts: dict[int, list[int]] = {_WALL: [], _DOCK: []}
-        for other in (_WALL, _DOCK):
-            space.on_collision(_ROBOT, other, begin=self._on_contact, data=self._contacts[other])
-
-        # Row of each body in pymunk's batch buffers (its own iteration order).
-        buf = pb.Buffer()
-        pb.get_space_bodies(space, pb.BodyFields.BODY_ID, buf)
-        ids = np.frombuffer(buf.int_buf(), dtype=np.uintp)
-        row = {int(b): r for r, b in enumerate(ids)}
-        self._nbodies = len(ids)
-        self._robot_row = np.array([row[b.id] for b in self._robots])
-        self._in_order = self._nbodies == n and np.array_equal(self._robot_row, np.arange(n))
-        self._io = np.zeros((self._nbodies, 3))  # x, y, angle  or  vx, vy, omega
-        # Two buffers: one pointed at our numpy array for writes, one owned by pymunk for
-        # reads (a read may grow its array, which must never be memory numpy owns).
+            statics.append(self._static(pymunk.Poly(self._sides[_DOCK_SIDE], box), _DOCK, dock_f))
+        space.add(*self._sides, *statics)
+        self._side_ids = np.array([b.id for b in self._sides], dtype=np.uintp)
+        self._side_of_sorted = np.argsort(self._side_ids)
+        self._side_order_ids = self._side_ids[self._side_of_sorted]
+        # Robots (see _sense_contacts): each lane's pose as pymunk would hold it for a kinematic body,
+        # global coordinates, integrated here with pymunk's own arithmetic; pymunk tests contacts with
+        # a pool of probe bodies lent to the lanes that are within reach of a wall or the dock.
+        self._robot_f = robot_f
+        self._gx = self.origin[:, 0] + A / 2
+        self._gy = self.origin[:, 1] + A / 2
+        self._ga = np.zeros(n)
+        self._lane_probe = np.full(n, -1, dtype=np.int64)
+        self._probe_lane = np.zeros(0, dtype=np.int64)
+        self._probes: list[pymunk.Body] = []
+        self._probe_row = np.zeros(0, dtype=np.int64)
+        self._void = np.zeros((0, 2))
+        self._io = np.zeros((0, 2))
         self._wbuf = pb.Buffer()
-        self._rbuf = pb.Buffer()
+        self._probe_ids = np.zeros(0, dtype=np.uintp)  # pymunk body ids of the probes, sorted
+        self._probe_of_id = np.zeros(0, dtype=np.int64)  # ... and their probe index
+        self._abuf = pb.Buffer()
+        self._touching: set[int] = set()  # lane * 5 + side of every contact at the last step
+        self._contacts: dict[int, list[int]] = {_WALL: [], _DOCK: []}  # lanes that began touching a wall, the dock
+        r, m = c.robot_radius, _REACH_MARGIN
+        self._mid = self.origin + A / 2
+        self._near_half = A / 2 - r - m  # a centre farther than this from the middle (in x or y) may touch a wall
+        self._near_dock_y = c.dock_depth + r + m - A / 2  # ... one below this and within this of the middle, the dock
+        self._near_dock_x = c.dock_width / 2 + r + m
 
         # State, in arena-local coordinates; headings in radians (pymunk's angle).
         self.rx = np.zeros(n)
@@ -145,7 +152,6 @@ class BatchWorld:
         self.speed = np.zeros(n)  # the last commanded speed, ips
         self.turn = np.zeros(n)  # the last commanded turn rate, deg/s
         self._centre = np.array([A / 2, A / 2])
-        self._rows = np.arange(n)
 
     @staticmethod
     def _static(shape: pymunk.Shape, ctype: int, filt: pymunk.ShapeFilter) -> pymunk.Shape:
@@ -154,10 +160,36 @@ class BatchWorld:
         shape.filter = filt
         return shape
 
-    @staticmethod
-    def _on_contact(arbiter: pymunk.Arbiter, space: pymunk.Space, hits: list[int]) -> None:
-        a, b = arbiter.shapes
-        hits.append(a.lane if a.collision_type == _ROBOT else b.lane)
+    def _grow(self, k: int) -> None:
+        """``k`` more probe bodies, parked in the void (below the grid, a hash cell apart)."""
+        c, space = self.cfg, self.space
+        j0 = len(self._probes)
+        for j in range(j0, j0 + k):
+            body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+            body.position = self._void_point(j)
+            shape = pymunk.Circle(body, c.robot_radius)
+            shape.sensor = True
+            shape.collision_type = _ROBOT
+            shape.filter = self._robot_f
+            space.add(body, shape)
+            self._probes.append(body)
+        self._probe_lane = np.concatenate([self._probe_lane, np.full(k, -1, dtype=np.int64)])
+        self._void = np.array([self._void_point(j) for j in range(len(self._probes))])
+        # Row of each probe in pymunk's batch buffers (its own iteration order).
+        buf = pb.Buffer()
+        pb.get_space_bodies(space, pb.BodyFields.BODY_ID, buf)
+        ids = np.frombuffer(buf.int_buf(), dtype=np.uintp)
+        row = {int(b): r for r, b in enumerate(ids)}
+        self._probe_row = np.array([row[b.id] for b in self._probes], dtype=np.int64)
+        pid = np.array([b.id for b in self._probes], dtype=np.uintp)
+        order = np.argsort(pid)
+        self._probe_ids, self._probe_of_id = pid[order], order
+        self._io = np.zeros((len(ids), 2))
+        self._io[self._probe_row] = self._void
+
+    def _void_point(self, j: int) -> tuple[float, float]:
+        step = max(self.cfg.hash_cell, 4 * self.cfg.robot_radius) * 2
+        return (float(j * step), float(-4 * self.pitch - 10 * step))
 
     # ----------------------------------------------------------------- placement
     def random_starts(self, m: int, rng: np.random.Generator) -> np.ndarray:
@@ -242,19 +274,11 @@ class BatchWorld:
             self.fuel[lanes] = fuel
         self._push_positions()
 
-    def _write(self, col: int, values: np.ndarray) -> None:
-        if self._in_order:
-            self._io[:, col] = values
-        else:
-            self._io[self._robot_row, col] = values
-
     def _push_positions(self) -> None:
-        self._io[:] = 0.0
-        self._write(0, self.rx + self.origin[:, 0])
-        self._write(1, self.ry + self.origin[:, 1])
-        self._write(2, self.rh)
-        self._wbuf.set_float_buf(self._io.reshape(-1))
-        pb.set_space_bodies(self.space, pb.BodyFields.POSITION | pb.BodyFields.ANGLE, self._wbuf)
+        """Every robot's pymunk pose set from the state (as a kinematic body's position and angle would be)."""
+        self._gx = self.rx + self.origin[:, 0]
+        self._gy = self.ry + self.origin[:, 1]
+        self._ga = self.rh.copy()
 
     # ----------------------------------------------------------------- sensing
     def observe(self, names: tuple[str, ...] = SENSOR_NAMES) -> dict[str, np.ndarray]:
@@ -263,45 +287,90 @@ class BatchWorld:
         Ranges in inches; bearings, headings and orientations in degrees in [0, 360);
         fuel in percent.  Only what is asked for is computed.
         """
+        return self._observe(names, None)
+
+    def _observe(self, names: tuple[str, ...], lanes: np.ndarray | None) -> dict[str, np.ndarray]:
+        """:meth:`observe` of ``lanes`` only (None: all), the same numbers for them."""
         c = self.cfg
         out: dict[str, np.ndarray] = {}
         want = set(names)
-        h = np.degrees(self.rh)
-        dx, dy = self.tx - self.rx, self.ty - self.ry
+        if lanes is None:
+            rx, ry, rh, tx, ty, th, fuel = self.rx, self.ry, self.rh, self.tx, self.ty, self.th, self.fuel
+        else:
+            rx, ry, rh, tx, ty = self.rx[lanes], self.ry[lanes], self.rh[lanes], self.tx[lanes], self.ty[lanes]
+            th = self.th[lanes] if "heading" in want else None
+            fuel = self.fuel[lanes] if "fuel" in want else None
+        h = np.degrees(rh)
+        dx, dy = tx - rx, ty - ry
         t_dist = _norm(dx, dy)
         if want & {"heading", "target_bearing", "range", "bearing"}:
             t_dir = np.degrees(np.arctan2(dy, dx))
         if want & {"range", "bearing"}:
-            x, y = self.rx, self.ry
+            x, y = rx, ry
             A = c.arena
             qx = np.clip(x, self.dock_x0, self.dock_x1)
             qy = np.minimum(y, c.dock_depth)
             dock_gap = _norm(x - qx, y - qy)
-            gaps = np.stack([x, A - x, y, A - y, dock_gap, t_dist - c.target_radius]) - c.robot_radius
-            which = np.argmin(gaps, axis=0)
-            out["range"] = np.maximum(gaps[which, self._rows], 0.0)
-            obj_dir = _WALL_DIR[np.minimum(which, 4)]
-            obj_dir = np.where(which == 5, t_dir, obj_dir)
-            at_dock = np.flatnonzero(which == 4)
+            r = c.robot_radius
+            gaps = (x - r, (A - x) - r, y - r, (A - y) - r, dock_gap - r, (t_dist - c.target_radius) - r)
+            nearest = gaps[0]
+            for g in gaps[1:]:
+                nearest = np.minimum(nearest, g)
+            out["range"] = np.maximum(nearest, 0.0)
+            # The direction of the nearest object, the first of equals winning (argmin's rule): Target,
+            # then dock, then the walls, later ones overwriting.
+            obj_dir = t_dir.copy()
+            at_dock = np.flatnonzero(gaps[4] == nearest)
             if at_dock.size:
                 obj_dir[at_dock] = np.degrees(np.arctan2(qy[at_dock] - y[at_dock], qx[at_dock] - x[at_dock]))
+            for k in (3, 2, 1, 0):
+                obj_dir[gaps[k] == nearest] = _WALL_DIR[k]
             out["bearing"] = wrap_deg(obj_dir - h)
         if "heading" in want:
-            out["heading"] = wrap_deg(np.degrees(self.th) - t_dir)
+            out["heading"] = wrap_deg(np.degrees(th) - t_dir)
         if "target_range" in want:
             out["target_range"] = t_dist
         if "target_bearing" in want:
             out["target_bearing"] = wrap_deg(t_dir - h)
         if want & {"dock_range", "dock_bearing"}:
-            ddx, ddy = self.dock_point[0] - self.rx, self.dock_point[1] - self.ry
+            ddx, ddy = self.dock_point[0] - rx, self.dock_point[1] - ry
             out["dock_range"] = _norm(ddx, ddy)
             if "dock_bearing" in want:
                 out["dock_bearing"] = wrap_deg(np.degrees(np.arctan2(ddy, ddx)) - h)
         if "dock_orientation" in want:
             out["dock_orientation"] = wrap_deg(h - DOCK_HEADING)
         if "fuel" in want:
-            out["fuel"] = 100.0 * np.clip(self.fuel, 0.0, 1.0)
+            out["fuel"] = 100.0 * np.clip(fuel, 0.0, 1.0)
         return {k: out[k] for k in names}
+
+    def _sense_bins(self, sch: Schema, lanes: np.ndarray | None) -> np.ndarray:
+        """``sch.discretise(self._observe(sch.sensor_names, lanes))``, the same (n, S) uint8 bins: compiled
+        in one pass per lane for big batches (see :func:`_sense_bins_py`), else numpy's."""
+        m = self.n if lanes is None else len(lanes)
+        kernel = _sense_kernel() if _worth_compiling(m) else None
+        if kernel is None:
+            return sch.discretise(self._observe(sch.sensor_names, lanes))
+        c = self.cfg
+        names = sch.sensor_names
+        pick = (lambda a: a) if lanes is None else (lambda a: a[lanes])
+        rx, ry, rh, tx, ty = pick(self.rx), pick(self.ry), pick(self.rh), pick(self.tx), pick(self.ty)
+        th = pick(self.th) if "heading" in names else rx
+        fuel = pick(self.fuel) if "fuel" in names else rx
+        t_dir = q_dir = d_dir = rx
+        if {"range", "bearing", "heading", "target_bearing"} & set(names):
+            t_dir = np.degrees(np.arctan2(ty - ry, tx - rx))
+        if "bearing" in names:
+            qx = np.clip(rx, self.dock_x0, self.dock_x1)
+            qy = np.minimum(ry, c.dock_depth)
+            q_dir = np.degrees(np.arctan2(qy - ry, qx - rx))
+        if "dock_bearing" in names:
+            d_dir = np.degrees(np.arctan2(self.dock_point[1] - ry, self.dock_point[0] - rx))
+        codes, inv_width, nbins, circular = _sensor_tables(sch)
+        out = np.empty((len(names), m), dtype=np.uint8)
+        kernel(codes, inv_width, nbins, circular, rx, ry, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir,
+               float(c.arena), float(self.dock_x0), float(self.dock_x1), float(c.dock_depth), float(c.robot_radius),
+               float(c.target_radius), float(self.dock_point[0]), float(self.dock_point[1]), out)
+        return out.T
 
     def min_dock_steps(self, lanes: np.ndarray) -> np.ndarray:
         """Estimated fewest steps to dock from now (the report's m): turn to face the dock at full rate, drive
@@ -324,23 +393,25 @@ class BatchWorld:
         dt = c.step_seconds
         speed = np.where(active, speed, 0.0)
         turn = np.where(active, turn, 0.0)
-        self._write(0, speed * np.cos(self.rh))
-        self._write(1, speed * np.sin(self.rh))
-        self._write(2, np.radians(turn))
-        self._wbuf.set_float_buf(self._io.reshape(-1))
-        pb.set_space_bodies(self.space, pb.BodyFields.VELOCITY | pb.BodyFields.ANGULAR_VELOCITY, self._wbuf)
-        for hits in self._contacts.values():
-            hits.clear()
-        self.space.step(dt)
-        self._rbuf.clear()
-        pb.get_space_bodies(self.space, pb.BodyFields.POSITION | pb.BodyFields.ANGLE, self._rbuf)
-        state = np.frombuffer(self._rbuf.float_buf(), dtype=np.float64).reshape(-1, 3)
-        if not self._in_order:
-            state = state[self._robot_row]
-        np.copyto(self.rx, state[:, 0] - self.origin[:, 0], where=active)
-        np.copyto(self.ry, state[:, 1] - self.origin[:, 1], where=active)
-        np.copyto(self.rh, _signed_rad(state[:, 2]), where=active)
-        self._target_walk(active, target_noise)
+        idx = np.flatnonzero(active)
+        if _worth_compiling(idx.size) and _compiled("_move_py") is not None:
+            return self._step_compiled(idx, speed, turn, target_noise)
+        # Robots and Targets of standing lanes do not move, so everything below is computed on the
+        # active lanes only (all of them: ``a`` a slice, no copies).
+        a = slice(None) if idx.size == self.n else idx
+        # pymunk's integration of a kinematic body (cpBodyUpdatePosition), operation for operation:
+        # p += (v + v_bias) * dt, a += (w + w_bias) * dt, the biases zero.  A standing robot's velocity
+        # is zero, which leaves its pose as it is.
+        rh, sp, tu = self.rh[a], speed[a], turn[a]
+        gx = self._gx[a] + sp * np.cos(rh) * dt
+        gy = self._gy[a] + sp * np.sin(rh) * dt
+        ga = self._ga[a] + np.radians(tu) * dt
+        self._gx[a], self._gy[a], self._ga[a] = gx, gy, ga
+        self._sense_contacts(dt)
+        rx = self.rx[a] = gx - self.origin[a, 0]
+        ry = self.ry[a] = gy - self.origin[a, 1]
+        self.rh[a] = _signed_rad(ga)
+        self._target_walk(active, target_noise, a)
         self.speed[:] = speed
         self.turn[:] = turn
 
@@ -348,8 +419,9 @@ class BatchWorld:
         dock = self._contacts[_DOCK]
         if wall or dock:
             self._park(wall + dock)
-        dist = _norm(self.tx - self.rx, self.ty - self.ry)
-        collided = active & (dist < c.robot_radius + c.target_radius)
+        dist = _norm(self.tx[a] - rx, self.ty[a] - ry)
+        collided = np.zeros(self.n, dtype=bool)
+        collided[a] = dist < c.robot_radius + c.target_radius
         collided[wall] = True
         docked = np.zeros(self.n, dtype=bool)
         if dock:
@@ -357,9 +429,56 @@ class BatchWorld:
             ok = self._docking_accepted(lanes, speed[lanes]) & ~collided[lanes]
             docked[lanes[ok]] = True
             collided[lanes[~ok]] = True
-        self.fuel -= np.where(active, c.fuel_idle + c.fuel_per_ips * np.abs(speed) + c.fuel_per_dps * np.abs(turn), 0.0)
-        dry = active & (self.fuel <= 0.0) & ~docked & ~collided
-        tracking = active & (dist >= c.tracking_min) & (dist <= c.tracking_max) & ~collided
+        fuel = self.fuel[a] = self.fuel[a] - (c.fuel_idle + c.fuel_per_ips * np.abs(sp) + c.fuel_per_dps * np.abs(tu))
+        going = ~collided[a]
+        dry = np.zeros(self.n, dtype=bool)
+        dry[a] = (fuel <= 0.0) & going & ~docked[a]
+        tracking = np.zeros(self.n, dtype=bool)
+        tracking[a] = (dist >= c.tracking_min) & (dist <= c.tracking_max) & going
+        return StepEvents(collided=collided, docked=docked, dry=dry, tracking=tracking)
+
+    def _step_compiled(self, idx: np.ndarray, speed: np.ndarray, turn: np.ndarray, target_noise: np.ndarray) -> StepEvents:
+        """:meth:`step` of the active lanes ``idx`` with compiled loops (see :func:`_move_py`): the same
+        operations in the same order, pymunk's contacts and numpy's arctan2 in between."""
+        c = self.cfg
+        dt = c.step_seconds
+        lo = c.target_radius + 2.0
+        blocked = np.empty(idx.size, dtype=np.bool_)
+        _compiled("_move_py")(
+            idx, speed, turn, dt, self.rh, self._gx, self._gy, self._ga, self.origin[:, 0], self.origin[:, 1],
+            self.rx, self.ry, self.th, self.tx, self.ty, target_noise,
+            c.target_avoid, lo, c.arena - lo, c.dock_depth + lo + c.target_avoid / 2, c.arena / 2, c.dock_width,
+            c.target_speed * c.step_seconds, blocked)
+        if blocked.any():  # Targets turning away from a wall or the dock: as _target_walk does
+            k = idx[blocked]
+            self._touching = set()
+            tx, ty = self.tx[k], self.ty[k]
+            th = _signed_rad(np.arctan2(self._centre[1] - ty, self._centre[0] - tx) + np.radians(target_noise[k]))
+            step = c.target_speed * c.step_seconds
+            self.tx[k] = tx + step * np.cos(th)
+            self.ty[k] = ty + step * np.sin(th)
+            self.th[k] = th
+        self._sense_contacts(dt)
+        self.speed[:] = speed
+        self.turn[:] = turn
+        wall = self._contacts[_WALL]
+        dock = self._contacts[_DOCK]
+        if wall or dock:
+            self._park(wall + dock)
+        dist = np.empty(idx.size)
+        collided = np.zeros(self.n, dtype=bool)
+        _compiled("_near_target_py")(idx, self.rx, self.ry, self.tx, self.ty, c.robot_radius + c.target_radius, dist, collided)
+        collided[wall] = True
+        docked = np.zeros(self.n, dtype=bool)
+        if dock:
+            lanes = np.unique(np.asarray(dock, dtype=np.int64))
+            ok = self._docking_accepted(lanes, speed[lanes]) & ~collided[lanes]
+            docked[lanes[ok]] = True
+            collided[lanes[~ok]] = True
+        dry = np.zeros(self.n, dtype=bool)
+        tracking = np.zeros(self.n, dtype=bool)
+        _compiled("_spend_py")(idx, speed, turn, self.fuel, c.fuel_idle, c.fuel_per_ips, c.fuel_per_dps, dist,
+                               c.tracking_min, c.tracking_max, collided, docked, dry, tracking)
         return StepEvents(collided=collided, docked=docked, dry=dry, tracking=tracking)
 
     def _park(self, lanes: list[int]) -> None:
@@ -368,8 +487,77 @@ class BatchWorld:
         Their episode is over; left in contact they would cost pymunk a narrow-phase
         test every step until the next episode repositions them.
         """
-        for i in set(lanes):
-            self._robots[i].position = tuple(self.origin[i] + self._centre)
+        i = np.unique(np.asarray(lanes, dtype=np.int64))
+        self._gx[i] = self.origin[i, 0] + self._centre[0]
+        self._gy[i] = self.origin[i, 1] + self._centre[1]
+
+    def _sense_contacts(self, dt: float) -> None:
+        """pymunk's contact tests of the robots at their new poses (``self._g*``); fills ``self._contacts``
+        with the lanes whose robot began touching a wall or the dock.
+
+        A robot far from its arena's walls and dock cannot touch them (pymunk reports a contact only
+        where bounding boxes meet), so only the lanes within reach get a probe: a kinematic body of
+        the robot's shape, put at the robot's pose.  A lane keeps its probe as long as it stays within
+        reach, so the probe's contact pairs are the lane's, and pymunk's "begin" (touching now, not at
+        the previous step) means what it meant with one body per lane.  Free probes wait in the void.
+        """
+        # Centres relative to the arena's middle; |.| beyond half: within reach of a wall.
+        mx, my = self._gx - self._mid[:, 0], self._gy - self._mid[:, 1]
+        np.abs(mx, out=mx)
+        near = mx > self._near_half
+        near |= np.abs(my) > self._near_half
+        dock = my < self._near_dock_y
+        if dock.any():
+            near |= dock & (mx < self._near_dock_x)
+        lp, pl = self._lane_probe, self._probe_lane
+        gone = np.flatnonzero((lp >= 0) & ~near)
+        if gone.size:
+            pl[lp[gone]] = -1
+            self._io[self._probe_row[lp[gone]]] = self._void[lp[gone]]
+            lp[gone] = -1
+        need = np.flatnonzero(near & (lp < 0))
+        if need.size:
+            free = np.flatnonzero(pl < 0)
+            if free.size < need.size:
+                self._grow(max(need.size - free.size, 16))
+                pl = self._probe_lane
+                free = np.flatnonzero(pl < 0)
+            got = free[: need.size]
+            pl[got] = need
+            lp[need] = got
+        self._contacts = {_WALL: [], _DOCK: []}
+        if not (near.any() or gone.size):
+            return
+        mine = np.flatnonzero(pl >= 0)
+        rows = self._probe_row[mine]
+        self._io[rows, 0] = self._gx[pl[mine]]
+        self._io[rows, 1] = self._gy[pl[mine]]
+        self._wbuf.set_float_buf(self._io.reshape(-1))
+        pb.set_space_bodies(self.space, pb.BodyFields.POSITION, self._wbuf)
+        self.space.step(dt)  # the probes stand still (velocity zero): pymunk only tests contacts
+        # pymunk's arbiters after a step (collision_persistence 1) are the pairs touching in it: read
+        # them in one call (no Python callback per contact) as (probe body, side body) ids.  A contact
+        # *begins* where the lane did not touch that shape at the previous step: pymunk's "begin",
+        # per (robot, shape) pair, as with one body per lane.
+        self._abuf.clear()
+        pb.get_space_arbiters(self.space, pb.ArbiterFields.BODY_A_ID | pb.ArbiterFields.BODY_B_ID, self._abuf)
+        pairs = np.frombuffer(self._abuf.int_buf(), dtype=np.uintp).reshape(-1, 2)
+        if pairs.size == 0:
+            self._touching = set()
+            return
+        a, b = pairs[:, 0], pairs[:, 1]  # pymunk puts the circle (probe) first; checked, not assumed
+        last = len(self._probe_ids) - 1
+        i = np.minimum(np.searchsorted(self._probe_ids, a), last)
+        swap = self._probe_ids[i] != a
+        if swap.any():
+            a, b = np.where(swap, b, a), np.where(swap, a, b)
+            i = np.minimum(np.searchsorted(self._probe_ids, a), last)
+        side = self._side_of_sorted[np.searchsorted(self._side_order_ids, b)]
+        touching = set((pl[self._probe_of_id[i]] * 5 + side).tolist())  # lane * 5 + side, a few
+        began = touching - self._touching
+        self._touching = touching
+        self._contacts = {_WALL: [c // 5 for c in began if c % 5 != _DOCK_SIDE],
+                          _DOCK: [c // 5 for c in began if c % 5 == _DOCK_SIDE]}
 
     def _docking_accepted(self, lanes: np.ndarray, speed: np.ndarray) -> np.ndarray:
         """Contact with the dock docks only on its front face, head-on within the angle, slowly enough."""
@@ -380,25 +568,214 @@ class BatchWorld:
         slow = (speed > 0) & (speed <= c.dock_max_speed)
         return on_front & head_on & slow
 
-    def _target_walk(self, active: np.ndarray, noise_deg: np.ndarray) -> None:
-        """Move the active Targets: a random walk that turns away from walls and the dock."""
+    def _target_walk(self, active: np.ndarray, noise_deg: np.ndarray, a: slice | np.ndarray | None = None) -> None:
+        """Move the active Targets: a random walk that turns away from walls and the dock.
+
+        Computed on the active lanes ``a`` only (a slice when all are): the others keep their Target.
+        """
         c = self.cfg
-        th = _signed_rad(self.th + np.radians(noise_deg))
+        if a is None:
+            a = slice(None) if active.all() else np.flatnonzero(active)
+        tx, ty, noise = self.tx[a], self.ty[a], noise_deg[a]
+        th = _signed_rad(self.th[a] + np.radians(noise))
         cos, sin = np.cos(th), np.sin(th)
-        ahead_x = self.tx + c.target_avoid * cos
-        ahead_y = self.ty + c.target_avoid * sin
+        ahead_x = tx + c.target_avoid * cos
+        ahead_y = ty + c.target_avoid * sin
         lo = c.target_radius + 2.0
         hi = c.arena - lo
         near_dock = (ahead_y < c.dock_depth + lo + c.target_avoid / 2) & (np.abs(ahead_x - c.arena / 2) < c.dock_width)
-        blocked = active & ((ahead_x < lo) | (ahead_x > hi) | (ahead_y < lo) | (ahead_y > hi) | near_dock)
+        blocked = (ahead_x < lo) | (ahead_x > hi) | (ahead_y < lo) | (ahead_y > hi) | near_dock
         if blocked.any():
             k = np.flatnonzero(blocked)
-            th[k] = _signed_rad(np.arctan2(self._centre[1] - self.ty[k], self._centre[0] - self.tx[k]) + np.radians(noise_deg[k]))
+            th[k] = _signed_rad(np.arctan2(self._centre[1] - ty[k], self._centre[0] - tx[k]) + np.radians(noise[k]))
             cos[k], sin[k] = np.cos(th[k]), np.sin(th[k])
         step = c.target_speed * c.step_seconds
-        np.copyto(self.tx, self.tx + step * cos, where=active)
-        np.copyto(self.ty, self.ty + step * sin, where=active)
-        np.copyto(self.th, th, where=active)
+        self.tx[a] = tx + step * cos
+        self.ty[a] = ty + step * sin
+        self.th[a] = th
 
 
+_REACH_MARGIN = 1.0  # inches: the bounding-box reach test is this much generous (rounding is ~1e-12)
 _WALL_DIR = np.array([180.0, 0.0, -90.0, 90.0, 0.0])  # west, east, south, north walls; dock filled in
+
+
+# ----------------------------------------------------------------- compiled sensing
+# BatchWorld.sense_bins: observe + Schema.discretise in one pass per lane, compiled with numba where
+# the batch is big enough to pay for it.  Every value is computed with the same floating-point
+# operations in the same order as observe() and Sensor.discretise (cos, sin, sqrt and floor are the
+# same libm/IEEE functions in numba; numba does not contract a*b+c into FMA), except arctan2, which
+# numpy computes with its own SIMD code: those arrays come from numpy.  tests/test_exact_curves.py
+# checks both paths against numbers recorded before this code existed.
+
+_SENSOR_CODE = {name: i for i, name in enumerate(SENSOR_NAMES)}
+COMPILED_MIN_LANES = 1024  # numba is loaded (~0.35 s, ~90 MB) for a batch of at least this many lanes ...
+COMPILED_WARM_MIN_LANES = 8  # ... and once loaded, used from this many on (numpy's ~300 calls a step cost more)
+_kernels: dict[str, object] = {}  # compiled functions (None without numba), made on first use
+
+
+def _sense_bins_py(codes, inv_width, nbins, circular, rx, ry, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir,
+                   arena, x0, x1, depth, r, tr, dock_x, dock_y, out):  # pragma: no cover - compiled by numba
+    n = rx.shape[0]
+    for i in range(n):
+        x = rx[i]
+        y = ry[i]
+        h = np.degrees(rh[i])
+        dx = tx[i] - x
+        dy = ty[i] - y
+        t_dist = np.sqrt(dx * dx + dy * dy)
+        for j in range(codes.shape[0]):
+            code = codes[j]
+            if code == 0 or code == 1:  # range, bearing
+                qx = min(max(x, x0), x1)
+                qy = min(y, depth)
+                gx = x - qx
+                gy = y - qy
+                g4 = np.sqrt(gx * gx + gy * gy) - r
+                g0 = x - r
+                g1 = (arena - x) - r
+                g2 = y - r
+                g3 = (arena - y) - r
+                g5 = (t_dist - tr) - r
+                nearest = min(min(min(min(min(g0, g1), g2), g3), g4), g5)
+                if code == 0:
+                    v = nearest if nearest >= 0.0 else 0.0
+                else:
+                    if g0 == nearest:
+                        od = 180.0
+                    elif g1 == nearest:
+                        od = 0.0
+                    elif g2 == nearest:
+                        od = -90.0
+                    elif g3 == nearest:
+                        od = 90.0
+                    elif g4 == nearest:
+                        od = q_dir[i]
+                    else:
+                        od = t_dir[i]
+                    a = od - h
+                    v = a - 360.0 * np.floor(a * (1.0 / 360.0))
+            elif code == 2:  # heading
+                a = np.degrees(th[i]) - t_dir[i]
+                v = a - 360.0 * np.floor(a * (1.0 / 360.0))
+            elif code == 3:  # target_range
+                v = t_dist
+            elif code == 4:  # target_bearing
+                a = t_dir[i] - h
+                v = a - 360.0 * np.floor(a * (1.0 / 360.0))
+            elif code == 5:  # dock_range
+                ddx = dock_x - x
+                ddy = dock_y - y
+                v = np.sqrt(ddx * ddx + ddy * ddy)
+            elif code == 6:  # dock_bearing
+                a = d_dir[i] - h
+                v = a - 360.0 * np.floor(a * (1.0 / 360.0))
+            elif code == 7:  # dock_orientation
+                a = h - -90.0
+                v = a - 360.0 * np.floor(a * (1.0 / 360.0))
+            else:  # fuel
+                f = min(max(fuel[i], 0.0), 1.0)
+                v = 100.0 * f
+            # Sensor.discretise
+            if circular[j]:
+                k = int((v - 360.0 * np.floor(v * (1.0 / 360.0))) * inv_width[j])
+                if k >= nbins[j]:
+                    k -= nbins[j]
+            else:
+                k = int(min(max(v * inv_width[j], 0.0), nbins[j] - 1.0))
+            out[j, i] = k
+
+
+_TABLES: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+
+
+def _sensor_tables(sch: Schema) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A schema's sensors as the kernel's arrays: code, 1 / width (as Sensor.discretise computes it), bins, circular."""
+    t = _TABLES.get(sch.behaviour)
+    if t is None or len(t[0]) != sch.n_sensors:
+        t = _TABLES[sch.behaviour] = (
+            np.array([_SENSOR_CODE[s.name] for s in sch.sensors], dtype=np.int64),
+            np.array([1.0 / s.width for s in sch.sensors], dtype=np.float64),
+            np.array([s.bins for s in sch.sensors], dtype=np.int64),
+            np.array([s.circular for s in sch.sensors], dtype=np.bool_),
+        )
+    return t
+
+
+def _worth_compiling(lanes: int) -> bool:
+    """Compiled loops for a batch of ``lanes``: a big one, or any but the tiniest once numba is loaded."""
+    return lanes >= COMPILED_MIN_LANES or (bool(_kernels) and lanes >= COMPILED_WARM_MIN_LANES)
+
+
+def _compiled(name: str):
+    """The numba-compiled version of the module function ``name``, or None without numba (then numpy)."""
+    if name not in _kernels:
+        try:
+            import numba
+        except ImportError:  # pragma: no cover - numba is a dependency; a stripped install still works
+            _kernels[name] = None
+        else:
+            _kernels[name] = numba.njit(cache=True, nogil=True)(globals()[name])
+    return _kernels[name]
+
+
+def _sense_kernel():
+    """The compiled sensing function, or None without numba (then numpy's observe + discretise)."""
+    return _compiled("_sense_bins_py")
+
+
+def _move_py(idx, speed, turn, dt, rh, gx, gy, ga, ox, oy, rx, ry, th, tx, ty, noise,
+             avoid, lo, hi, dock_y, half, dock_w, t_step, blocked):  # pragma: no cover - compiled by numba
+    """BatchWorld.step's moves of the lanes ``idx``: the robot's kinematic integration and state, and the
+    Target's random walk where it is not blocked (``blocked[j]`` set for idx[j]; numpy finishes those)."""
+    two_pi = 2 * np.pi
+    inv_two_pi = 0.5 / np.pi
+    for j in range(idx.shape[0]):
+        i = idx[j]
+        sp = speed[i]
+        r = rh[i]
+        x = gx[i] + sp * np.cos(r) * dt
+        y = gy[i] + sp * np.sin(r) * dt
+        a = ga[i] + np.radians(turn[i]) * dt
+        gx[i] = x
+        gy[i] = y
+        ga[i] = a
+        rx[i] = x - ox[i]
+        ry[i] = y - oy[i]
+        rh[i] = a - two_pi * np.floor((a + np.pi) * inv_two_pi)
+        t = th[i] + np.radians(noise[i])
+        t = t - two_pi * np.floor((t + np.pi) * inv_two_pi)
+        c = np.cos(t)
+        s = np.sin(t)
+        ax = tx[i] + avoid * c
+        ay = ty[i] + avoid * s
+        if ax < lo or ax > hi or ay < lo or ay > hi or (ay < dock_y and abs(ax - half) < dock_w):
+            blocked[j] = True
+        else:
+            blocked[j] = False
+            tx[i] = tx[i] + t_step * c
+            ty[i] = ty[i] + t_step * s
+            th[i] = t
+
+
+def _near_target_py(idx, rx, ry, tx, ty, reach, dist, collided):  # pragma: no cover - compiled by numba
+    """Robot-Target distances of the lanes ``idx`` (into ``dist[j]``) and their collisions."""
+    for j in range(idx.shape[0]):
+        i = idx[j]
+        dx = tx[i] - rx[i]
+        dy = ty[i] - ry[i]
+        d = np.sqrt(dx * dx + dy * dy)
+        dist[j] = d
+        collided[i] = d < reach
+
+
+def _spend_py(idx, speed, turn, fuel, idle, per_ips, per_dps, dist, t_min, t_max, collided, docked, dry,
+              tracking):  # pragma: no cover - compiled by numba
+    """Fuel spent by the lanes ``idx``, and which ran dry or tracked."""
+    for j in range(idx.shape[0]):
+        i = idx[j]
+        f = fuel[i] - (idle + per_ips * abs(speed[i]) + per_dps * abs(turn[i]))
+        fuel[i] = f
+        going = not collided[i]
+        dry[i] = f <= 0.0 and going and not docked[i]
+        d = dist[j]
+        tracking[i] = d >= t_min and d <= t_max and going
