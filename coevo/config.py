@@ -92,6 +92,12 @@ class GAConfig(Settings):
         "from random starts, median of seeds 0-4: 45.8 % with 8 against 29.0 % with none; 47.7 % with 8 together with "
         "specialise_recency 0.8 and specialise_fraction 0.3 (44.6 % on held-out seeds 100-104)"
     )
+    docking_sensors: Literal["polar", "dock-frame", "both"] = Field(
+        "polar", description="(ours) the dock sensors Docking's rules may condition on (coevo/tasks/fuel/dock_frame.py): "
+        "'polar' dock_range, dock_bearing, dock_orientation; 'dock-frame' dock_axis, dock_offset (the robot's place "
+        "in the dock's frame) and dock_orientation; 'both' all five.  Each starts from the direction-only default "
+        "written in its own terms"
+    )
     seed_random_share: float = Field(
         0.0, ge=0, le=1, description="(ours) share of the initial population that is random rule sets even with a seed policy"
     )

@@ -33,6 +33,7 @@ from coevo.errors import ConfigError
 from coevo.ga.mutation import CONTROL_LEVELS, MutationModel, model_from_config
 from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise, trim
 from coevo.policy.rules import RuleSet, random_ruleset
+from coevo.policy.schema import schema
 from coevo.policy.strength import update_strengths
 
 if TYPE_CHECKING:  # the tasks implement the interface on top of the GA's operators
@@ -83,14 +84,18 @@ class GA:
         self.rng = np.random.default_rng(seed)
         self.mutation = mutation or model_from_config(ga)
         self.evaluator = task.evaluator(self.behaviour, world, ga)
+        learnable = task.learnable_sensors(self.behaviour, ga)
+        self._unusable = None if learnable is None or learnable.all() else ~learnable
+        self._full_hi = np.array([s.bins - 1 for s in schema(self.behaviour).sensors])
         if seed_policy is None and ga.initial == "default":
-            seed_policy = task.default_rules(self.behaviour)  # None where the behaviour starts random
+            seed_policy = task.initial_rules(self.behaviour, ga)  # None where the behaviour starts random
         if seed_policy is not None:
             if seed_policy.behaviour != self.behaviour:
                 raise ConfigError(f"seed policy is a {seed_policy.behaviour} rule set, not {self.behaviour}")
             self.population = self._seeded(trim(seed_policy, ga.max_rules))
         else:
-            self.population = [random_ruleset(self.behaviour, ga.initial_rules, self.rng) for _ in range(ga.population)]
+            self.population = [self._usable(random_ruleset(self.behaviour, ga.initial_rules, self.rng))
+                               for _ in range(ga.population)]
         self.genes = self._random_genes(ga.population)  # control gene of population[i]; zeros if the model has none
         self.generation_no = 0
         self.best: RuleSet | None = None
@@ -154,15 +159,24 @@ class GA:
         ``seed_random_rules`` random rules in front) and a ``seed_random_share`` of random rule sets."""
         cfg, rng = self.cfg, self.rng
         n_random = int(round(cfg.seed_random_share * (cfg.population - 1)))
-        out = [seed_policy]
+        out = [self._usable(seed_policy)]
         for _ in range(cfg.population - 1 - n_random):
             child = self.mutation.mutate(seed_policy, rng, generation=0)
             if cfg.seed_random_rules:
                 extra = random_ruleset(self.behaviour, cfg.seed_random_rules, rng)
                 child = trim(RuleSet.concat(self.behaviour, [extra, child]), cfg.max_rules)
-            out.append(child)
-        out += [random_ruleset(self.behaviour, cfg.initial_rules, rng) for _ in range(n_random)]
+            out.append(self._usable(child))
+        out += [self._usable(random_ruleset(self.behaviour, cfg.initial_rules, rng)) for _ in range(n_random)]
         return out
+
+    def _usable(self, rs: RuleSet) -> RuleSet:
+        """``rs`` with every condition on a sensor the task does not let this GA use widened to ANY."""
+        if self._unusable is None:
+            return rs
+        u = self._unusable
+        if not ((rs.lo[:, u] != 0) | (rs.hi[:, u] != self._full_hi[u])).any():
+            return rs
+        return rs.replace(lo=np.where(u, 0, rs.lo), hi=np.where(u, self._full_hi, rs.hi))
 
     def _random_genes(self, n: int) -> np.ndarray:
         if not self.mutation.controlled:
@@ -183,13 +197,14 @@ class GA:
             update_strengths(p, e.fired, e.payoff, cfg.strength_rate) for p, e in zip(self.population, ev.experience)
         ]
         top = int(np.argmax(ev.fitness))
-        self.current, self.current_fitness = learned[top], float(ev.fitness[top])
-        check = self.evaluator.evaluate([learned[top]], partners, self._child_rng(), episodes=cfg.best_episodes)
+        chosen = learned[top]
+        self.current, self.current_fitness = chosen, float(ev.fitness[top])
+        check = self.evaluator.evaluate([chosen], partners, self._child_rng(), episodes=cfg.best_episodes)
         best_fit = float(check.fitness[0])
         improved = best_fit > self.best_fitness
         if improved:
-            self.best, self.best_fitness = learned[top], best_fit
-        measures = self.evaluator.measures(learned[top], partners, check, self._child_rng)
+            self.best, self.best_fitness = chosen, best_fit
+        measures = self.evaluator.measures(chosen, partners, check, self._child_rng)
         self.generation_no += 1
         self.population, self.genes = self._breed(learned, ev.fitness, ev.experience)
         return GenerationReport(
@@ -232,7 +247,7 @@ class GA:
         hyper = self.mutation.hypermutants(np.array(inherited[cfg.elite : cfg.population], dtype=np.uint8), rng)
         if hyper is not None:
             for k in np.flatnonzero(hyper) + cfg.elite:
-                children[k] = random_ruleset(self.behaviour, cfg.initial_rules, rng)
+                children[k] = self._usable(random_ruleset(self.behaviour, cfg.initial_rules, rng))
             gene_arr[cfg.elite :][hyper] = self._random_genes(int(hyper.sum()))
         return children, gene_arr
 
@@ -256,4 +271,4 @@ class GA:
         if extra:
             child = RuleSet.concat(child.behaviour, [child, *extra])
         child = self.mutation.mutate(child, rng, generation=self.generation_no, gene=gene)
-        return trim(child, cfg.max_rules)
+        return self._usable(trim(child, cfg.max_rules))

@@ -28,6 +28,7 @@ import numpy as np
 import pymunk
 import pymunk.batch as pb
 
+from coevo.tasks.fuel import dock_frame
 from coevo.tasks.fuel.settings import WorldConfig
 
 __all__ = ["BatchWorld", "StepEvents", "MAX_SPEED", "MAX_TURN", "DOCK_HEADING", "SENSOR_NAMES"]
@@ -41,7 +42,7 @@ _ROBOT, _WALL, _DOCK = 1, 4, 8  # collision types, also filter categories
 
 SENSOR_NAMES = (
     "range", "bearing", "heading", "target_range", "target_bearing",
-    "dock_range", "dock_bearing", "dock_orientation", "fuel",
+    "dock_range", "dock_bearing", "dock_orientation", "fuel", "dock_axis", "dock_offset",
 )
 
 
@@ -301,6 +302,8 @@ class BatchWorld:
             out["dock_orientation"] = wrap_deg(h - DOCK_HEADING)
         if "fuel" in want:
             out["fuel"] = 100.0 * np.clip(self.fuel, 0.0, 1.0)
+        if want & dock_frame.FRAME_NAMES:  # Docking's sensors in the dock's frame (dock_frame.py)
+            out.update(dock_frame.observe(self, want))
         return {k: out[k] for k in names}
 
     def min_dock_steps(self, lanes: np.ndarray) -> np.ndarray:
