@@ -92,6 +92,16 @@ class GAConfig(Settings):
         "from random starts, median of seeds 0-4: 45.8 % with 8 against 29.0 % with none; 47.7 % with 8 together with "
         "specialise_recency 0.8 and specialise_fraction 0.3 (44.6 % on held-out seeds 100-104)"
     )
+    keep_evaluated: bool = Field(
+        False, description="(ours) the elite and the best so far are the policies as evaluated, with the strengths their "
+        "fitness was earned with; strength updates reach only the offspring.  False: they carry the strengths updated "
+        "from that evaluation (a policy nobody measured)"
+    )
+    best_candidates: int = Field(
+        0, ge=0, le=10, description="(ours) 0: the best so far is the generation's best with the highest single "
+        "re-evaluation (on best_episodes); k > 0: the k best policies so far are re-evaluated every generation and the "
+        "best so far is the one with the highest mean over all its re-evaluations"
+    )
     docking_sensors: Literal["polar", "dock-frame", "both"] = Field(
         "polar", description="(ours) the dock sensors Docking's rules may condition on (coevo/tasks/fuel/dock_frame.py): "
         "'polar' dock_range, dock_bearing, dock_orientation; 'dock-frame' dock_axis, dock_offset (the robot's place "

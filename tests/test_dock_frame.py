@@ -53,3 +53,34 @@ def test_a_docking_ga_conditions_only_on_its_sensor_set(sensors: str) -> None:
     other = [sch.sensor_index(n) for n in SENSOR_SETS["both"] if n not in SENSOR_SETS[sensors]]
     for rs in ga.population:
         assert (rs.lo[:, other] == 0).all() and (rs.hi[:, other] == full[other]).all()
+
+
+def _ga(**kw: object) -> GA:
+    cfg = GAConfig(population=6, episodes=6, best_episodes=6, generations=3, docking_sensors="both", **kw)
+    return GA(get_task("fuel"), "docking", world=WorldConfig(), ga=cfg, seed=5)
+
+
+def test_keep_evaluated_selects_the_policy_as_it_was_evaluated() -> None:
+    ga = _ga(keep_evaluated=True)
+    before = list(ga.population)
+    ga.generation({})
+    assert any(ga.current == p for p in before)  # strengths as evaluated, not updated
+    assert ga.population[0] == ga.current  # the elite too
+
+
+def test_best_candidates_judge_the_best_by_all_its_reevaluations_and_leave_the_learning_alone() -> None:
+    plain, pooled = _ga(keep_evaluated=True), _ga(keep_evaluated=True, best_candidates=3)
+    for _ in range(3):
+        plain.generation({})
+        pooled.generation({})
+    assert all(a == b for a, b in zip(plain.population, pooled.population))  # own random stream
+    assert 1 <= len(pooled.candidates) <= 3
+    rs, total, n = pooled.candidates[0]
+    assert pooled.best == rs and pooled.best_fitness == pytest.approx(total / n)
+    assert all(t / k <= total / n for _, t, k in pooled.candidates)
+    again = _ga(keep_evaluated=True, best_candidates=3)
+    again.load_state(pooled.state_dict())
+    again.generation({})
+    pooled.generation({})
+    assert again.best == pooled.best and again.best_fitness == pooled.best_fitness
+    assert [c[1:] for c in again.candidates] == [c[1:] for c in pooled.candidates]

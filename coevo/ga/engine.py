@@ -102,6 +102,9 @@ class GA:
         self.current: RuleSet | None = None  # the last generation's best individual (strengths learned)
         self.current_fitness = 0.0
         self.best_fitness = -np.inf
+        self.candidates: list[tuple[RuleSet, float, int]] = []  # (policy, sum of its re-evaluations, how many)
+        # The candidates' re-evaluations draw from a stream of their own: the run's learning is the same with or without.
+        self.evidence_rng = np.random.default_rng([seed, 1])
         self.last: Evaluation | None = None
 
     # ------------------------------------------------------------ checkpoints
@@ -121,6 +124,8 @@ class GA:
             "best_fitness": float(self.best_fitness),
             "current": None if self.current is None else self.current.to_dict(),
             "current_fitness": float(self.current_fitness),
+            "candidates": [[rs.to_dict(), total, n] for rs, total, n in self.candidates],
+            "evidence_rng": json.dumps(self.evidence_rng.bit_generator.state),
         }
 
     def load_state(self, state: dict[str, Any]) -> None:
@@ -137,6 +142,9 @@ class GA:
         self.best_fitness = float(state["best_fitness"])
         self.current = None if state["current"] is None else RuleSet.from_dict(state["current"])
         self.current_fitness = float(state["current_fitness"])
+        self.candidates = [(RuleSet.from_dict(d), float(t), int(n)) for d, t, n in state.get("candidates", [])]
+        if "evidence_rng" in state:
+            self.evidence_rng.bit_generator.state = json.loads(state["evidence_rng"])
 
     def replace(self, indices: Sequence[int], policies: Sequence[RuleSet]) -> None:
         """Put ``policies[k]`` in place of individual ``indices[k]`` (e.g. a restart on a changed world,
@@ -197,16 +205,21 @@ class GA:
             update_strengths(p, e.fired, e.payoff, cfg.strength_rate) for p, e in zip(self.population, ev.experience)
         ]
         top = int(np.argmax(ev.fitness))
-        chosen = learned[top]
+        # keep_evaluated: the policy selected is the one whose fitness was measured, strengths and all.
+        chosen = self.population[top] if cfg.keep_evaluated else learned[top]
         self.current, self.current_fitness = chosen, float(ev.fitness[top])
         check = self.evaluator.evaluate([chosen], partners, self._child_rng(), episodes=cfg.best_episodes)
         best_fit = float(check.fitness[0])
-        improved = best_fit > self.best_fitness
-        if improved:
-            self.best, self.best_fitness = chosen, best_fit
+        if cfg.best_candidates:
+            improved = self._pool_evidence(chosen, best_fit, partners)
+        else:
+            improved = best_fit > self.best_fitness
+            if improved:
+                self.best, self.best_fitness = chosen, best_fit
         measures = self.evaluator.measures(chosen, partners, check, self._child_rng)
         self.generation_no += 1
-        self.population, self.genes = self._breed(learned, ev.fitness, ev.experience)
+        elite_pool = self.population if cfg.keep_evaluated else learned
+        self.population, self.genes = self._breed(learned, ev.fitness, ev.experience, elite_pool)
         return GenerationReport(
             generation=self.generation_no,
             best_fitness=best_fit,
@@ -219,12 +232,34 @@ class GA:
             seconds=time.perf_counter() - t0,
         )
 
+    def _pool_evidence(self, chosen: RuleSet, fit: float, partners: Partners) -> bool:
+        """Best so far by all the evidence (``best_candidates`` > 0): the candidates (the best few policies chosen so
+        far) are re-evaluated every generation and judged by the mean of all their re-evaluations, so one lucky
+        re-evaluation of ``best_episodes`` no longer makes a policy the best for good.  True if the best changed."""
+        cfg = self.cfg
+        pool = {rs: [total, n] for rs, total, n in self.candidates}
+        record = pool.setdefault(chosen, [0.0, 0])
+        record[0] += fit
+        record[1] += 1
+        for rs, rec in pool.items():
+            if rs is not chosen and rs != chosen:
+                rng = np.random.default_rng(int(self.evidence_rng.integers(2**63)))
+                again = self.evaluator.evaluate([rs], partners, rng, episodes=cfg.best_episodes)
+                rec[0] += float(again.fitness[0])
+                rec[1] += 1
+        ranked = sorted(pool.items(), key=lambda kv: -kv[1][0] / kv[1][1])[: cfg.best_candidates]
+        self.candidates = [(rs, total, n) for rs, (total, n) in ranked]
+        top, (total, n) = ranked[0]
+        changed = self.best is None or top != self.best
+        self.best, self.best_fitness = top, total / n
+        return changed
+
     def _breed(
-        self, pop: list[RuleSet], fitness: np.ndarray, exps: list[Experience]
+        self, pop: list[RuleSet], fitness: np.ndarray, exps: list[Experience], elite_pool: list[RuleSet] | None = None,
     ) -> tuple[list[RuleSet], np.ndarray]:
         cfg, rng = self.cfg, self.rng
         order = np.argsort(-fitness, kind="stable")
-        children: list[RuleSet] = [pop[i] for i in order[: cfg.elite]]
+        children: list[RuleSet] = [(elite_pool or pop)[i] for i in order[: cfg.elite]]
         genes: list[int] = [int(self.genes[i]) for i in order[: cfg.elite]]
         inherited = list(genes)  # before mutation: what GH's hypermutation chance is read from
         parents = select_parents(fitness, cfg.parents_fraction, rng)
