@@ -60,8 +60,12 @@ def _ga(**kw: object) -> GA:
     return GA(get_task("fuel"), "docking", world=WorldConfig(), ga=cfg, seed=5)
 
 
-def test_keep_evaluated_selects_the_policy_as_it_was_evaluated() -> None:
-    ga = _ga(keep_evaluated=True)
+def test_docking_keeps_the_policy_as_it_was_evaluated_by_default_the_others_do_not() -> None:
+    fuel = get_task("fuel")
+    assert fuel.selection("docking", GAConfig()) == (True, 3)
+    assert fuel.selection("tracking", GAConfig()) == (False, 0)
+    assert fuel.selection("docking", GAConfig(keep_evaluated=False, best_candidates=0)) == (False, 0)
+    ga = _ga()
     before = list(ga.population)
     ga.generation({})
     assert any(ga.current == p for p in before)  # strengths as evaluated, not updated
@@ -69,7 +73,7 @@ def test_keep_evaluated_selects_the_policy_as_it_was_evaluated() -> None:
 
 
 def test_best_candidates_judge_the_best_by_all_its_reevaluations_and_leave_the_learning_alone() -> None:
-    plain, pooled = _ga(keep_evaluated=True), _ga(keep_evaluated=True, best_candidates=3)
+    plain, pooled = _ga(keep_evaluated=True, best_candidates=0), _ga(keep_evaluated=True, best_candidates=3)
     for _ in range(3):
         plain.generation({})
         pooled.generation({})
@@ -84,3 +88,4 @@ def test_best_candidates_judge_the_best_by_all_its_reevaluations_and_leave_the_l
     pooled.generation({})
     assert again.best == pooled.best and again.best_fitness == pooled.best_fitness
     assert [c[1:] for c in again.candidates] == [c[1:] for c in pooled.candidates]
+

@@ -84,6 +84,7 @@ class GA:
         self.rng = np.random.default_rng(seed)
         self.mutation = mutation or model_from_config(ga)
         self.evaluator = task.evaluator(self.behaviour, world, ga)
+        self.keep_evaluated, self.best_candidates = task.selection(self.behaviour, ga)
         learnable = task.learnable_sensors(self.behaviour, ga)
         self._unusable = None if learnable is None or learnable.all() else ~learnable
         self._full_hi = np.array([s.bins - 1 for s in schema(self.behaviour).sensors])
@@ -206,11 +207,11 @@ class GA:
         ]
         top = int(np.argmax(ev.fitness))
         # keep_evaluated: the policy selected is the one whose fitness was measured, strengths and all.
-        chosen = self.population[top] if cfg.keep_evaluated else learned[top]
+        chosen = self.population[top] if self.keep_evaluated else learned[top]
         self.current, self.current_fitness = chosen, float(ev.fitness[top])
         check = self.evaluator.evaluate([chosen], partners, self._child_rng(), episodes=cfg.best_episodes)
         best_fit = float(check.fitness[0])
-        if cfg.best_candidates:
+        if self.best_candidates:
             improved = self._pool_evidence(chosen, best_fit, partners)
         else:
             improved = best_fit > self.best_fitness
@@ -218,7 +219,7 @@ class GA:
                 self.best, self.best_fitness = chosen, best_fit
         measures = self.evaluator.measures(chosen, partners, check, self._child_rng)
         self.generation_no += 1
-        elite_pool = self.population if cfg.keep_evaluated else learned
+        elite_pool = self.population if self.keep_evaluated else learned
         self.population, self.genes = self._breed(learned, ev.fitness, ev.experience, elite_pool)
         return GenerationReport(
             generation=self.generation_no,
@@ -233,9 +234,10 @@ class GA:
         )
 
     def _pool_evidence(self, chosen: RuleSet, fit: float, partners: Partners) -> bool:
-        """Best so far by all the evidence (``best_candidates`` > 0): the candidates (the best few policies chosen so
-        far) are re-evaluated every generation and judged by the mean of all their re-evaluations, so one lucky
-        re-evaluation of ``best_episodes`` no longer makes a policy the best for good.  True if the best changed."""
+        """Best so far by all the evidence (``best_candidates`` > 0, see ``Task.selection``): the candidates (the best
+        few policies chosen so far) are re-evaluated every generation and judged by the mean of all their
+        re-evaluations, so one lucky re-evaluation of ``best_episodes`` no longer makes a policy the best for good.
+        True if the best changed."""
         cfg = self.cfg
         pool = {rs: [total, n] for rs, total, n in self.candidates}
         record = pool.setdefault(chosen, [0.0, 0])
@@ -247,7 +249,7 @@ class GA:
                 again = self.evaluator.evaluate([rs], partners, rng, episodes=cfg.best_episodes)
                 rec[0] += float(again.fitness[0])
                 rec[1] += 1
-        ranked = sorted(pool.items(), key=lambda kv: -kv[1][0] / kv[1][1])[: cfg.best_candidates]
+        ranked = sorted(pool.items(), key=lambda kv: -kv[1][0] / kv[1][1])[: self.best_candidates]
         self.candidates = [(rs, total, n) for rs, (total, n) in ranked]
         top, (total, n) = ranked[0]
         changed = self.best is None or top != self.best

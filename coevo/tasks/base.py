@@ -104,6 +104,11 @@ class Task(ABC):
         """(S,) bool: the sensors a GA with settings ``ga`` may put conditions on (None: all of them)."""
         return None
 
+    def selection(self, behaviour: str, ga: GAConfig) -> tuple[bool, int]:
+        """(keep_evaluated, best_candidates) for a GA of ``behaviour``: the settings, where they leave it to the task
+        (None) off."""
+        return bool(ga.keep_evaluated), int(ga.best_candidates or 0)
+
     def initial_model(self, behaviour: str, ga: GAConfig, rng: np.random.Generator) -> RuleSet:
         """How a partner that has not published yet is modelled: its initial behaviour."""
         default = self.initial_rules(behaviour, ga) if ga.initial == "default" else None

@@ -80,6 +80,14 @@ class FuelTask(Task):
         usable = set(SENSOR_SETS[ga.docking_sensors])
         return np.array([n not in DOCK_SENSORS or n in usable for n in schema(behaviour).sensor_names])
 
+    def selection(self, behaviour: str, ga: GAConfig) -> tuple[bool, int]:
+        """Docking keeps the policies as evaluated and judges its best by three candidates' re-evaluations unless
+        the settings say otherwise (docs/docking-learning.md, Round 3); the others, unless they say so."""
+        if Behaviour(self.check_behaviour(behaviour)) != Behaviour.DOCKING:
+            return super().selection(behaviour, ga)
+        keep = True if ga.keep_evaluated is None else ga.keep_evaluated
+        return keep, 3 if ga.best_candidates is None else ga.best_candidates
+
     def partners_needed(self, behaviour: str, regime: str) -> tuple[str, ...]:
         b = Behaviour(self.check_behaviour(behaviour))
         self.check_regime(regime)
