@@ -89,3 +89,21 @@ def test_best_candidates_judge_the_best_by_all_its_reevaluations_and_leave_the_l
     assert again.best == pooled.best and again.best_fitness == pooled.best_fitness
     assert [c[1:] for c in again.candidates] == [c[1:] for c in pooled.candidates]
 
+
+
+def test_operators_draw_only_over_the_usable_sensors() -> None:
+    from coevo.ga.mutation import mutate_rules
+    from coevo.ga.operators import generalise
+    from coevo.policy.rules import random_ruleset
+
+    sch = schema("docking")
+    usable = np.array([n not in ("dock_axis", "dock_offset") for n in sch.sensor_names])
+    full = np.array([s.bins - 1 for s in sch.sensors])
+    rng = np.random.default_rng(0)
+    rs = random_ruleset("docking", 20, rng, usable)
+    assert (rs.lo[:, ~usable] == 0).all() and (rs.hi[:, ~usable] == full[~usable]).all()
+    assert ((rs.lo[:, usable] != 0) | (rs.hi[:, usable] != full[usable])).any()
+    m = mutate_rules(rs, np.ones(20, bool), rng, usable)
+    g = generalise(rs, None, rng, usable)  # type: ignore[arg-type]
+    for out in (m, g):
+        assert (out.lo[:, ~usable] == 0).all() and (out.hi[:, ~usable] == full[~usable]).all()

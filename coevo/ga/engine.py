@@ -87,6 +87,7 @@ class GA:
         self.keep_evaluated, self.best_candidates = task.selection(self.behaviour, ga)
         learnable = task.learnable_sensors(self.behaviour, ga)
         self._unusable = None if learnable is None or learnable.all() else ~learnable
+        self._use = None if self._unusable is None else ~self._unusable  # operators draw only over these sensors
         self._full_hi = np.array([s.bins - 1 for s in schema(self.behaviour).sensors])
         if seed_policy is None and ga.initial == "default":
             seed_policy = task.initial_rules(self.behaviour, ga)  # None where the behaviour starts random
@@ -95,7 +96,7 @@ class GA:
                 raise ConfigError(f"seed policy is a {seed_policy.behaviour} rule set, not {self.behaviour}")
             self.population = self._seeded(trim(seed_policy, ga.max_rules))
         else:
-            self.population = [self._usable(random_ruleset(self.behaviour, ga.initial_rules, self.rng))
+            self.population = [self._usable(random_ruleset(self.behaviour, ga.initial_rules, self.rng, self._use))
                                for _ in range(ga.population)]
         self.genes = self._random_genes(ga.population)  # control gene of population[i]; zeros if the model has none
         self.generation_no = 0
@@ -170,13 +171,18 @@ class GA:
         n_random = int(round(cfg.seed_random_share * (cfg.population - 1)))
         out = [self._usable(seed_policy)]
         for _ in range(cfg.population - 1 - n_random):
-            child = self.mutation.mutate(seed_policy, rng, generation=0)
+            child = self._mutate(seed_policy, 0)
             if cfg.seed_random_rules:
-                extra = random_ruleset(self.behaviour, cfg.seed_random_rules, rng)
+                extra = random_ruleset(self.behaviour, cfg.seed_random_rules, rng, self._use)
                 child = trim(RuleSet.concat(self.behaviour, [extra, child]), cfg.max_rules)
             out.append(self._usable(child))
-        out += [self._usable(random_ruleset(self.behaviour, cfg.initial_rules, rng)) for _ in range(n_random)]
+        out += [self._usable(random_ruleset(self.behaviour, cfg.initial_rules, rng, self._use)) for _ in range(n_random)]
         return out
+
+    def _mutate(self, rs: RuleSet, generation: int, gene: int = 0) -> RuleSet:
+        if self._use is None:  # any mutation model; with a sensor set, the built-in ones (coevo.ga.mutation)
+            return self.mutation.mutate(rs, self.rng, generation=generation, gene=gene)
+        return self.mutation.mutate(rs, self.rng, generation=generation, gene=gene, usable=self._use)  # type: ignore[call-arg]
 
     def _usable(self, rs: RuleSet) -> RuleSet:
         """``rs`` with every condition on a sensor the task does not let this GA use widened to ANY."""
@@ -284,7 +290,7 @@ class GA:
         hyper = self.mutation.hypermutants(np.array(inherited[cfg.elite : cfg.population], dtype=np.uint8), rng)
         if hyper is not None:
             for k in np.flatnonzero(hyper) + cfg.elite:
-                children[k] = self._usable(random_ruleset(self.behaviour, cfg.initial_rules, rng))
+                children[k] = self._usable(random_ruleset(self.behaviour, cfg.initial_rules, rng, self._use))
             gene_arr[cfg.elite :][hyper] = self._random_genes(int(hyper.sum()))
         return children, gene_arr
 
@@ -296,16 +302,16 @@ class GA:
             child, idle = delete(child, idle)
         if rng.random() < cfg.specialise_rate:
             r = specialise(parent, exp, rng, low_strength=cfg.low_strength, fraction=cfg.specialise_fraction,
-                           recency=cfg.specialise_recency)
+                           recency=cfg.specialise_recency, usable=self._use)
             if r is not None:
                 extra.append(r)
         if rng.random() < cfg.generalise_rate:
-            extra.append(generalise(parent, exp, rng))
+            extra.append(generalise(parent, exp, rng, self._use))
         if rng.random() < cfg.cover_rate:
             r = cover(parent, exp, rng, partial=cfg.cover_partial)
             if r is not None:
                 extra.append(r)
         if extra:
             child = RuleSet.concat(child.behaviour, [child, *extra])
-        child = self.mutation.mutate(child, rng, generation=self.generation_no, gene=gene)
+        child = self._mutate(child, self.generation_no, gene)
         return self._usable(trim(child, cfg.max_rules))
