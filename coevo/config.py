@@ -106,10 +106,12 @@ class GAConfig(Settings):
         "an epoch's ten episodes: Tracking's runs took 38-59 s instead of 21-41 s)"
     )
     docking_sensors: Literal["polar", "dock-frame", "both"] = Field(
-        "polar", description="(ours) the dock sensors Docking's rules may condition on (coevo/tasks/fuel/dock_frame.py): "
+        "both", description="(ours) the dock sensors Docking's rules may condition on (coevo/tasks/fuel/dock_frame.py): "
         "'polar' dock_range, dock_bearing, dock_orientation; 'dock-frame' dock_axis, dock_offset (the robot's place "
         "in the dock's frame) and dock_orientation; 'both' all five.  Each starts from the direction-only default "
-        "written in its own terms"
+        "written in its own terms ('both' from the polar one).  Docking from random starts, median of seeds 0-9 with "
+        "Docking's keep_evaluated and best_candidates: both 50.1 %, polar 43.5 %, dock-frame (0-4) 40.4 %; polar "
+        "without them 45.0 % (the defaults before)"
     )
     seed_random_share: float = Field(
         0.0, ge=0, le=1, description="(ours) share of the initial population that is random rule sets even with a seed policy"
