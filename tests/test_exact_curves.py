@@ -2,7 +2,11 @@
 
 ``tests/data/exact_curves.json`` was recorded *before* the speed work of issue 27
 (branch ``speed``, on top of a8b01d2) and every later optimisation of the batched
-world, the runner, the evaluator and the matcher must reproduce it bit for bit:
+world, the runner, the evaluator and the matcher must reproduce it bit for bit.  It was
+recorded once more, with the same pre-speed code plus Docking's dock-frame sensors and
+selection (branch ``dock``, issue 25: an intended change of Docking's numbers and of the
+raw sensor values, which gained two sensors; Tracking's and the Executive's stayed the
+same), and the merged, faster code reproduces that recording too:
 
 * fixed-seed ``coevo learn`` curves (the GA engine in-process, 3 generations, population 6,
   20 episodes) of Tracking, Docking and the Executive (against the shipped Tracking and

@@ -34,6 +34,7 @@ from coevo.ga.evaluator import Evaluation, Partners, Problem, Tick
 from coevo.ga.mutation import CONTROL_LEVELS, MutationModel, model_from_config
 from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise, trim
 from coevo.policy.rules import RuleSet, random_ruleset
+from coevo.policy.schema import schema
 from coevo.policy.strength import update_strengths
 
 __all__ = ["GA", "GenerationReport"]
@@ -81,20 +82,29 @@ class GA:
         self.rng = np.random.default_rng(seed)
         self.mutation = mutation or model_from_config(ga)
         self.evaluator = task.evaluator(self.behaviour, world, ga)
+        self.keep_evaluated, self.best_candidates = task.selection(self.behaviour, ga)
+        learnable = task.learnable_sensors(self.behaviour, ga)
+        self._unusable = None if learnable is None or learnable.all() else ~learnable
+        self._use = None if self._unusable is None else ~self._unusable  # operators draw only over these sensors
+        self._full_hi = np.array([s.bins - 1 for s in schema(self.behaviour).sensors])
         if seed_policy is None and ga.initial == "default":
-            seed_policy = task.default_rules(self.behaviour)  # None where the behaviour starts random
+            seed_policy = task.initial_rules(self.behaviour, ga)  # None where the behaviour starts random
         if seed_policy is not None:
             if seed_policy.behaviour != self.behaviour:
                 raise ConfigError(f"seed policy is a {seed_policy.behaviour} rule set, not {self.behaviour}")
             self.population = self._seeded(trim(seed_policy, ga.max_rules))
         else:
-            self.population = [random_ruleset(self.behaviour, ga.initial_rules, self.rng) for _ in range(ga.population)]
+            self.population = [self._usable(random_ruleset(self.behaviour, ga.initial_rules, self.rng, self._use))
+                               for _ in range(ga.population)]
         self.genes = self._random_genes(ga.population)  # control gene of population[i]; zeros if the model has none
         self.generation_no = 0
         self.best: RuleSet | None = None
         self.current: RuleSet | None = None  # the last generation's best individual (strengths learned)
         self.current_fitness = 0.0
         self.best_fitness = -np.inf
+        self.candidates: list[tuple[RuleSet, float, int]] = []  # (policy, sum of its re-evaluations, how many)
+        # The candidates' re-evaluations draw from a stream of their own: the run's learning is the same with or without.
+        self.evidence_rng = np.random.default_rng([seed, 1])
         self.last: Evaluation | None = None
 
     # ------------------------------------------------------------ checkpoints
@@ -114,6 +124,8 @@ class GA:
             "best_fitness": float(self.best_fitness),
             "current": None if self.current is None else self.current.to_dict(),
             "current_fitness": float(self.current_fitness),
+            "candidates": [[rs.to_dict(), total, n] for rs, total, n in self.candidates],
+            "evidence_rng": json.dumps(self.evidence_rng.bit_generator.state),
         }
 
     def load_state(self, state: dict[str, Any]) -> None:
@@ -130,6 +142,9 @@ class GA:
         self.best_fitness = float(state["best_fitness"])
         self.current = None if state["current"] is None else RuleSet.from_dict(state["current"])
         self.current_fitness = float(state["current_fitness"])
+        self.candidates = [(RuleSet.from_dict(d), float(t), int(n)) for d, t, n in state.get("candidates", [])]
+        if "evidence_rng" in state:
+            self.evidence_rng.bit_generator.state = json.loads(state["evidence_rng"])
 
     def replace(self, indices: Sequence[int], policies: Sequence[RuleSet]) -> None:
         """Put ``policies[k]`` in place of individual ``indices[k]`` (e.g. a restart on a changed world,
@@ -152,15 +167,29 @@ class GA:
         ``seed_random_rules`` random rules in front) and a ``seed_random_share`` of random rule sets."""
         cfg, rng = self.cfg, self.rng
         n_random = int(round(cfg.seed_random_share * (cfg.population - 1)))
-        out = [seed_policy]
+        out = [self._usable(seed_policy)]
         for _ in range(cfg.population - 1 - n_random):
-            child = self.mutation.mutate(seed_policy, rng, generation=0)
+            child = self._mutate(seed_policy, 0)
             if cfg.seed_random_rules:
-                extra = random_ruleset(self.behaviour, cfg.seed_random_rules, rng)
+                extra = random_ruleset(self.behaviour, cfg.seed_random_rules, rng, self._use)
                 child = trim(RuleSet.concat(self.behaviour, [extra, child]), cfg.max_rules)
-            out.append(child)
-        out += [random_ruleset(self.behaviour, cfg.initial_rules, rng) for _ in range(n_random)]
+            out.append(self._usable(child))
+        out += [self._usable(random_ruleset(self.behaviour, cfg.initial_rules, rng, self._use)) for _ in range(n_random)]
         return out
+
+    def _mutate(self, rs: RuleSet, generation: int, gene: int = 0) -> RuleSet:
+        if self._use is None:  # any mutation model; with a sensor set, the built-in ones (coevo.ga.mutation)
+            return self.mutation.mutate(rs, self.rng, generation=generation, gene=gene)
+        return self.mutation.mutate(rs, self.rng, generation=generation, gene=gene, usable=self._use)  # type: ignore[call-arg]
+
+    def _usable(self, rs: RuleSet) -> RuleSet:
+        """``rs`` with every condition on a sensor the task does not let this GA use widened to ANY."""
+        if self._unusable is None:
+            return rs
+        u = self._unusable
+        if not ((rs.lo[:, u] != 0) | (rs.hi[:, u] != self._full_hi[u])).any():
+            return rs
+        return rs.replace(lo=np.where(u, 0, rs.lo), hi=np.where(u, self._full_hi, rs.hi))
 
     def _random_genes(self, n: int) -> np.ndarray:
         if not self.mutation.controlled:
@@ -181,15 +210,21 @@ class GA:
             update_strengths(p, e.fired, e.payoff, cfg.strength_rate) for p, e in zip(self.population, ev.experience)
         ]
         top = int(np.argmax(ev.fitness))
-        self.current, self.current_fitness = learned[top], float(ev.fitness[top])
-        check = self.evaluator.evaluate([learned[top]], partners, self._child_rng(), episodes=cfg.best_episodes)
+        # keep_evaluated: the policy selected is the one whose fitness was measured, strengths and all.
+        chosen = self.population[top] if self.keep_evaluated else learned[top]
+        self.current, self.current_fitness = chosen, float(ev.fitness[top])
+        check = self.evaluator.evaluate([chosen], partners, self._child_rng(), episodes=cfg.best_episodes)
         best_fit = float(check.fitness[0])
-        improved = best_fit > self.best_fitness
-        if improved:
-            self.best, self.best_fitness = learned[top], best_fit
-        measures = self.evaluator.measures(learned[top], partners, check, self._child_rng)
+        if self.best_candidates:
+            improved = self._pool_evidence(chosen, best_fit, partners)
+        else:
+            improved = best_fit > self.best_fitness
+            if improved:
+                self.best, self.best_fitness = chosen, best_fit
+        measures = self.evaluator.measures(chosen, partners, check, self._child_rng)
         self.generation_no += 1
-        self.population, self.genes = self._breed(learned, ev.fitness, ev.experience)
+        elite_pool = self.population if self.keep_evaluated else learned
+        self.population, self.genes = self._breed(learned, ev.fitness, ev.experience, elite_pool)
         return GenerationReport(
             generation=self.generation_no,
             best_fitness=best_fit,
@@ -202,12 +237,35 @@ class GA:
             seconds=time.perf_counter() - t0,
         )
 
+    def _pool_evidence(self, chosen: RuleSet, fit: float, partners: Partners) -> bool:
+        """Best so far by all the evidence (``best_candidates`` > 0, see ``Task.selection``): the candidates (the best
+        few policies chosen so far) are re-evaluated every generation and judged by the mean of all their
+        re-evaluations, so one lucky re-evaluation of ``best_episodes`` no longer makes a policy the best for good.
+        True if the best changed."""
+        cfg = self.cfg
+        pool = {rs: [total, n] for rs, total, n in self.candidates}
+        record = pool.setdefault(chosen, [0.0, 0])
+        record[0] += fit
+        record[1] += 1
+        for rs, rec in pool.items():
+            if rs is not chosen and rs != chosen:
+                rng = np.random.default_rng(int(self.evidence_rng.integers(2**63)))
+                again = self.evaluator.evaluate([rs], partners, rng, episodes=cfg.best_episodes)
+                rec[0] += float(again.fitness[0])
+                rec[1] += 1
+        ranked = sorted(pool.items(), key=lambda kv: -kv[1][0] / kv[1][1])[: self.best_candidates]
+        self.candidates = [(rs, total, n) for rs, (total, n) in ranked]
+        top, (total, n) = ranked[0]
+        changed = self.best is None or top != self.best
+        self.best, self.best_fitness = top, total / n
+        return changed
+
     def _breed(
-        self, pop: list[RuleSet], fitness: np.ndarray, exps: list[Experience]
+        self, pop: list[RuleSet], fitness: np.ndarray, exps: list[Experience], elite_pool: list[RuleSet] | None = None,
     ) -> tuple[list[RuleSet], np.ndarray]:
         cfg, rng = self.cfg, self.rng
         order = np.argsort(-fitness, kind="stable")
-        children: list[RuleSet] = [pop[i] for i in order[: cfg.elite]]
+        children: list[RuleSet] = [(elite_pool or pop)[i] for i in order[: cfg.elite]]
         genes: list[int] = [int(self.genes[i]) for i in order[: cfg.elite]]
         inherited = list(genes)  # before mutation: what GH's hypermutation chance is read from
         parents = select_parents(fitness, cfg.parents_fraction, rng)
@@ -230,7 +288,7 @@ class GA:
         hyper = self.mutation.hypermutants(np.array(inherited[cfg.elite : cfg.population], dtype=np.uint8), rng)
         if hyper is not None:
             for k in np.flatnonzero(hyper) + cfg.elite:
-                children[k] = random_ruleset(self.behaviour, cfg.initial_rules, rng)
+                children[k] = self._usable(random_ruleset(self.behaviour, cfg.initial_rules, rng, self._use))
             gene_arr[cfg.elite :][hyper] = self._random_genes(int(hyper.sum()))
         return children, gene_arr
 
@@ -242,16 +300,16 @@ class GA:
             child, idle = delete(child, idle)
         if rng.random() < cfg.specialise_rate:
             r = specialise(parent, exp, rng, low_strength=cfg.low_strength, fraction=cfg.specialise_fraction,
-                           recency=cfg.specialise_recency)
+                           recency=cfg.specialise_recency, usable=self._use)
             if r is not None:
                 extra.append(r)
         if rng.random() < cfg.generalise_rate:
-            extra.append(generalise(parent, exp, rng))
+            extra.append(generalise(parent, exp, rng, self._use))
         if rng.random() < cfg.cover_rate:
             r = cover(parent, exp, rng, partial=cfg.cover_partial)
             if r is not None:
                 extra.append(r)
         if extra:
             child = RuleSet.concat(child.behaviour, [child, *extra])
-        child = self.mutation.mutate(child, rng, generation=self.generation_no, gene=gene)
-        return trim(child, cfg.max_rules)
+        child = self._mutate(child, self.generation_no, gene)
+        return self._usable(trim(child, cfg.max_rules))

@@ -78,7 +78,9 @@ class MutationModel(Protocol):
         """Per-rule (per-bit) mutation probability of an individual carrying ``gene``."""
         ...
 
-    def mutate(self, rs: RuleSet, rng: np.random.Generator, *, generation: int, gene: int = 0) -> RuleSet: ...
+    def mutate(self, rs: RuleSet, rng: np.random.Generator, *, generation: int, gene: int = 0) -> RuleSet:
+        """A mutated copy (the built-in models also take ``usable``: (S,) bool, the sensors a condition change may touch)."""
+        ...
 
     def mutate_gene(self, gene: int, rng: np.random.Generator) -> int: ...
 
@@ -87,8 +89,8 @@ class MutationModel(Protocol):
         ...
 
 
-def mutate_rules(rs: RuleSet, which: np.ndarray, rng: np.random.Generator) -> RuleSet:
-    """Mutate the rules flagged in ``which`` (bool, per rule): one change each."""
+def mutate_rules(rs: RuleSet, which: np.ndarray, rng: np.random.Generator, usable: np.ndarray | None = None) -> RuleSet:
+    """Mutate the rules flagged in ``which`` (bool, per rule): one change each (conditions on ``usable`` sensors only)."""
     idx = np.flatnonzero(which)
     if idx.size == 0:
         return rs
@@ -96,10 +98,11 @@ def mutate_rules(rs: RuleSet, which: np.ndarray, rng: np.random.Generator) -> Ru
     lo = rs.lo.astype(np.int64)
     hi = rs.hi.astype(np.int64)
     act = rs.action.astype(np.int64)
-    S, A = sch.n_sensors, len(sch.actions)
+    cols = np.arange(sch.n_sensors) if usable is None else np.flatnonzero(usable)
+    S, A = cols.size, len(sch.actions)
     for i in idx:
         if rng.random() < 0.5:
-            j = int(rng.integers(S))
+            j = int(cols[int(rng.integers(S))])
             s = sch.sensors[j]
             delta = int(rng.integers(1, max(2, s.bins // 8) + 1)) * (1 if rng.random() < 0.5 else -1)
             end = lo if rng.random() < 0.5 else hi
@@ -126,8 +129,9 @@ class _Model:
     def rate(self, gene: int) -> float:
         raise NotImplementedError
 
-    def mutate(self, rs: RuleSet, rng: np.random.Generator, *, generation: int, gene: int = 0) -> RuleSet:
-        return mutate_rules(rs, rng.random(len(rs)) < self.rate(gene), rng)
+    def mutate(self, rs: RuleSet, rng: np.random.Generator, *, generation: int, gene: int = 0,
+               usable: np.ndarray | None = None) -> RuleSet:
+        return mutate_rules(rs, rng.random(len(rs)) < self.rate(gene), rng, usable)
 
     def mutate_gene(self, gene: int, rng: np.random.Generator) -> int:
         if not self.controlled:

@@ -137,6 +137,7 @@ def specialise(
     low_strength: float,
     fraction: float = 1.0,
     recency: float = 0.0,
+    usable: np.ndarray | None = None,
 ) -> RuleSet | None:
     """A narrowed copy of a weak general rule of ``rs`` that fired in a high-payoff episode, or None.
 
@@ -153,7 +154,8 @@ def specialise(
         return None
     width = interval_width(rs)
     bins = np.array([s.bins for s in rs.schema.sensors])
-    general = (width / bins).mean(axis=1) > 0.25
+    cols = slice(None) if usable is None else np.flatnonzero(usable)  # ``usable``: only those sensors count and narrow
+    general = (width[:, cols] / bins[cols]).mean(axis=1) > 0.25
     fired_high = fired_matrix(exp.fired[high], len(rs))
     cand = np.flatnonzero((rs.strength < low_strength) & general & fired_high.any(axis=0))
     if cand.size == 0:
@@ -171,8 +173,12 @@ def specialise(
             return None
         v = states[int(rng.integers(states.shape[0]))].astype(np.int64)
     lo, hi = _interval_around(rs, v, width[r] // 4)  # about half as wide, centred on what was seen
-    if fraction < 1.0:
-        keep = _kept_conditions(rs.schema.n_sensors, fraction, rng)
+    if fraction < 1.0 or usable is not None:
+        if usable is None:
+            keep = _kept_conditions(rs.schema.n_sensors, fraction, rng)
+        else:
+            keep = np.ones(rs.schema.n_sensors, dtype=bool)
+            keep[cols] = _kept_conditions(len(cols), fraction, rng) if fraction < 1.0 else False
         lo = np.where(keep, rs.lo[r], lo)
         hi = np.where(keep, rs.hi[r], hi)
     return RuleSet(rs.behaviour, lo[None], hi[None], rs.action[r][None], np.array([exp.payoff[e]]).clip(0, 1))
@@ -206,14 +212,16 @@ def _kept_conditions(n: int, fraction: float, rng: np.random.Generator) -> np.nd
     return ~change
 
 
-def generalise(rs: RuleSet, exp: Experience, rng: np.random.Generator) -> RuleSet:
-    """A widened copy of one of the strongest rules of ``rs``."""
+def generalise(rs: RuleSet, exp: Experience, rng: np.random.Generator, usable: np.ndarray | None = None) -> RuleSet:
+    """A widened copy of one of the strongest rules of ``rs`` (its conditions on ``usable`` sensors)."""
     top = np.flatnonzero(rs.strength >= np.quantile(rs.strength, 0.75))
     r = int(rng.choice(top))
     width = interval_width(rs)[r]
     lo = rs.lo[r].astype(np.int64)
     hi = rs.hi[r].astype(np.int64)
     for j, s in enumerate(rs.schema.sensors):
+        if usable is not None and not usable[j]:
+            continue
         grow = int(rng.integers(1, max(2, s.bins // 10) + 1))
         if s.circular:
             if width[j] + 2 * grow >= s.bins:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from coevo.errors import RuleSetError
-from coevo.policy.schema import Schema, schema
+from coevo.policy.schema import Schema, Sensor, schema
 
 __all__ = ["RuleSet", "MAX_RULES", "random_ruleset", "interval_width"]
 
@@ -193,12 +193,28 @@ def interval_width(rs: RuleSet) -> np.ndarray:
     return np.where(lo <= hi, hi - lo + 1, bins - lo + hi + 1)
 
 
-def random_ruleset(behaviour: str, n_rules: int, rng: np.random.Generator) -> RuleSet:
-    """A random policy: each condition a random interval, often the full range (SAMUEL-like generality)."""
+def random_ruleset(behaviour: str, n_rules: int, rng: np.random.Generator, usable: np.ndarray | None = None) -> RuleSet:
+    """A random policy: each condition a random interval, often the full range (SAMUEL-like generality).
+
+    ``usable`` (S,) bool: conditions only on those sensors, the others ANY (the same draws as a
+    schema of the usable sensors alone)."""
     sch = schema(behaviour)
-    bins = np.array([s.bins for s in sch.sensors])
-    circular = np.array([s.circular for s in sch.sensors])
-    S = sch.n_sensors
+    if usable is not None and not np.all(usable):
+        u = np.flatnonzero(usable)
+        bins_all = np.array([s.bins for s in sch.sensors])
+        lo_u, hi_u, action = _random_parts([sch.sensors[j] for j in u], sch, n_rules, rng)
+        lo = np.zeros((n_rules, sch.n_sensors), dtype=np.int64)
+        hi = np.tile(bins_all - 1, (n_rules, 1))
+        lo[:, u], hi[:, u] = lo_u, hi_u
+        return RuleSet(sch.behaviour, lo, hi, action, np.full(n_rules, 0.5))
+    lo, hi, action = _random_parts(list(sch.sensors), sch, n_rules, rng)
+    return RuleSet(sch.behaviour, lo, hi, action, np.full(n_rules, 0.5))
+
+
+def _random_parts(sensors: list[Sensor], sch: Schema, n_rules: int, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
+    bins = np.array([s.bins for s in sensors])
+    circular = np.array([s.circular for s in sensors])
+    S = len(sensors)
     width = np.maximum(1, np.ceil(rng.uniform(0.1, 1.0, (n_rules, S)) * bins)).astype(np.int64)
     full = rng.random((n_rules, S)) < 0.5  # half the conditions say "any"
     width = np.where(full, bins, width)
@@ -209,5 +225,4 @@ def random_ruleset(behaviour: str, n_rules: int, rng: np.random.Generator) -> Ru
     hi = np.where(circular, (start + width - 1) % bins, start + width - 1)
     nvals = np.array([len(a.values) for a in sch.actions])
     action = np.floor(rng.random((n_rules, len(sch.actions))) * nvals).astype(np.int64)
-    strength = np.full(n_rules, 0.5)
-    return RuleSet(sch.behaviour, lo, hi, action, strength)
+    return lo, hi, action

@@ -27,28 +27,34 @@ __all__ = ["Sensor", "Action", "Schema", "schema", "register", "registered"]
 
 @dataclass(frozen=True)
 class Sensor:
-    """A discretised sensor: bin ``k`` holds values in ``[k*width, (k+1)*width)``."""
+    """A discretised sensor: bin ``k`` holds values in ``[origin + k*width, origin + (k+1)*width)``.
+
+    ``origin`` (0 unless given) lets a non-circular sensor hold signed values (a lateral offset).
+    """
 
     name: str
     width: float
     bins: int
     circular: bool
     unit: str
+    origin: float = 0.0
 
     def label(self, k: int) -> int | float:
         """The printed value of bin ``k`` (its lower edge)."""
-        v = k * self.width
+        v = self.origin + k * self.width
         return int(v) if float(v).is_integer() else v
 
     def bin_of_label(self, value: float) -> int | None:
         """The bin whose label is ``value``, or None if no bin has that label."""
-        k = round(value / self.width)
-        if 0 <= k < self.bins and abs(k * self.width - value) < 1e-9:
+        k = round((value - self.origin) / self.width)
+        if 0 <= k < self.bins and abs(self.origin + k * self.width - value) < 1e-9:
             return k
         return None
 
     def discretise(self, values: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Bin indices (uint8) of raw values; circular values are taken modulo 360."""
+        if self.origin:
+            values = values - self.origin
         if self.circular:
             k = (values - 360.0 * np.floor(values * (1.0 / 360.0))) * (1.0 / self.width)
             k = k.astype(np.int64)

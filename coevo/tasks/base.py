@@ -70,9 +70,22 @@ class Task(ABC):
         """The behaviour's shipped initial rules, or None where it starts random."""
         return None
 
+    def initial_rules(self, behaviour: str, ga: GAConfig) -> RuleSet | None:
+        """The default rules a GA with settings ``ga`` starts from (the shipped ones unless a setting picks others)."""
+        return self.default_rules(behaviour)
+
+    def learnable_sensors(self, behaviour: str, ga: GAConfig) -> np.ndarray | None:
+        """(S,) bool: the sensors a GA with settings ``ga`` may put conditions on (None: all of them)."""
+        return None
+
+    def selection(self, behaviour: str, ga: GAConfig) -> tuple[bool, int]:
+        """(keep_evaluated, best_candidates) for a GA of ``behaviour``: the settings, where they leave it to the task
+        (None) off."""
+        return bool(ga.keep_evaluated), int(ga.best_candidates or 0)
+
     def initial_model(self, behaviour: str, ga: GAConfig, rng: np.random.Generator) -> RuleSet:
         """How a partner that has not published yet is modelled: its initial behaviour."""
-        default = self.default_rules(behaviour) if ga.initial == "default" else None
+        default = self.initial_rules(behaviour, ga) if ga.initial == "default" else None
         return default if default is not None else random_ruleset(behaviour, ga.initial_rules, rng)
 
     def partners_needed(self, behaviour: str, regime: str) -> tuple[str, ...]:

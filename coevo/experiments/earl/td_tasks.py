@@ -126,7 +126,12 @@ class Encoder:
 
 
 def _full(behaviour: str) -> Encoder:
-    return Encoder(behaviour, tuple((s, 1) for s in schema(behaviour).sensor_names), "full")
+    """Every sensor at the schema's bins; for Docking its polar set (the figures in docs/td/ were measured
+    before the dock-frame sensors, coevo/tasks/fuel/dock_frame.py, joined the schema)."""
+    from coevo.tasks.fuel.dock_frame import FRAME_NAMES
+
+    names = [n for n in schema(behaviour).sensor_names if behaviour != "docking" or n not in FRAME_NAMES]
+    return Encoder(behaviour, tuple((s, 1) for s in names), "full")
 
 
 def _encoders() -> dict[tuple[str, str], Encoder]:

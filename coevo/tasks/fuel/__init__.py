@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from functools import cache
+
+import numpy as np
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -25,6 +27,7 @@ from coevo.policy.rules import RuleSet
 from coevo.policy.text import parse_ruleset
 from coevo.tasks.base import Partners, Task
 from coevo.tasks.fuel.behaviours import Behaviour
+from coevo.tasks.fuel.dock_frame import DEFAULT_FILES, DOCK_SENSORS, SENSOR_SETS
 from coevo.tasks.fuel.evaluate import FuelEvaluator
 from coevo.tasks.fuel.settings import WorldConfig
 
@@ -42,18 +45,20 @@ PICTURE_EPISODES = 3  # Tracking or Docking alone in a learned policy's picture;
 
 
 @cache
-def default_ruleset(behaviour: Behaviour | str) -> RuleSet | None:
+def default_ruleset(behaviour: Behaviour | str, sensors: str = "polar") -> RuleSet | None:
     """The shipped default rule set of ``behaviour``, or None (the Executive has none).
 
     SAMUEL starts learning from a default rule set rather than from nothing (report
     Appendix B: default rules "for moving toward the goal line ... say nothing about
     obstacles or the walls").  Tracking's and Docking's give the direction to the
-    tracking ring and to the dock and nothing else (SPEC §1, "Initial behaviours").
+    tracking ring and to the dock and nothing else (SPEC §1, "Initial behaviours").  Docking's
+    is written in the terms of its dock sensor set ``sensors`` (:mod:`.dock_frame`).
     """
     behaviour = Behaviour(behaviour)
     if behaviour not in HAS_DEFAULT:
         return None
-    text = resources.files(__name__).joinpath(f"defaults/{behaviour.value}.rules").read_text(encoding="utf-8")
+    name = DEFAULT_FILES[sensors] if behaviour == Behaviour.DOCKING else f"{behaviour.value}.rules"
+    text = resources.files(__name__).joinpath(f"defaults/{name}").read_text(encoding="utf-8")
     return parse_ruleset(text, behaviour)
 
 
@@ -68,6 +73,27 @@ class FuelTask(Task):
 
     def default_rules(self, behaviour: str) -> RuleSet | None:
         return default_ruleset(self.check_behaviour(behaviour))
+
+    def initial_rules(self, behaviour: str, ga: GAConfig) -> RuleSet | None:
+        """Docking starts from the direction-only default of its sensor set (``ga.docking_sensors``)."""
+        return default_ruleset(self.check_behaviour(behaviour), ga.docking_sensors)
+
+    def learnable_sensors(self, behaviour: str, ga: GAConfig) -> np.ndarray | None:
+        """Docking's rules condition on the report's five and its chosen set of dock sensors only."""
+        if Behaviour(self.check_behaviour(behaviour)) != Behaviour.DOCKING:
+            return None
+        from coevo.policy.schema import schema
+
+        usable = set(SENSOR_SETS[ga.docking_sensors])
+        return np.array([n not in DOCK_SENSORS or n in usable for n in schema(behaviour).sensor_names])
+
+    def selection(self, behaviour: str, ga: GAConfig) -> tuple[bool, int]:
+        """Docking keeps the policies as evaluated and judges its best by three candidates' re-evaluations unless
+        the settings say otherwise (docs/docking-learning.md, Round 3); the others, unless they say so."""
+        if Behaviour(self.check_behaviour(behaviour)) != Behaviour.DOCKING:
+            return super().selection(behaviour, ga)
+        keep = True if ga.keep_evaluated is None else ga.keep_evaluated
+        return keep, 3 if ga.best_candidates is None else ga.best_candidates
 
     def partners_needed(self, behaviour: str, regime: str) -> tuple[str, ...]:
         b = Behaviour(self.check_behaviour(behaviour))

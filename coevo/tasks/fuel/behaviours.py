@@ -3,7 +3,9 @@
 Every sensor is discretised into bins (report Appendix A §4): bearings in 5° bins,
 ranges in 5-inch bins from 0 to 150 (a last bin for "150 and beyond"), the Target's
 heading in 45° bins.  The Docking agent's dock sensors and the Executive's sensors
-are *(ours)*: the report does not list them.
+are *(ours)*: the report does not list them.  Docking's come in two sets, polar and
+in the dock's frame (:mod:`.dock_frame`); ``GAConfig.docking_sensors`` picks the one
+it learns over.
 
 The schemas are registered by behaviour name (:mod:`coevo.policy.schema`).
 """
@@ -13,6 +15,7 @@ from __future__ import annotations
 import enum
 
 from coevo.policy.schema import Action, Schema, Sensor, register
+from coevo.tasks.fuel.dock_frame import FRAME_SENSORS
 
 __all__ = ["Behaviour", "SCHEMAS", "TASK_TRACK", "TASK_DOCK", "TURN", "SPEED"]
 
@@ -62,7 +65,8 @@ SCHEMAS = {
             _range("dock_range"),  # to the middle of the dock's front face
             _bearing("dock_bearing"),
             _bearing("dock_orientation"),  # robot heading minus the head-on docking heading
-        ),
+        )
+        + FRAME_SENSORS,  # dock_axis, dock_offset: the robot's place in the dock's frame (dock_frame.py)
         (TURN, SPEED),
     ),
     Behaviour.EXECUTIVE: Schema(

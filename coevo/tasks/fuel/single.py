@@ -80,6 +80,8 @@ def run_episode(cfg: WorldConfig, policy: RuleSet, rng: np.random.Generator) -> 
             raw["dock_range"] = math.hypot(ddx, ddy)
             raw["dock_bearing"] = (math.degrees(math.atan2(ddy, ddx)) - h) % 360
             raw["dock_orientation"] = (h + 90.0) % 360
+            raw["dock_axis"] = y - cfg.dock_depth - cfg.robot_radius
+            raw["dock_offset"] = x - A / 2
         bins = np.array([s.discretise(np.array([raw[s.name]]))[0] for s in sch.sensors])
         r = _choose(policy, bins)
         turn, speed = _TURN[policy.action[r, 0]], _SPEED[policy.action[r, 1]]

@@ -31,6 +31,7 @@ import pymunk
 import pymunk.batch as pb
 
 from coevo.policy.schema import Schema
+from coevo.tasks.fuel import dock_frame
 from coevo.tasks.fuel.settings import WorldConfig
 
 __all__ = ["BatchWorld", "StepEvents", "MAX_SPEED", "MAX_TURN", "DOCK_HEADING", "SENSOR_NAMES"]
@@ -45,7 +46,7 @@ _DOCK_SIDE = 4  # arena sides 0-3: south, east, north, west walls; 4: the dock
 
 SENSOR_NAMES = (
     "range", "bearing", "heading", "target_range", "target_bearing",
-    "dock_range", "dock_bearing", "dock_orientation", "fuel",
+    "dock_range", "dock_bearing", "dock_orientation", "fuel", "dock_axis", "dock_offset",
 )
 
 
@@ -341,6 +342,8 @@ class BatchWorld:
             out["dock_orientation"] = wrap_deg(h - DOCK_HEADING)
         if "fuel" in want:
             out["fuel"] = 100.0 * np.clip(fuel, 0.0, 1.0)
+        if want & dock_frame.FRAME_NAMES:  # Docking's sensors in the dock's frame (dock_frame.py)
+            out.update(dock_frame.observe(self, want, rx, ry))
         return {k: out[k] for k in names}
 
     def _sense_bins(self, sch: Schema, lanes: np.ndarray | None) -> np.ndarray:
@@ -365,9 +368,9 @@ class BatchWorld:
             q_dir = np.degrees(np.arctan2(qy - ry, qx - rx))
         if "dock_bearing" in names:
             d_dir = np.degrees(np.arctan2(self.dock_point[1] - ry, self.dock_point[0] - rx))
-        codes, inv_width, nbins, circular = _sensor_tables(sch)
+        codes, inv_width, nbins, circular, origin = _sensor_tables(sch)
         out = np.empty((len(names), m), dtype=np.uint8)
-        kernel(codes, inv_width, nbins, circular, rx, ry, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir,
+        kernel(codes, inv_width, nbins, circular, origin, rx, ry, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir,
                float(c.arena), float(self.dock_x0), float(self.dock_x1), float(c.dock_depth), float(c.robot_radius),
                float(c.target_radius), float(self.dock_point[0]), float(self.dock_point[1]), out)
         return out.T
@@ -613,7 +616,7 @@ COMPILED_WARM_MIN_LANES = 8  # ... and once loaded, used from this many on (nump
 _kernels: dict[str, object] = {}  # compiled functions (None without numba), made on first use
 
 
-def _sense_bins_py(codes, inv_width, nbins, circular, rx, ry, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir,
+def _sense_bins_py(codes, inv_width, nbins, circular, origin, rx, ry, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir,
                    arena, x0, x1, depth, r, tr, dock_x, dock_y, out):  # pragma: no cover - compiled by numba
     n = rx.shape[0]
     for i in range(n):
@@ -672,10 +675,16 @@ def _sense_bins_py(codes, inv_width, nbins, circular, rx, ry, rh, tx, ty, th, fu
             elif code == 7:  # dock_orientation
                 a = h - -90.0
                 v = a - 360.0 * np.floor(a * (1.0 / 360.0))
-            else:  # fuel
+            elif code == 8:  # fuel
                 f = min(max(fuel[i], 0.0), 1.0)
                 v = 100.0 * f
+            elif code == 9:  # dock_axis (dock_frame.observe)
+                v = y - (dock_y + r)
+            else:  # dock_offset
+                v = x - dock_x
             # Sensor.discretise
+            if origin[j] != 0.0:
+                v = v - origin[j]
             if circular[j]:
                 k = int((v - 360.0 * np.floor(v * (1.0 / 360.0))) * inv_width[j])
                 if k >= nbins[j]:
@@ -685,11 +694,12 @@ def _sense_bins_py(codes, inv_width, nbins, circular, rx, ry, rh, tx, ty, th, fu
             out[j, i] = k
 
 
-_TABLES: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+_TABLES: dict[str, tuple[np.ndarray, ...]] = {}
 
 
-def _sensor_tables(sch: Schema) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """A schema's sensors as the kernel's arrays: code, 1 / width (as Sensor.discretise computes it), bins, circular."""
+def _sensor_tables(sch: Schema) -> tuple[np.ndarray, ...]:
+    """A schema's sensors as the kernel's arrays: code, 1 / width (as Sensor.discretise computes it), bins,
+    circular, origin."""
     t = _TABLES.get(sch.behaviour)
     if t is None or len(t[0]) != sch.n_sensors:
         t = _TABLES[sch.behaviour] = (
@@ -697,6 +707,7 @@ def _sensor_tables(sch: Schema) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
             np.array([1.0 / s.width for s in sch.sensors], dtype=np.float64),
             np.array([s.bins for s in sch.sensors], dtype=np.int64),
             np.array([s.circular for s in sch.sensors], dtype=np.bool_),
+            np.array([s.origin for s in sch.sensors], dtype=np.float64),
         )
     return t
 
