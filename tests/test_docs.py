@@ -1,5 +1,5 @@
 """The documentation: the site builds with ``mkdocs build --strict``, and every relative link and image
-of README.md and docs/**/*.md points at a file that exists (and a ``#anchor`` at a heading there).
+of README.md, deploy/README.md, benchmarks/README.md and docs/**/*.md points at a file that exists (and a ``#anchor`` at a heading there).
 
 mkdocs checks docs/ itself (strict: any warning fails, and mkdocs.yml makes broken links, anchors and pages
 left out of the nav warnings); README.md lies outside the site, so its links are checked here, and docs/ is
@@ -27,7 +27,8 @@ ANSI = re.compile(r"\x1b\[[0-9;]*m")
 
 
 def _markdown_files() -> list[Path]:
-    return [ROOT / "README.md", *sorted(DOCS.rglob("*.md"))]
+    beside = [ROOT / "README.md", ROOT / "deploy" / "README.md", ROOT / "benchmarks" / "README.md"]
+    return [p for p in beside if p.exists()] + sorted(DOCS.rglob("*.md"))
 
 
 def _prose_lines(text: str, blank_code: bool = True) -> list[str]:
