@@ -1,4 +1,4 @@
-"""How the combined robot's episodes end, per task: the diagnosis behind the README's Table 1 findings.
+"""How the combined robot's episodes end, per task: the diagnosis behind docs/compare.md's Table 1 findings.
 
     python benchmarks/epoch_anatomy.py RUN_DIR [RUN_DIR ...] [--epochs 300] [--seed 5]
 

@@ -168,7 +168,7 @@ def add_settings(p: argparse.ArgumentParser, *, generations: int = 50, initial: 
         p.add_argument("--initial", dest="ga", action="append", type=lambda v: f"initial={v}", metavar="default|random",
                        help=initial)
     p.add_argument("--mutation-model", dest="ga", action="append", type=lambda v: f"mutation_model={v}", metavar="fm|gm|fh|gh",
-                   help="mutation model (default fm; the same as --ga mutation_model=...; parameters: docs/design.md)")
+                   help="mutation model (default fm; the same as --ga mutation_model=...; parameters: docs/evolvability.md)")
 
 
 @dataclass(frozen=True)

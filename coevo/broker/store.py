@@ -63,7 +63,7 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True, kw_only=True)
 class Quota:
-    """What one broker stores at most (see the module docstring; the README's *Faults* says why these numbers).
+    """What one broker stores at most (see the module docstring; docs/faults.md says why these numbers).
 
     * ``runs``: runs it stores policies for since it started (32: a broker serves a few runs at a time;
       ``coevo run`` and ``coevo compare`` start one broker per run);

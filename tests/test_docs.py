@@ -1,0 +1,122 @@
+"""The documentation: the site builds with ``mkdocs build --strict``, and every relative link and image
+of README.md, deploy/README.md, benchmarks/README.md and docs/**/*.md points at a file that exists (and a ``#anchor`` at a heading there).
+
+mkdocs checks docs/ itself (strict: any warning fails, and mkdocs.yml makes broken links, anchors and pages
+left out of the nav warnings); README.md lies outside the site, so its links are checked here, and docs/ is
+checked the same way too, so a broken link is named by this test even when mkdocs is not the one to see it.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+from markdown.extensions.toc import slugify
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs"
+
+LINK = re.compile(r"!?\[(?:[^\[\]]|\[[^\]]*\])*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")  # [text](target), ![alt](target)
+HTML_SRC = re.compile(r"<(?:img|a)\s[^>]*?(?:src|href)=\"([^\"]+)\"", re.I)
+HEADING = re.compile(r"^(#{1,6})\s+(.*?)\s*#*\s*$")
+EXTERNAL = re.compile(r"^[a-z][a-z0-9+.-]*:", re.I)  # http:, https:, mailto:, ...
+ANSI = re.compile(r"\x1b\[[0-9;]*m")
+
+
+def _markdown_files() -> list[Path]:
+    beside = [ROOT / "README.md", ROOT / "deploy" / "README.md", ROOT / "benchmarks" / "README.md"]
+    return [p for p in beside if p.exists()] + sorted(DOCS.rglob("*.md"))
+
+
+def _prose_lines(text: str, blank_code: bool = True) -> list[str]:
+    """The lines outside fenced code blocks, with inline code spans blanked (links in code are not links)."""
+    out, fence = [], None
+    for line in text.splitlines():
+        m = re.match(r"^\s*(`{3,}|~{3,})", line)
+        if m:
+            if fence is None:
+                fence = m.group(1)
+            elif m.group(1).startswith(fence):
+                fence = None
+            continue
+        if fence is None:
+            out.append(re.sub(r"(`+)(?:(?!\1).)+?\1", "``", line) if blank_code else line)
+    return out
+
+
+def _anchors(path: Path) -> set[str]:
+    """The ids Python-Markdown's toc extension (mkdocs' default) gives the headings of a page."""
+    ids: set[str] = set()
+    for line in _prose_lines(path.read_text(encoding="utf-8"), blank_code=False):
+        m = HEADING.match(line)
+        if not m:
+            continue
+        text = re.sub(r"!?\[([^\]]*)\]\([^)]*\)", r"\1", m.group(2))  # a link's text only
+        text = re.sub(r"<[^>]+>", "", text).replace("`", "")
+        text = re.sub(r"(\*\*|__|\*|_)(.+?)\1", r"\2", text)
+        base = slugify(text, "-")
+        slug, n = base, 0
+        while slug in ids:  # toc's unique(): a repeated heading gets _1, _2, ...
+            n += 1
+            slug = f"{base}_{n}"
+        ids.add(slug)
+    return ids
+
+
+def _links(path: Path) -> list[tuple[int, str]]:
+    found = []
+    for i, line in enumerate(_prose_lines(path.read_text(encoding="utf-8")), 1):
+        for m in (*LINK.finditer(line), *HTML_SRC.finditer(line)):
+            found.append((i, m.group(1)))
+    return found
+
+
+def test_every_relative_link_and_image_points_at_a_file_and_heading_that_exist() -> None:
+    broken = []
+    checked = 0
+    for md in _markdown_files():
+        for line, target in _links(md):
+            if EXTERNAL.match(target) or target.startswith("//"):
+                continue
+            file_part, _, anchor = target.partition("#")
+            dest = (md.parent / file_part).resolve() if file_part else md
+            where = f"{md.relative_to(ROOT)}: {target}"
+            checked += 1
+            if not dest.exists():
+                broken.append(f"{where}: no such file")
+            elif anchor and dest.suffix == ".md" and anchor not in _anchors(dest):
+                broken.append(f"{where}: no heading #{anchor} in {dest.relative_to(ROOT)}")
+    assert checked > 50, f"only {checked} links found: is the link pattern still right?"
+    assert not broken, "broken links:\n" + "\n".join(broken)
+
+
+def test_the_anchor_rule_matches_mkdocs() -> None:
+    """The slugs computed here are the ones the site's headings get (checked on known headings)."""
+    assert "trust-who-can-steer-a-run" in _anchors(DOCS / "faults.md")
+    assert "table-1-reproduced-two-full-comparisons" in _anchors(DOCS / "compare.md")
+    assert "the-live-service-coevo-cel" in _anchors(DOCS / "cel.md")
+
+
+def test_the_site_builds_in_strict_mode_without_a_warning(tmp_path: Path) -> None:
+    env = {**os.environ, "NO_MKDOCS_2_WARNING": "1", "NO_COLOR": "1"}
+    proc = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "--config-file", str(ROOT / "mkdocs.yml"),
+         "--site-dir", str(tmp_path / "site")],
+        cwd=ROOT, env=env, capture_output=True, text=True, timeout=120,
+    )
+    log = ANSI.sub("", proc.stdout + proc.stderr)
+    problems = [ln for ln in log.splitlines() if re.match(r"\s*(WARNING|ERROR)\b", ln)]
+    assert proc.returncode == 0 and not problems, f"mkdocs build --strict failed:\n{log}"
+    site = tmp_path / "site"
+    assert (site / "index.html").exists()
+    home = (site / "index.html").read_text(encoding="utf-8")
+    assert "Quick start" in home and "--8&lt;--" not in home and "--8<--" not in home  # the README's part came in
+    # Nothing is loaded from the internet when a page is viewed: no remote scripts, styles, fonts or images.
+    remote = re.compile(r"<(?:script|link|img|iframe)\b[^>]*\b(?:src|href)=\"(?:https?:)?//", re.I)
+    fetched = [f"{p.relative_to(site)}: {m.group(0)}" for p in site.rglob("*.html")
+               for m in remote.finditer(p.read_text(encoding="utf-8"))]
+    assert not fetched, "pages load remote assets:\n" + "\n".join(fetched[:10])
+
