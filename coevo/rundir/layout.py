@@ -25,7 +25,7 @@ import json
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,6 +35,8 @@ from coevo.errors import RunDirError
 
 if TYPE_CHECKING:
     from pydantic import BaseModel
+
+    from coevo.policy.rules import RuleSet
 
 
 __all__ = ["RunPaths", "WorkerPaths", "ExecutionPaths", "LearnPaths", "read_store", "read_cases", "append_durably", "staged_dir", "ensure_dir", "read_jsonl", "read_json", "write_bytes",
@@ -252,6 +254,27 @@ class RunPaths:
         if not found:
             raise RunDirError(f"{str(self.dir)!r} holds no workers/*/worker.json: not a coevo run directory")
         return found
+
+    def final_rules(self, behaviours: Sequence[str], given: Mapping[str, RuleSet] | None = None) -> dict[str, RuleSet]:
+        """The workers' final ``best.rules`` of ``behaviours`` (those in ``given`` taken from it instead): the
+        run's whole robot. A missing one is a RunDirError naming every missing file."""
+        from coevo.policy.text import read_rule_file
+
+        given = given or {}
+        rules: dict[str, RuleSet] = {}
+        missing = []
+        for b in behaviours:
+            best = self.worker(b).best_rules
+            if b in given:
+                rules[b] = given[b]
+            elif best.exists():
+                rules[b] = read_rule_file(best, b)
+            else:
+                missing.append(str(best))
+        if missing:
+            raise RunDirError(f"run directory {str(self.dir)!r} holds no policies for its robot: missing "
+                              f"{', '.join(missing)} (is the run finished?)")
+        return rules
 
     @property
     def logs_dir(self) -> Path:

@@ -167,19 +167,7 @@ def _from_run(d: Path, over: Mapping[str, Any], partners: Mapping[str, RuleSet],
     task = _check_task(_named_task(meta, f, DEFAULT_TASK), wanted, d)
     _partners_of(task, partners, str(d))
     world = _run_world(task, meta, f, over, "")
-    rules: dict[str, RuleSet] = {}
-    missing = []
-    for b in task.behaviours:
-        best = RunPaths(d).worker(b).best_rules
-        if b in partners:
-            rules[b] = partners[b]
-        elif best.exists():
-            rules[b] = read_rule_file(best, b)
-        else:
-            missing.append(str(best))
-    if missing:
-        raise RunDirError(f"run directory {str(d)!r} holds no policies for its robot: missing {', '.join(missing)} "
-                          "(is the run finished?)")
+    rules = RunPaths(d).final_rules(task.behaviours, partners)
     return Shown(task, task.show_robot(d.name, world, rules))
 
 

@@ -32,10 +32,22 @@ from coevo.experiments.compare.experiment import (
     replicates,
     run_dir,
 )
-from coevo.experiments.compare.stats import GroupComparison, RankComparison, compare_groups, compare_samples
+from coevo.experiments.compare.stats import (
+    GroupComparison,
+    RankComparison,
+    compare_groups,
+    compare_samples,
+)
 from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
 from coevo.policy.text import parse_ruleset
-from coevo.rundir.layout import LearnPaths, RunPaths, read_jsonl, write_csv, write_json, write_text
+from coevo.rundir.layout import (
+    LearnPaths,
+    RunPaths,
+    read_jsonl,
+    write_csv,
+    write_json,
+    write_text,
+)
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.robot import docking_from_random_starts
 
@@ -304,22 +316,12 @@ def write_report(out: Path, spec: CompareSpec, *, elapsed: float | None = None) 
 
 def _final_robot(d: Path) -> Any:
     """A finished fuel run's combined robot: its workers' final best.rules, in the world of its run.json."""
-    from coevo.policy.text import read_rule_file
     from coevo.rundir.settings import RunSettings
     from coevo.tasks.fuel.pictures import robot_from_rules
 
-    world = RunSettings.load(RunPaths(d).run_json).world_config()
-    rules, missing = {}, []
-    for b in Behaviour:
-        f = RunPaths(d).worker(b).best_rules
-        if f.exists():
-            rules[b] = read_rule_file(f, b)
-        else:
-            missing.append(str(f))
-    if missing:
-        raise RunDirError(f"run directory {str(d)!r} holds no policies for its robot: missing {', '.join(missing)} "
-                          "(is the run finished?)")
-    return robot_from_rules(d.name, world, rules)  # type: ignore[arg-type]
+    paths = RunPaths(d)
+    world = RunSettings.load(paths.run_json).world_config()
+    return robot_from_rules(d.name, world, paths.final_rules(list(Behaviour)))  # type: ignore[arg-type]
 
 
 def _robot_pictures(out: Path, spec: CompareSpec, records: list[dict[str, Any]]) -> list[dict[str, Any]]:

@@ -425,13 +425,7 @@ class BatchWorld:
         dist = _norm(self.tx[a] - rx, self.ty[a] - ry)
         collided = np.zeros(self.n, dtype=bool)
         collided[a] = dist < c.robot_radius + c.target_radius
-        collided[wall] = True
-        docked = np.zeros(self.n, dtype=bool)
-        if dock:
-            lanes = np.unique(np.asarray(dock, dtype=np.int64))
-            ok = self._docking_accepted(lanes, speed[lanes]) & ~collided[lanes]
-            docked[lanes[ok]] = True
-            collided[lanes[~ok]] = True
+        docked = self._touched(wall, dock, speed, collided)
         fuel = self.fuel[a] = self.fuel[a] - (c.fuel_idle + c.fuel_per_ips * np.abs(sp) + c.fuel_per_dps * np.abs(tu))
         going = ~collided[a]
         dry = np.zeros(self.n, dtype=bool)
@@ -439,6 +433,18 @@ class BatchWorld:
         tracking = np.zeros(self.n, dtype=bool)
         tracking[a] = (dist >= c.tracking_min) & (dist <= c.tracking_max) & going
         return StepEvents(collided=collided, docked=docked, dry=dry, tracking=tracking)
+
+    def _touched(self, wall: list[int], dock: list[int], speed: np.ndarray, collided: np.ndarray) -> np.ndarray:
+        """Lanes that touched a wall collided (``collided`` is updated); those that touched the dock docked if
+        the approach was accepted and they did not hit the Target, else collided.  Returns ``docked``."""
+        collided[wall] = True
+        docked = np.zeros(self.n, dtype=bool)
+        if dock:
+            lanes = np.unique(np.asarray(dock, dtype=np.int64))
+            ok = self._docking_accepted(lanes, speed[lanes]) & ~collided[lanes]
+            docked[lanes[ok]] = True
+            collided[lanes[~ok]] = True
+        return docked
 
     def _step_compiled(self, idx: np.ndarray, speed: np.ndarray, turn: np.ndarray, target_noise: np.ndarray) -> StepEvents:
         """:meth:`step` of the active lanes ``idx`` with compiled loops (see :func:`_move_py`): the same
@@ -471,13 +477,7 @@ class BatchWorld:
         dist = np.empty(idx.size)
         collided = np.zeros(self.n, dtype=bool)
         _compiled("_near_target_py")(idx, self.rx, self.ry, self.tx, self.ty, c.robot_radius + c.target_radius, dist, collided)
-        collided[wall] = True
-        docked = np.zeros(self.n, dtype=bool)
-        if dock:
-            lanes = np.unique(np.asarray(dock, dtype=np.int64))
-            ok = self._docking_accepted(lanes, speed[lanes]) & ~collided[lanes]
-            docked[lanes[ok]] = True
-            collided[lanes[~ok]] = True
+        docked = self._touched(wall, dock, speed, collided)
         dry = np.zeros(self.n, dtype=bool)
         tracking = np.zeros(self.n, dtype=bool)
         _compiled("_spend_py")(idx, speed, turn, self.fuel, c.fuel_idle, c.fuel_per_ips, c.fuel_per_dps, dist,
