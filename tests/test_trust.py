@@ -467,3 +467,56 @@ def test_genuine_messages_captured_and_replayed_from_outside_change_nothing_runn
     broker_log = (run_dir / "logs" / "broker.log").read_text()
     assert "rejected stale" in broker_log or "rejected replayed" in broker_log
     assert base64  # the sender used only zenoh, msgpack-free: bytes as captured
+
+
+# ---------------------------------------------------------------------------- runs started by hand (docs/trust.md)
+def _hand_workers(endpoint: str, run: str, out: Path, tmp_path: Path, *extra: str) -> list[subprocess.Popen]:
+    return [coevo_proc("worker", "--run", run, "--regime", "independent", "--behaviour", b, "--seed", str(i),
+                       "--connect", endpoint, "--generations", "3", *SMALL, "--final-sync", "5",
+                       "--out", str(out / b), *extra, log=tmp_path / f"{run}-{b}.log")
+            for i, b in enumerate(BEHAVIOURS)]
+
+
+def test_a_hand_started_run_without_a_key_is_told_at_once_that_the_broker_refuses_it_and_ends_non_zero(
+        tmp_path: Path) -> None:
+    data = tmp_path / "data"
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    p = coevo_proc("broker", "--listen", endpoint, "--data-dir", str(data), log=tmp_path / "broker.log")
+    try:
+        workers = _hand_workers(endpoint, "nokey", tmp_path / "nokey", tmp_path)
+        codes = [w.wait(180) for w in workers]
+    finally:
+        stop(p)
+    for b, code in zip(BEHAVIOURS, codes):
+        log = (tmp_path / f"nokey-{b}.log").read_text()
+        assert code == 2, log
+        assert log.count("the broker refuses to store it") == 1, log  # said once, as soon as the broker says so
+        last = log.strip().splitlines()[-1]
+        assert last.startswith("ServiceError: the broker refused to store run nokey") and "--open" in last, log
+        assert "Traceback" not in log
+        done = json.loads((tmp_path / "nokey" / b / "done.json").read_text())
+        assert done["refused"] and done["unconfirmed"] and done["finished"]
+    assert not (data / "nokey").exists()
+
+
+def test_the_documented_keyed_recipe_run_by_hand_on_one_machine_passes_check(tmp_path: Path) -> None:
+    data = tmp_path / "runs"
+    run_dir = data / "r1"
+    key = tmp_path / "secret.key"
+    made = subprocess.run([sys.executable, "-m", "coevo", "keygen", "--run", "r1", "--out", str(run_dir / "secret.key")],
+                          capture_output=True, text=True, timeout=60)
+    assert made.returncode == 0, made.stderr
+    key.write_bytes((run_dir / "secret.key").read_bytes())  # "copy it to each worker host"
+    key.chmod(0o600)
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    p = coevo_proc("broker", "--listen", endpoint, "--data-dir", str(data), log=tmp_path / "broker.log")
+    try:
+        workers = _hand_workers(endpoint, "r1", run_dir / "workers", tmp_path, "--key-file", str(key))
+        codes = [w.wait(180) for w in workers]
+    finally:
+        stop(p)
+    for b, code in zip(BEHAVIOURS, codes):
+        log = (tmp_path / f"r1-{b}.log").read_text()
+        assert code == 0 and "refuses" not in log, log
+    check = check_run(run_dir)  # complete, every published version stored, and the replay exact
+    assert check.ok, check.problems

@@ -7,6 +7,11 @@ it holds; what is missing the :class:`Outbox` publishes again from its log
 (``published.jsonl``, every version in full, fsynced before anything leaves).  So a
 broker killed and restarted, or messages dropped on the way, leave the store's
 history complete once the broker is back.
+
+A broker that holds no key for an open run (one started without ``--key-file``) and
+is not ``--open`` stores nothing of it and counts its policies ``unauthenticated``;
+its status for the run says so, and the watch (given the run) tells the worker at
+once, so a hand-started run does not learn for an hour into a store that refuses it.
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ from typing import IO, Any
 import msgpack
 
 from coevo.bus import keys
-from coevo.bus.messages import PolicyUpdate
+from coevo.bus.messages import BrokerStatus, PolicyUpdate
 from coevo.bus.session import is_put, query
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import MessageError
@@ -33,16 +38,21 @@ log = logging.getLogger(__name__)
 
 
 class BrokerWatch:
-    """Follows the broker's liveliness token: is a broker with its store up, and did it just (re)appear?"""
+    """Follows the broker's liveliness token: is a broker with its store up, and did it just (re)appear?  Given an
+    open ``run``, also the broker's status of it: does the broker refuse to store it (:attr:`refused`)?"""
 
-    def __init__(self, session: Any) -> None:
+    def __init__(self, session: Any, run: str | None = None, gate: Gate = OPEN) -> None:
         self._session = session
         self.up = threading.Event()
         self.back = threading.Event()  # the broker (re)appeared: ask its store what it holds
-        self._sub: Any = None
+        self.refused = threading.Event()  # the broker stores nothing of this open run (it holds no key for it)
+        self._run = run if gate.open else None  # a keyed run's broker holds its key: coevo keygen put it there
+        self._subs: list[Any] = []
 
     def __enter__(self) -> BrokerWatch:
-        self._sub = self._session.liveliness().declare_subscriber(keys.BROKER, self._on_token, history=True)
+        self._subs.append(self._session.liveliness().declare_subscriber(keys.BROKER, self._on_token, history=True))
+        if self._run is not None:
+            self._subs.append(self._session.declare_subscriber(keys.broker_status(self._run), self._on_status))
         return self
 
     def _on_token(self, sample: Any) -> None:
@@ -51,6 +61,21 @@ class BrokerWatch:
             self.back.set()
         else:
             self.up.clear()
+
+    def _on_status(self, sample: Any) -> None:
+        """An open run's broker status: refused when the broker counts its policies unauthenticated and stores none."""
+        try:
+            msg = OPEN.decode(str(sample.key_expr), sample.payload.to_bytes())
+        except MessageError:
+            return  # not a status this worker can read: it says nothing of the store
+        if not isinstance(msg, BrokerStatus) or self.refused.is_set():
+            return
+        if msg.rejected.get("unauthenticated", 0) > 0 and not any(msg.stored.values()):
+            self.refused.set()
+            log.error("run %s has no key and the broker refuses to store it (%d policies counted 'unauthenticated', "
+                      "none stored): start the broker with --open, or make a key (coevo keygen) and give it to the "
+                      "broker (DATA_DIR/%s/secret.key) and every worker (--key-file)",
+                      self._run, msg.rejected["unauthenticated"], self._run)
 
     def wait(self, timeout: float, stop: threading.Event) -> bool:
         """Wait up to ``timeout`` s for a broker (the watch's history reports one already there); False if none came."""
@@ -61,9 +86,9 @@ class BrokerWatch:
         return self.up.is_set()
 
     def close(self) -> None:
-        if self._sub is not None:
-            self._sub.undeclare()
-            self._sub = None
+        for sub in self._subs:
+            sub.undeclare()
+        self._subs = []
 
     def __exit__(self, *exc: object) -> None:
         self.close()

@@ -45,7 +45,7 @@ from coevo.bus.auth import RunKey
 from coevo.bus.messages import PolicyUpdate, Status
 from coevo.bus.rejections import Rejections
 from coevo.bus.session import open_session, sigterm_as_exit
-from coevo.errors import ConfigError, MessageError
+from coevo.errors import ConfigError, MessageError, ServiceError
 from coevo.ga import GA, GenerationReport
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
@@ -233,7 +233,7 @@ class Worker:
         with open_session(self.conf, what=f"{self.behaviour} worker session", gate=self.gate) as s, \
                 open(p.adoptions, "a", encoding="utf-8") as adopt_log, \
                 open(p.curve, "a", encoding="utf-8") as curve_log, \
-                BrokerWatch(s) as broker, \
+                BrokerWatch(s, self.run_id, self.gate) as broker, \
                 Inbox(s, broker, run=self.run_id, models=self.models, adoptions=adopt_log, reject=self._reject,
                       store_timeout=self.store_timeout, gate=self.gate) as inbox, \
                 Outbox(s, broker, run=self.run_id, behaviour=self.behaviour, worker_id=self.worker_id,
@@ -282,7 +282,12 @@ class Worker:
             "republished": outbox.republished, "rejected": self.rejected.as_dict(),
             "net_seconds": self.net_seconds, "gen_seconds": sum(r["seconds"] for r in rows),
             "checkpoint_seconds": self.checkpoint_seconds, "pace_seconds": pacer.waited, "open": self.gate.open,
+            "refused": broker.refused.is_set(),
         })
+        if broker.refused.is_set() and outbox.unconfirmed:
+            raise ServiceError(f"the broker refused to store run {self.run_id} (it holds no key for it): versions "
+                               f"{outbox.unconfirmed} are only in {p.published}; start the broker with --open, or "
+                               "give the broker and every worker the run's key (coevo keygen, --key-file)")
         return curve
 
     def _one_generation(self, ga: GA, inbox: Inbox, outbox: Outbox, pacer: Pacer, curve_log: Any) -> GenerationReport:

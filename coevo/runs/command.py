@@ -8,6 +8,7 @@ does); :mod:`coevo.cli` gathers them.  The module's top imports only what a pars
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import time
 from pathlib import Path
@@ -271,6 +272,18 @@ def cmd_keygen(args: argparse.Namespace) -> int:
     from coevo.bus import keys
     from coevo.bus.auth import RunKey
 
-    RunKey.create(keys.check_id("run id", args.run)).save(Path(args.out))
+    key = RunKey.create(keys.check_id("run id", args.run))
+    out = Path(args.out)
+    made = [d for d in (out.parent, *out.parent.parents) if not d.exists()]  # the broker's DATA_DIR/RUN, say
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        key.save(out)
+    except (OSError, ConfigError) as exc:
+        for d in made:  # nothing left behind
+            with contextlib.suppress(OSError):
+                d.rmdir()
+        if isinstance(exc, ConfigError):
+            raise
+        raise ConfigError(f"cannot create the key file's folder {str(out.parent)!r}: {exc.strerror or exc}") from None
     print(f"run {args.run}'s key written to {args.out} (mode 0600); copy it to each host of the run, see deploy/README.md")
     return 0
