@@ -416,8 +416,9 @@ def test_genuine_messages_captured_and_replayed_from_outside_change_nothing_runn
                                     stderr=subprocess.STDOUT)
 
     run_dir = tmp_path / "rp"
-    p = coevo_run("--run", "rp", "--root", str(tmp_path), "--generations", "30", *SMALL, "--measure-epochs", "2",
-                  "--max-lead", "off", log=tmp_path / "first.out")
+    generations = 40  # still going at the Ctrl-C below (checked: tracking was at 12-14 on 2 cores), some left to resume
+    p = coevo_run("--run", "rp", "--root", str(tmp_path), "--generations", str(generations), *SMALL,
+                  "--measure-epochs", "2", "--max-lead", "off", log=tmp_path / "first.out")
     cap = tmp_path / "captured.jsonl"
     try:
         endpoint = poll(lambda: (run_dir / "run.json").exists() and json.loads((run_dir / "run.json").read_text())
@@ -427,8 +428,9 @@ def test_genuine_messages_captured_and_replayed_from_outside_change_nothing_runn
                          default=0) >= 4, 180, "four generations")
         kinds = lambda: {k.split("/")[2] for k, _ in (json.loads(x) for x in cap.read_text().splitlines())}  # noqa: E731
         poll(lambda: {"policy", "status", "broker"} <= kinds(), 30, "policies, statuses and a broker status captured")
-        replay = _outsider(tmp_path, "replay", endpoint, "rp", cap, 5)  # into the running run
+        replay = _outsider(tmp_path, "replay", endpoint, "rp", cap, 2)  # into the running run
         assert replay.wait(timeout=60) == 0, replay.stdout.read()
+        assert min(_curve_len(run_dir, b) for b in BEHAVIOURS) < generations, "the run ended before its Ctrl-C: make it longer"
         p.send_signal(signal.SIGINT)  # Ctrl-C: coevo run puts a genuine stop
         p.wait(timeout=120)
         poll(lambda: "control" in kinds(), 10, "the stop captured")
