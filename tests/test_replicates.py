@@ -20,6 +20,7 @@ from coevo.errors import ConfigError
 from coevo.replicates.backends import ClusterLost, LocalBackend, parse_cluster
 from coevo.replicates.replicate import Replicate
 from coevo.replicates.runner import run_replicates
+from coevo.runs.local import wait_until as poll
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -226,3 +227,58 @@ def test_coevo_seeds_on_a_local_dask_cluster_writes_its_report(tmp_path: Path) -
     assert "docking: median docking_from_random_starts" in r.stdout
     again = coevo("seeds", "--seeds", "1", "--out", str(out), *tiny)
     assert again.returncode == 2 and "--resume" in again.stderr
+
+
+# ---------------------------------------------------------------- across hosts: scheduler and workers in namespaces
+def _children(pid: int) -> list[int]:
+    r = subprocess.run(["pgrep", "-P", str(pid)], capture_output=True, text=True)
+    return [int(x) for x in r.stdout.split()]
+
+
+@pytest.mark.service
+def test_a_comparison_across_namespaced_dask_hosts_survives_a_dead_worker(tmp_path: Path) -> None:
+    """The scheduler, two Dask workers and the experiment each on a host of their own (a network namespace, one
+    LAN): a replicate is a whole run on its worker's loopback, its folder comes back to the experiment over Dask.
+    One worker is killed (SIGKILL, as a host that dies) while it runs a replicate: the scheduler gives that
+    replicate to the other worker, the comparison completes and every run passes ``coevo check``."""
+    from netns import Lab, unavailable
+
+    why = unavailable()
+    if why is not None:
+        pytest.skip(f"network namespaces unavailable: {why}")
+    dask = str(Path(sys.executable).parent / "dask")
+    logs, out = tmp_path / "logs", tmp_path / "cmp"
+    logs.mkdir()
+    with Lab() as lab:
+        lab.lan("a")
+        for host, addr in (("sched", "10.78.1.1"), ("w1", "10.78.1.11"), ("w2", "10.78.1.12"), ("exp", "10.78.1.20")):
+            lab.host(host, a=addr)
+        lab.popen("sched", [dask, "scheduler", "--host", "10.78.1.1", "--port", "8786", "--no-dashboard"],
+                  log=logs / "sched.log")
+        workers = {h: lab.popen(h, [dask, "worker", "tcp://10.78.1.1:8786", "--host", a, "--nthreads", "1",
+                                    "--no-nanny", "--no-dashboard"], log=logs / f"{h}.log")
+                   for h, a in (("w1", "10.78.1.11"), ("w2", "10.78.1.12"))}
+        for h in workers:
+            poll(lambda h=h: "Registered to" in (logs / f"{h}.log").read_text(), 60, f"Dask worker {h} registered")
+        exp = lab.popen("exp", [sys.executable, "-m", "coevo", "compare", "--out", str(out),
+                                "--cluster", "tcp://10.78.1.1:8786", "--runs", "1", "--generations", "8",
+                                "--population", "4", "--episodes", "4", "--measure-epochs", "2", "--quiet"],
+                        log=logs / "compare.log")
+
+        def busy() -> str | None:  # a worker whose replicate (a coevo run) has been going for a moment
+            return next((h for h, p in workers.items() if _children(p.pid)), None)
+
+        victim = poll(busy, 120, "a replicate running on a Dask worker")
+        time.sleep(2.0)
+        assert exp.poll() is None, (logs / "compare.log").read_text()  # the comparison is still going ...
+        assert _children(workers[victim].pid), "the replicate ended before the kill"  # ... and so is the replicate
+        workers[victim].kill()
+        workers[victim].wait()
+        exp.wait(timeout=300)
+        text = (logs / "compare.log").read_text()
+        assert exp.returncode == 0, text
+    res = json.loads((out / "results.json").read_text())
+    assert res["runs_finished"] == res["runs_expected"] == 2, text
+    for run in (out / "runs").iterdir():
+        c = coevo("check", str(run))
+        assert c.returncode == 0 and "complete" in c.stdout, c.stdout + c.stderr
