@@ -463,3 +463,18 @@ def read_jsonl(path: Path, *, missing_ok: bool = False, problems: list[str] | No
                 raise RunDirError(f"{path} line {n} is not JSON: {exc}") from None
             problems.append(f"{path} line {n} is not JSON")
     return rows
+
+
+def by_generation(rows: list[dict[str, Any]]) -> dict[int, list[dict[str, Any]]]:
+    """Log rows (adoptions, changes) grouped by their ``generation``: what a worker took after that many generations."""
+    out: dict[int, list[dict[str, Any]]] = {}
+    for a in rows:
+        out.setdefault(int(a["generation"]), []).append(a)
+    return out
+
+
+def span_text(values: list[int]) -> str:
+    """Generation numbers as a reader wants them in a problem: ``1..50 (50 lines)`` when consecutive, else the list."""
+    if not values:
+        return "none"
+    return f"{values[0]}..{values[-1]} ({len(values)} lines)" if values == list(range(values[0], values[-1] + 1)) else str(values)

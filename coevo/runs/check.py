@@ -19,10 +19,8 @@ What it checks, per worker directory:
 * ``coevo replay`` reproduces the learning curve exactly from the logs (skipped
   with ``replay=False``).
 
-In a CEL run (``coevo cel``) also: the execution module played every generation's trials
-once (``performance.jsonl``: generations 0..G in order) and says it finished; every rule
-set it used is one the learner published under that version; its monitor's changes are
-numbered 1..n; every case the learner stored is in the broker's store, identical.
+A kind of learner with modules of its own (a CEL run's execution module and case base) adds
+its checks of them (:mod:`coevo.runs.kinds`; for CEL, :func:`coevo.cel_service.audit.check_execution`).
 """
 
 from __future__ import annotations
@@ -33,7 +31,8 @@ from typing import Any
 
 from coevo.agents.inbox import rules_digest
 from coevo.errors import CoevoError
-from coevo.rundir.layout import RunPaths, read_cases, read_json, read_jsonl, read_store
+from coevo.rundir.layout import RunPaths, read_json, read_jsonl, read_store, span_text
+from coevo.runs.kinds import run_kinds
 
 __all__ = ["RunCheck", "check_run"]
 
@@ -73,7 +72,7 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
         curve = read_jsonl(w.curve, problems=check.problems)
         got = [int(r["generation"]) for r in curve]
         if got != list(range(1, gens + 1)):
-            check.problems.append(f"{beh}: curve.jsonl has generations {_span(got)}, expected 1..{gens}")
+            check.problems.append(f"{beh}: curve.jsonl has generations {span_text(got)}, expected 1..{gens}")
         done = read_json(w.done, what="worker directory (its done.json)") if w.done.exists() else {}
         if not done.get("finished"):
             check.problems.append(f"{beh}: done.json missing or not finished")
@@ -100,8 +99,11 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
     for beh, model, adopted in adoptions:
         for a in adopted:
             _check_adoption(check, beh, model, a, published_all)
-    if run.execution.meta_json.exists():
-        _check_cel(run, check, published_all)
+    for kind in run_kinds(run):
+        assert kind.check_run is not None
+        problems, facts = kind.check_run(run, published_all)
+        check.problems += problems
+        check.facts.update(facts)
     if replay and not check.problems:
         from coevo.runs.replay import replay as replay_run
 
@@ -130,36 +132,6 @@ def _check_latest(check: RunCheck, run: RunPaths, beh: str, worker: str, version
         measured = (summary.get("versions") or {}).get(beh)
         if not summary.get("interrupted") and measured is not None and measured != newest:
             check.problems.append(f"{beh}: summary.json measured v{measured}, but the newest published is v{newest}")
-
-
-def _check_cel(run: RunPaths, check: RunCheck, published: dict[tuple[str, int], tuple[str, str]]) -> None:
-    """A CEL run's execution module and case base (see the module docstring)."""
-    ex = run.execution
-    meta = read_json(ex.meta_json, what="execution directory (its execution.json)")
-    gens = int(meta.get("generations", 0))
-    points = [int(r["generation"]) for r in read_jsonl(ex.performance, problems=check.problems)]
-    if points != list(range(gens + 1)):
-        check.problems.append(f"execution: performance.jsonl has generations {_span(points)}, expected 0..{gens}")
-    done = read_json(ex.done, what="execution directory (its done.json)") if ex.done.exists() else {}
-    if not done.get("finished"):
-        check.problems.append("execution: done.json missing or not finished")
-    used = read_jsonl(ex.policies, problems=check.problems)
-    for u in used:
-        pub = published.get(("door", int(u["version"])))
-        if pub is None or pub[1] != rules_digest(u["rules"]):
-            check.problems.append(f"execution: used door v{u['version']}, which the learner did not publish so")
-    changes = [int(c["change"]) for c in read_jsonl(ex.changes, problems=check.problems)]
-    if changes != list(range(1, len(changes) + 1)):
-        check.problems.append(f"execution: changes.jsonl numbers {changes}, not 1..n")
-    learner = run.worker("door")
-    if learner.cases.exists():
-        store = run.case_file("door")
-        held = {(c.worker, c.version): c for c in read_cases(store, problems=check.problems)} if store.exists() else {}
-        own = [c for c in read_cases(learner.cases, problems=check.problems) if c.worker == learner.meta()["worker"]]
-        lost = [c.version for c in own if (c.worker, c.version) not in held or held[(c.worker, c.version)].rules != c.rules]
-        if lost:
-            check.problems.append(f"door: cases {lost} are not in the store as the learner stored them")
-    check.facts["execution"] = {"generations": len(points), "policies_used": len(used), "changes": len(changes)}
 
 
 def _roster(run: RunPaths, check: RunCheck) -> dict[str, str] | None:
@@ -194,8 +166,3 @@ def _check_adoption(check: RunCheck, beh: str, model: str, a: dict[str, Any],
     if digest != pub_digest:
         check.problems.append(f"{what} with rules other than {worker!r} published under that version")
 
-
-def _span(values: list[int]) -> str:
-    if not values:
-        return "none"
-    return f"{values[0]}..{values[-1]} ({len(values)} lines)" if values == list(range(values[0], values[-1] + 1)) else str(values)

@@ -143,10 +143,11 @@ def configure_worker(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_worker(args: argparse.Namespace) -> int:
-    from coevo.agents.worker import Worker, run_worker
+    from coevo.agents.worker import run_worker
     from coevo.bus.session import config_from_args
     from coevo.rundir.layout import RunPaths
     from coevo.rundir.settings import RunSettings, find_run_key
+    from coevo.runs.kinds import kind_of_settings
 
     if args.settings:
         refuse(args, ("task", "regime", "run", "model", "max_lead", *GA_FLAGS), "--settings gives every run setting")
@@ -160,12 +161,8 @@ def cmd_worker(args: argparse.Namespace) -> int:
         settings = RunSettings.make(run=args.run, task=task, regime=args.regime, seed=args.seed or 0,
                                     model=args.model or "best", max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
                                     world=world_settings(args, task), ga=ga_settings(args))
-    kind = None
-    if settings.cel is not None:  # a CEL run's learner (coevo cel) plugs into the worker's seam
-        from coevo.cel_service.learner import CelLearner
-
-        kind = CelLearner
-    return run_worker(settings, kind=kind or Worker, behaviour=args.behaviour, seed=args.seed, worker_id=args.worker_id,
+    kind = kind_of_settings(settings).worker()  # a CEL run's learner (coevo cel) plugs into the worker's seam
+    return run_worker(settings, kind=kind, behaviour=args.behaviour, seed=args.seed, worker_id=args.worker_id,
                       out=Path(args.out) if args.out else (RunPaths(base).worker(args.behaviour).dir if base else None),
                       conf=config_from_args(args), resume=args.resume,
                       final_sync=args.final_sync, run_key=find_run_key(args.key_file, settings, base))
