@@ -106,9 +106,11 @@ def _base(command: str, flag: str, places: dict[str, Path]) -> list[str]:
         "keygen": ["--run", "x", "--out", f"{fresh}.key"],
         "show": ["--default", "tracking", "--episodes", "1", "--rules"],
         "chaos": ["--run", "sweep", "--root", fresh, *TINY, "--faults", "0", "--quiet"],
-        "cel": ([] if flag == "--resume" else ["--run", "sweep", "--generations", "2", "--population", "2",
+        "cel": ([] if flag in ("--resume", "--settings") else ["--run", "sweep", "--generations", "2", "--population", "2",
                                                 "--episodes", "1", "--fail", "1:front"])
         + ([] if flag == "--resume" else ["--root", fresh]) + ["--quiet"],
+        "cel-experiment": ["--runs", "1", "--generations", "2", "--population", "2", "--episodes", "1",
+                           "--trials-per-generation", "2", "--quiet", "--out", fresh],
         "execution": ([] if flag == "--settings" else ["--settings", str(places["cel-run"] / "run.json")])
         + [*NO_ROUTER, "--out", fresh],
         "replay": [str(places["broken-worker"])],
