@@ -1,4 +1,4 @@
-"""Appendix B's Figure 3 with the live service: ``coevo cel`` runs over seeds (what ``benchmarks/cel_live.py`` did).
+"""Appendix B's Figure 3 with the live service: ``coevo cel`` runs over seeds (once a script in benchmarks/).
 
 Each replicate is one ``coevo cel`` (a broker, the learning module and the execution module as processes on
 this host's loopback, its own run key) into ``OUT/runs/live-SEED``, run by :mod:`coevo.replicates` (``--jobs``

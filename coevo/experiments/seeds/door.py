@@ -1,4 +1,4 @@
-"""``coevo seeds --task door``: Appendix B's door traversal over seeds, offline (what ``benchmarks/door.py`` did).
+"""``coevo seeds --task door``: Appendix B's door traversal over seeds, offline (once a script in benchmarks/).
 
 Per seed, in one process: the GA learns with all sonars for ``generations`` generations; the sonars in
 ``failed`` fail; the best all-sonar rules are tried in the failed world (the drop); the GA restarts as the
