@@ -13,7 +13,9 @@ from pathlib import Path
 
 import pytest
 
+from coevo.cli import main
 from coevo.experiments.cel.report import key_points
+from coevo.rundir.settings import RunSettings
 
 TINY = ["--runs", "2", "--generations", "4", "--population", "4", "--episodes", "2", "--trials-per-generation", "10",
         "--fail", "2:front,front_right,right", "--quiet"]
@@ -32,6 +34,19 @@ def test_the_table_is_figure3s_four_numbers_for_its_failure_and_none_for_another
     assert [r["generation"] for r in cyclic] == [0, 24, 25, 49, 50, 74, 75, 100]
     assert all(r["report"] is None for r in cyclic)
     assert [r["generation"] for r in key_points([(50, ["front"])], 4)] == [0, 4]  # an event after the end is left out
+
+
+def test_coevo_cel_settings_takes_every_setting_from_the_file_and_only_a_cel_runs(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cel = tmp_path / "cel.json"
+    RunSettings.make(run="x", task="door", regime="independent", cel={}).save(cel)
+    assert main(["cel", "--settings", str(cel), "--seed", "3", "--root", str(tmp_path / "runs"), "--quiet"]) == 2
+    assert "--settings gives every run setting but the run id; drop --seed" in capsys.readouterr().err
+    plain = tmp_path / "plain.json"
+    RunSettings.make(run="y", regime="independent").save(plain)
+    assert main(["cel", "--settings", str(plain), "--root", str(tmp_path / "runs"), "--quiet"]) == 2
+    assert "not a CEL run's settings" in capsys.readouterr().err
+    assert not (tmp_path / "runs").exists()
 
 
 def _check(out: Path, stdout: str) -> dict:

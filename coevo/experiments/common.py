@@ -17,7 +17,7 @@ from typing import Any
 from coevo.errors import RunDirError
 from coevo.replicates.replicate import Replicate
 
-__all__ = ["prepare_out", "run_with_progress"]
+__all__ = ["prepare_out", "open_out", "run_with_progress"]
 
 
 def prepare_out(out: Path, marker: str, spec: dict[str, Any], *, resume: bool) -> None:
@@ -48,15 +48,32 @@ def prepare_out(out: Path, marker: str, spec: dict[str, Any], *, resume: bool) -
         write_json(f, {"spec": mine, "created": time.time()})
 
 
-def run_with_progress(reps: Sequence[Replicate], out: Path, backend: Any, *, label: str, quiet: bool) -> Any:
-    """Run ``reps`` on ``backend`` with a progress bar; print each failure with its log.  Returns the runner's
-    Progress, or None when the Dask scheduler was lost (said on stderr, with how to continue)."""
+def open_out(args: Any, out: Path, marker: str, spec: dict[str, Any], *, default_jobs: int) -> Any:
+    """The backend the flags ask for, then ``out`` prepared (:func:`prepare_out`; the backend closed again if
+    ``out`` is refused): nothing is written into ``out`` before the backend is open, so a scheduler that cannot
+    be reached leaves ``out`` as it was."""
+    from coevo.replicates.flags import backend_of
+
+    backend = backend_of(args, default_jobs=default_jobs)
+    try:
+        prepare_out(out, marker, spec, resume=args.resume)
+    except BaseException:
+        backend.close()
+        raise
+    return backend
+
+
+def run_with_progress(reps: Sequence[Replicate], out: Path, backend: Any, *, label: str, quiet: bool,
+                      unit: str = "generations") -> Any:
+    """Run ``reps`` on ``backend`` with a progress bar in ``unit`` (what the replicates' costs count); print each
+    failure with its log.  Returns the runner's Progress, or None when the Dask scheduler was lost (said on
+    stderr, with how to continue)."""
     from coevo.console import ProgressBar
     from coevo.replicates.backends import ClusterLost
     from coevo.replicates.runner import run_replicates
 
     total = sum(r.cost for r in reps)
-    with ProgressBar(label, total=total, unit="units", quiet=quiet) as bar:
+    with ProgressBar(label, total=total, unit=unit, quiet=quiet) as bar:
         try:
             prog = run_replicates(reps, out, backend, on_progress=lambda p: bar.update(p.done, p.total, p.info))
         except ClusterLost as exc:

@@ -11,7 +11,7 @@ from typing import Any
 
 from coevo.console import add_settings, count_arg, seed_arg
 from coevo.errors import ConfigError
-from coevo.replicates.flags import add_backend_flags, backend_of
+from coevo.replicates.flags import add_backend_flags, check_backend_flags
 
 __all__ = ["configure_cel_experiment", "cmd_cel_experiment"]
 
@@ -41,9 +41,10 @@ def cmd_cel_experiment(args: argparse.Namespace) -> int:
     """Run the live runs that are not finished in ``--out``, then write the report and print its table."""
     from coevo.experiments.cel.experiment import lockstep_equal, read_lockstep, replicates, write_settings, collect
     from coevo.experiments.cel.report import write_report
-    from coevo.experiments.common import prepare_out, run_with_progress
+    from coevo.experiments.common import open_out, run_with_progress
 
     base = _base_settings(args)
+    check_backend_flags(args)
     lockstep = read_lockstep(Path(args.lockstep), bool(args.case_base)) if args.lockstep else None
     out = Path(args.out) if args.out else Path("runs") / f"cel-experiment-{time.strftime('%Y%m%d-%H%M%S')}"
     seeds = list(range(args.first_seed, args.first_seed + args.runs))
@@ -52,10 +53,9 @@ def cmd_cel_experiment(args: argparse.Namespace) -> int:
             "trials_per_generation": cel.trials_per_generation, "case_base": cel.case_base,
             "schedule": [[g, list(f)] for g, f in cel.schedule],
             "settings": {k: v for k, v in base.model_dump(mode="json").items() if k not in ("run", "seed")}}
-    prepare_out(out, "cel-experiment.json", spec, resume=args.resume)
+    backend = open_out(args, out, "cel-experiment.json", spec, default_jobs=os.cpu_count() or 1)
     write_settings(out, base, seeds)
     reps = replicates(seeds, base.ga.generations)
-    backend = backend_of(args, default_jobs=os.cpu_count() or 1)
     print(f"Figure 3, live: {len(reps)} coevo cel runs in {out}, {backend.description}", flush=True)
     t0 = time.time()
     prog = run_with_progress(reps, out, backend, label="cel-experiment", quiet=args.quiet)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from coevo.console import seed_arg
 from coevo.errors import ConfigError
-from coevo.replicates.flags import add_backend_flags, backend_of
+from coevo.replicates.flags import add_backend_flags, check_backend_flags
 
 __all__ = ["configure_td_baseline", "add_td_arguments", "td_main", "specs_from_args"]
 
@@ -83,17 +83,17 @@ def td_main(args: argparse.Namespace) -> int:
     import os
     import platform
 
-    from coevo.experiments.common import prepare_out, run_with_progress
+    from coevo.experiments.common import open_out, run_with_progress
     from coevo.experiments.earl.td_replicates import collect, replicates, timing
     from coevo.experiments.earl.td_report import summarise, write_report
     from coevo.rundir.layout import write_json
 
     specs = specs_from_args(args)
+    check_backend_flags(args)
     out = Path(args.out)
-    prepare_out(out, "td-baseline.json", {"tasks": [{"spec": s.as_dict(), "variants": list(v)} for s, v in specs]},
-                resume=args.resume)
+    backend = open_out(args, out, "td-baseline.json",
+                       {"tasks": [{"spec": s.as_dict(), "variants": list(v)} for s, v in specs]}, default_jobs=1)
     reps = replicates(specs)  # type: ignore[arg-type]
-    backend = backend_of(args, default_jobs=1)
     print(f"TD baseline in {out}: {len(reps)} runs ({', '.join(s.task for s, _ in specs)}), {backend.description}",
           flush=True)
     prog = run_with_progress(reps, out, backend, label="td", quiet=args.quiet)

@@ -15,7 +15,7 @@ from typing import Any
 
 from coevo.console import ProgressBar, count_arg, seed_arg
 from coevo.errors import ConfigError, RunDirError
-from coevo.replicates.flags import add_backend_flags, backend_of
+from coevo.replicates.flags import add_backend_flags, backend_of, check_backend_flags
 
 __all__ = ["configure_seeds", "cmd_seeds"]
 
@@ -34,6 +34,7 @@ def _refuse(args: argparse.Namespace, names: tuple[str, ...], task: str) -> None
 
 
 def cmd_seeds(args: argparse.Namespace) -> int:
+    check_backend_flags(args)  # before anything is written into --out
     if args.task == "door":
         _refuse(args, FUEL_FLAGS, "door")
         return _cmd_door(args)
@@ -92,16 +93,15 @@ def _door_spec(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _cmd_door(args: argparse.Namespace) -> int:
-    from coevo.experiments.common import prepare_out, run_with_progress
+    from coevo.experiments.common import open_out, run_with_progress
     from coevo.experiments.seeds.door import replicates
     from coevo.experiments.seeds.door_report import write_report
 
     spec = _door_spec(args)
     out = Path(args.out) if args.out else Path("runs") / f"door-seeds-{time.strftime('%Y%m%d-%H%M%S')}"
-    prepare_out(out, "door-seeds.json", spec, resume=args.resume)
+    backend = open_out(args, out, "door-seeds.json", spec, default_jobs=1)
     seeds = list(range(spec["first_seed"], spec["first_seed"] + spec["seeds"]))
     reps = replicates(seeds, generations=spec["generations"], world=spec["world"], failed=spec["failed"], ga=spec["ga"])
-    backend = backend_of(args, default_jobs=1)
     print(f"the door task over seeds in {out}: {len(reps)} seeds, {backend.description}", flush=True)
     t0 = time.time()
     prog = run_with_progress(reps, out, backend, label="door seeds", quiet=args.quiet)
