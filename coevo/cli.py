@@ -45,6 +45,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                   "a CEL run's execution module (the robot, with its monitor) as its own process"),
     "seeds": ("coevo.experiments.seeds.command",
               "Tracking and Docking learned over seeds, against the learning targets, with a report"),
+    "cel-experiment": ("coevo.experiments.cel.command",
+                       "Appendix B: Figure 3 over live coevo cel runs (default 10), beside the report's numbers"),
     "evolvability": ("coevo.experiments.evolvability.command",
                      "Appendix D: FM/GM/FH/GH mutation models on dynamic landscapes, with a report"),
     "earl": ("coevo.experiments.earl.command",

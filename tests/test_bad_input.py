@@ -100,15 +100,19 @@ def _base(command: str, flag: str, places: dict[str, Path]) -> list[str]:
         "evolvability": ["--landscapes", "1", "--runs", "1", "--generations", "1", "--population", "2", "--classes",
                          "gradual", "--rates", "0.1", "--models", "fm", "--quiet", "--out", fresh],
         "earl": ["--runs", "1", "--generations", "0", "--quiet", "--out", fresh],
-        "seeds": ["--seeds", "1", "--behaviours", "docking", "--quiet", "--out", fresh],
+        "seeds": (["--task", "door", "--generations", "1", "--ga", "population=2", "--ga", "episodes=1"]
+                  if flag in ("--generations", "--fail", "--world", "--ga") else ["--behaviours", "docking"])
+        + ["--seeds", "1", "--quiet", "--out", fresh],
         "td-baseline": ["--tasks", "door", "--seeds", "1", "--generations", "1", "--population", "2", "--episodes", "1",
                         "--trials", "1", "--quiet", "--out", fresh],
         "keygen": ["--run", "x", "--out", f"{fresh}.key"],
         "show": ["--default", "tracking", "--episodes", "1", "--rules"],
         "chaos": ["--run", "sweep", "--root", fresh, *TINY, "--faults", "0", "--quiet"],
-        "cel": ([] if flag == "--resume" else ["--run", "sweep", "--generations", "2", "--population", "2",
+        "cel": ([] if flag in ("--resume", "--settings") else ["--run", "sweep", "--generations", "2", "--population", "2",
                                                 "--episodes", "1", "--fail", "1:front"])
         + ([] if flag == "--resume" else ["--root", fresh]) + ["--quiet"],
+        "cel-experiment": ["--runs", "1", "--generations", "2", "--population", "2", "--episodes", "1",
+                           "--trials-per-generation", "2", "--quiet", "--out", fresh],
         "execution": ([] if flag == "--settings" else ["--settings", str(places["cel-run"] / "run.json")])
         + [*NO_ROUTER, "--out", fresh],
         "replay": [str(places["broken-worker"])],

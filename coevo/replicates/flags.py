@@ -9,7 +9,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-__all__ = ["add_backend_flags", "backend_of"]
+__all__ = ["add_backend_flags", "check_backend_flags", "backend_of"]
 
 
 def add_backend_flags(p: argparse.ArgumentParser, *, jobs_help: str) -> None:
@@ -34,6 +34,18 @@ def _count(text: str) -> int:
     if not 1 <= v <= 1024:
         raise argparse.ArgumentTypeError(f"invalid number {v}: give one from 1 to 1024")
     return v
+
+
+def check_backend_flags(args: argparse.Namespace) -> None:
+    """The flags checked without opening anything (a bad one is a ConfigError naming it), so that a command can
+    refuse them before it writes into ``--out``."""
+    from coevo.errors import ConfigError
+    from coevo.replicates.backends import parse_cluster
+
+    if args.cluster is not None:
+        parse_cluster(args.cluster)
+    elif args.shared_dir is not None or args.cluster_config is not None:
+        raise ConfigError("--shared-dir and --cluster-config go with --cluster")
 
 
 def backend_of(args: argparse.Namespace, *, default_jobs: int) -> Any:

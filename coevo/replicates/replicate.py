@@ -86,7 +86,10 @@ def _last_line(log: bytes) -> str:
 
 
 def _run(rep: Replicate, root: Path, log_file: Path) -> tuple[bool, int | None, str]:
-    """Run it under ``root``, its output to ``log_file``; (finished, exit status, why not)."""
+    """Run it under ``root``, its output to ``log_file``; (finished, exit status, why not).  ``root`` is made
+    absolute first: a command runs with ``root`` as its working directory, so a relative one would be read twice
+    (``--out runs/x`` wrote into ``runs/x/runs/x``)."""
+    root = Path(root).resolve()
     log_file.parent.mkdir(parents=True, exist_ok=True)
     if rep.function is not None:
         with open(log_file, "w", encoding="utf-8") as fh:

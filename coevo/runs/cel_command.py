@@ -64,6 +64,23 @@ def _settings(args: argparse.Namespace) -> Any:
                             max_lead=max_lead_of(args.max_lead, CEL_MAX_LEAD), world=world_settings(args, "door"), ga=ga, cel=cel)
 
 
+def _given_settings(args: argparse.Namespace) -> Any:
+    """``--settings RUN_JSON``: a CEL run's settings written beforehand (e.g. by ``coevo cel-experiment``), for a new
+    run (its own endpoint and key; ``--run`` renames it)."""
+    from coevo.rundir.settings import RunSettings
+    from coevo.runs.command import refuse
+
+    refuse(args, ("seed", "fail", "schedule", "cases_from", "trials_per_generation", "chunk", "zero_run", "repair_run",
+                  "max_lead", "generations", "population", "episodes", "world", "ga"),
+           "--settings gives every run setting but the run id")
+    if args.case_base:
+        raise ConfigError("--settings gives every run setting but the run id; drop --case-base")
+    settings = RunSettings.load(Path(args.settings)).fresh(args.run)
+    if settings.cel is None:
+        raise ConfigError(f"--settings {args.settings}: not a CEL run's settings (no cel block); start it with coevo run")
+    return settings
+
+
 def cmd_cel(args: argparse.Namespace) -> int:
     from coevo.bus.status import StatusDisplay
     from coevo.runs.cel import CelRun, cases_of_run, import_cases
@@ -72,7 +89,7 @@ def cmd_cel(args: argparse.Namespace) -> int:
     from coevo.rundir.settings import RunSettings
 
     if args.resume:
-        given = [f for f in ("run", "prepare", "seed", "fail", "schedule", "case_base", "cases_from", "trials_per_generation", "chunk",
+        given = [f for f in ("run", "settings", "prepare", "seed", "fail", "schedule", "case_base", "cases_from", "trials_per_generation", "chunk",
                              "zero_run", "repair_run", "max_lead", "generations", "population", "episodes", "world", "ga")
                  if getattr(args, f, None) is not None and getattr(args, f) is not False]
         if given:
@@ -82,7 +99,7 @@ def cmd_cel(args: argparse.Namespace) -> int:
         if lr.settings.cel is None:
             raise ConfigError(f"{args.resume} is not a CEL run (its run.json has no cel block); use coevo run --resume")
     else:
-        settings: RunSettings = _settings(args)
+        settings: RunSettings = _given_settings(args) if args.settings else _settings(args)
         lr = CelRun(settings, root=Path(args.root), log_level=args.log_level, open_run=args.open)
         cases = cases_of_run(Path(args.cases_from)) if args.cases_from else None  # checked before anything is made
         lr.create()
@@ -141,6 +158,8 @@ def configure_cel(p: argparse.ArgumentParser) -> None:
     p.add_argument("--run", help="run id (default cel-TIME)")
     p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
     p.add_argument("--resume", metavar="RUN_DIR", help="continue this run from its processes' checkpoints")
+    p.add_argument("--settings", metavar="RUN_JSON",
+                   help="start a run with these settings (a CEL run's run.json, e.g. one coevo cel-experiment wrote)")
     p.add_argument("--seed", type=seed_arg, help="the learner's seed (default 0); the robot's world uses seed + 1000003")
     p.add_argument("--schedule", choices=list(SCHEDULES),
                    help="figure3: front, front-right and right fail at generation 50 (default); cyclic: fail at 25, "

@@ -1,18 +1,21 @@
-"""The TD baseline for the command line (a future ``coevo earl --td`` or ``coevo td-baseline``).
+"""``coevo td-baseline``: Q-learning against the GA on the robot tasks, at equal experience.
 
-``add_td_arguments`` fills a parser and ``td_main`` runs it: for each task the GA's runs, the TD runs at
-the GA's robot-steps, the variants, then the report in ``--out``. Bad values raise
-:class:`~coevo.errors.ConfigError` naming them (a bad ``--out``: :class:`~coevo.errors.RunDirError`)
-before anything runs; the output directory is written under a temporary name and renamed when complete.
+``add_td_arguments`` fills a parser and ``td_main`` runs it: for each task the GA's runs, then the TD runs
+at the GA's robot-steps and the variants, each a replicate of :mod:`coevo.replicates`
+(:mod:`.td_replicates`: ``--jobs`` here, or ``--cluster``; ``--resume`` keeps the finished ones), then the
+report in ``--out``. Bad values raise :class:`~coevo.errors.ConfigError` naming them (a bad ``--out``:
+:class:`~coevo.errors.RunDirError`) before anything runs.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
-from coevo.console import ProgressBar, seed_arg
+from coevo.console import seed_arg
 from coevo.errors import ConfigError
+from coevo.replicates.flags import add_backend_flags, check_backend_flags
 
 __all__ = ["configure_td_baseline", "add_td_arguments", "td_main", "specs_from_args"]
 
@@ -20,6 +23,7 @@ __all__ = ["configure_td_baseline", "add_td_arguments", "td_main", "specs_from_a
 def configure_td_baseline(p: argparse.ArgumentParser) -> None:
     """``coevo td-baseline``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
     add_td_arguments(p)
+    add_backend_flags(p, jobs_help="runs at once on this machine (default 1: the timing target is per core)")
     p.set_defaults(func=td_main)
 
 
@@ -27,7 +31,9 @@ def add_td_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of the TD baseline."""
     from coevo.experiments.earl.td_tasks import ENCODERS, TASKS, VARIANTS
 
-    parser.add_argument("--out", required=True, help="output directory (must not exist, or be empty)")
+    parser.add_argument("--out", required=True, help="output directory (must not exist, or be empty; with --resume "
+                                                     "the same experiment's)")
+    parser.add_argument("--resume", action="store_true", help="keep the finished runs in --out and run the rest")
     parser.add_argument("--tasks", nargs="+", default=list(TASKS), metavar="TASK",
                         help=f"tasks to compare on ({', '.join(TASKS)}; default all)")
     parser.add_argument("--seeds", type=int, default=3, help="runs of each learner per task (default 3)")
@@ -72,18 +78,34 @@ def specs_from_args(args: argparse.Namespace) -> list[tuple[object, tuple[str, .
 
 
 def td_main(args: argparse.Namespace) -> int:
-    """Run the TD baseline on the chosen tasks, write the report into ``args.out``, print the verdicts."""
+    """Run the pieces of the TD baseline not finished in ``--out`` (each GA run, each task's TD runs) on the
+    replicate runner, then write the report and print the verdicts."""
+    import os
+    import platform
+
+    from coevo.experiments.common import open_out, run_with_progress
+    from coevo.experiments.earl.td_replicates import collect, replicates, timing
     from coevo.experiments.earl.td_report import summarise, write_report
-    from coevo.experiments.earl.td_tasks import run_task
-    from coevo.rundir.layout import staged_dir
+    from coevo.rundir.layout import write_json
 
     specs = specs_from_args(args)
+    check_backend_flags(args)
     out = Path(args.out)
-    results = {}
-    with staged_dir(out) as tmp, ProgressBar("td", quiet=args.quiet) as bar:
-        for spec, variants in specs:
-            results[spec.task] = run_task(spec, variants=variants, progress=bar.stage)  # type: ignore[attr-defined]
-        data = write_report(tmp, results)
+    backend = open_out(args, out, "td-baseline.json",
+                       {"tasks": [{"spec": s.as_dict(), "variants": list(v)} for s, v in specs]}, default_jobs=1)
+    reps = replicates(specs)  # type: ignore[arg-type]
+    print(f"TD baseline in {out}: {len(reps)} runs ({', '.join(s.task for s, _ in specs)}), {backend.description}",
+          flush=True)
+    prog = run_with_progress(reps, out, backend, label="td", quiet=args.quiet)
+    if prog is None:
+        return 3
+    results = collect(out, specs)  # type: ignore[arg-type]
+    if not results:
+        print("no task finished: no report", file=sys.stderr)
+        return 1
+    data = write_report(out, results)
+    write_json(out / "timing.json", {**timing(results), "cpus": os.cpu_count(), "python": platform.python_version(),
+                                     "load_average_at_end": [round(x, 2) for x in os.getloadavg()]})
     for task, res in results.items():
         last = summarise(res)["rows"][-1]
         extra = "".join(f", TD {v} {last[f'td_{v}']['mean']:.1f}" for v in res.get("variants", {}))
@@ -93,4 +115,4 @@ def td_main(args: argparse.Namespace) -> int:
     for c in data["claims"]:
         print(f"  {c['verdict']}: {c['claim']}")
     print(f"report: {out / 'report.md'}")
-    return 0
+    return 1 if prog.failed else 0

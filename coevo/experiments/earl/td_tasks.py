@@ -46,7 +46,7 @@ from coevo.policy.schema import Schema, schema
 
 __all__ = [
     "Encoder", "ENCODERS", "HashedQ", "FuelEnv", "DoorEnv", "TASKS", "TDSpec", "Curve",
-    "CountingEvaluator", "VARIANTS", "run_td", "run_ga", "run_task", "default_checkpoints", "measure_policy", "rules_policy",
+    "CountingEvaluator", "VARIANTS", "run_td", "run_ga", "run_task", "variant_specs", "checkpoint_marks", "task_results", "default_checkpoints", "measure_policy", "rules_policy",
 ]
 
 TASKS = ("tracking", "docking", "door")
@@ -743,31 +743,48 @@ def default_checkpoints(generations: int) -> tuple[int, ...]:
     return tuple(sorted(set(marks)))
 
 
-def run_task(spec: TDSpec, *, variants: tuple[str, ...] = (), progress: Progress = _quiet) -> dict[str, Any]:
-    """The GA's runs, then the TD runs at the GA's mean robot-steps per checkpoint, then a TD run per
-    extra reward in ``variants`` (e.g. Tracking's ``shaped``); results as plain data."""
+def variant_specs(spec: TDSpec, variants: tuple[str, ...]) -> dict[str, TDSpec]:
+    """The TD spec of each extra run in ``variants`` (a ConfigError naming one the task does not have)."""
     specs = {}
     for v in variants:
         if v not in VARIANTS:
             raise ConfigError(f"variant {v!r}: choose from {', '.join(VARIANTS)}")
         specs[v] = replace(spec, **VARIANTS[v])  # raises where the task has no such setting
-    t0 = time.perf_counter()
-    ga = [run_ga(spec, spec.seed + i, progress=progress) for i in range(spec.seeds)]
-    t1 = time.perf_counter()
-    marks = np.mean([c.robot_steps for c in ga], axis=0)
+    return specs
+
+
+def checkpoint_marks(spec: TDSpec, ga_steps: list[list[int]]) -> list[int]:
+    """The TD runs' checkpoints: the GA runs' mean robot-steps at each (scaled to ``td_steps`` if given)."""
+    marks = np.mean(ga_steps, axis=0)
     if spec.td_steps is not None:
         marks = marks * (spec.td_steps / marks[-1])
-    marks_list = [max(1, int(round(m))) for m in marks]
-    td = run_td(spec, marks_list, progress=progress)
-    t2 = time.perf_counter()
-    extra = {v: [c.as_dict() for c in run_td(vs, marks_list, progress=progress)] for v, vs in specs.items()}
-    t3 = time.perf_counter()
+    return [max(1, int(round(m))) for m in marks]
+
+
+def task_results(spec: TDSpec, marks: list[int], ga: list[dict[str, Any]], td: list[dict[str, Any]],
+                 variants: dict[str, list[dict[str, Any]]], seconds: dict[str, float]) -> dict[str, Any]:
+    """One task's results as plain data (what the report reads), from its runs' curves."""
     enc = ENCODERS[(spec.task, spec.encoder)]
     return {
         "task": spec.task, "measure": MEASURE_NAMES[spec.task], "spec": spec.as_dict(),
         "encoder": {"name": enc.name, "sensors": enc.describe(), "dense_observations": float(enc.n_states),
                     "actions": 56 if spec.task == "door" else 78},
-        "checkpoint_steps": marks_list,
-        "ga": [c.as_dict() for c in ga], "td": [c.as_dict() for c in td], "variants": extra,
-        "seconds": {"ga": t1 - t0, "td": t2 - t1, "variants": t3 - t2},
+        "checkpoint_steps": marks, "ga": ga, "td": td, "variants": variants, "seconds": seconds,
     }
+
+
+def run_task(spec: TDSpec, *, variants: tuple[str, ...] = (), progress: Progress = _quiet) -> dict[str, Any]:
+    """The GA's runs, then the TD runs at the GA's mean robot-steps per checkpoint, then a TD run per
+    extra reward in ``variants`` (e.g. Tracking's ``shaped``); results as plain data, in this process
+    (``coevo td-baseline`` runs the same pieces as replicates: :mod:`.td_replicates`)."""
+    specs = variant_specs(spec, variants)
+    t0 = time.perf_counter()
+    ga = [run_ga(spec, spec.seed + i, progress=progress) for i in range(spec.seeds)]
+    t1 = time.perf_counter()
+    marks = checkpoint_marks(spec, [c.robot_steps for c in ga])
+    td = run_td(spec, marks, progress=progress)
+    t2 = time.perf_counter()
+    extra = {v: [c.as_dict() for c in run_td(vs, marks, progress=progress)] for v, vs in specs.items()}
+    t3 = time.perf_counter()
+    return task_results(spec, marks, [c.as_dict() for c in ga], [c.as_dict() for c in td], extra,
+                        {"ga": t1 - t0, "td": t2 - t1, "variants": t3 - t2})

@@ -1,5 +1,5 @@
 """Tracking and Docking learned offline (``coevo learn``) at the report's parameters over seeds, against the
-learning targets of "The report's Table 1, reproduced" (what ``benchmarks/learn_seeds.py`` did):
+learning targets of "The report's Table 1, reproduced" (``coevo seeds``, ``--task fuel``):
 
 - Docking from random starts, median >= 60 %;
 - Quality Tracking with the always-Track Executive, median > 60 %;

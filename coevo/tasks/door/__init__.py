@@ -130,7 +130,7 @@ def restart(ga: GA, world: DoorConfig, *, keep: float = 0.5) -> None:
     Which individuals stay *(ours)*: the elite, then a random draw from the GA's own generator (the
     population has just been bred and has no fitness yet).
 
-    This is the offline benchmark's restart (``benchmarks/door.py``, whose numbers depend on this exact
+    This is the offline benchmark's restart (``coevo seeds --task door``, whose numbers depend on this exact
     draw); it sets the GA's attributes from outside.  The CEL architecture's proper home for it is
     :meth:`coevo.cel.learning.LearningModule.restart`: the same half kept, through :meth:`GA.replace`,
     with a simulation model the GA's evaluator follows, and optionally a case base.

@@ -1,0 +1,85 @@
+"""What the many-run commands share around :mod:`coevo.replicates`: their ``--out`` folder (fresh, or this very
+experiment with ``--resume``) and the run of their replicates with a progress bar and the failures reported.
+
+The runner owns the job loop; this only keeps the commands' own few lines alike (``coevo cel-experiment``,
+``coevo seeds``, ``coevo td-baseline``).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from coevo.errors import RunDirError
+from coevo.replicates.replicate import Replicate
+
+__all__ = ["prepare_out", "open_out", "run_with_progress"]
+
+
+def prepare_out(out: Path, marker: str, spec: dict[str, Any], *, resume: bool) -> None:
+    """A fresh experiment needs an empty or missing ``out``; ``resume`` needs this very experiment there (the
+    settings in ``out/marker`` equal to ``spec``).  Writes the marker; raises RunDirError naming ``--out``."""
+    from coevo.rundir.layout import ensure_dir, write_json
+
+    f = out / marker
+    mine = json.loads(json.dumps(spec))
+    if out.exists() and not out.is_dir():
+        raise RunDirError(f"--out {str(out)!r} is a file, not a directory")
+    held = None
+    if f.exists():
+        try:
+            held = json.loads(f.read_text())["spec"]
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise RunDirError(f"--out {str(out)!r}: {marker} cannot be read ({exc}); choose another --out") from exc
+    if held is not None and held != mine:
+        diff = sorted(k for k in set(held) | set(mine) if held.get(k) != mine.get(k))
+        raise RunDirError(f"--out {str(out)!r} holds a different experiment (differs in: {', '.join(diff)}); choose "
+                          "another --out or repeat the original settings with --resume")
+    if resume and held is None:
+        raise RunDirError(f"--resume: {str(out)!r} holds no such experiment (no {marker})")
+    if not resume and out.is_dir() and any(out.iterdir()):
+        raise RunDirError(f"--out {str(out)!r} is not empty; add --resume to continue the runs there")
+    ensure_dir(out, what="--out")
+    if held is None:
+        write_json(f, {"spec": mine, "created": time.time()})
+
+
+def open_out(args: Any, out: Path, marker: str, spec: dict[str, Any], *, default_jobs: int) -> Any:
+    """The backend the flags ask for, then ``out`` prepared (:func:`prepare_out`; the backend closed again if
+    ``out`` is refused): nothing is written into ``out`` before the backend is open, so a scheduler that cannot
+    be reached leaves ``out`` as it was."""
+    from coevo.replicates.flags import backend_of
+
+    backend = backend_of(args, default_jobs=default_jobs)
+    try:
+        prepare_out(out, marker, spec, resume=args.resume)
+    except BaseException:
+        backend.close()
+        raise
+    return backend
+
+
+def run_with_progress(reps: Sequence[Replicate], out: Path, backend: Any, *, label: str, quiet: bool,
+                      unit: str = "generations") -> Any:
+    """Run ``reps`` on ``backend`` with a progress bar in ``unit`` (what the replicates' costs count); print each
+    failure with its log.  Returns the runner's Progress, or None when the Dask scheduler was lost (said on
+    stderr, with how to continue)."""
+    from coevo.console import ProgressBar
+    from coevo.replicates.backends import ClusterLost
+    from coevo.replicates.runner import run_replicates
+
+    total = sum(r.cost for r in reps)
+    with ProgressBar(label, total=total, unit=unit, quiet=quiet) as bar:
+        try:
+            prog = run_replicates(reps, out, backend, on_progress=lambda p: bar.update(p.done, p.total, p.info))
+        except ClusterLost as exc:
+            print(f"{exc}; finished runs are kept: continue with the same command and --resume --out {out}",
+                  file=sys.stderr)
+            return None
+    for name, why in prog.failed.items():
+        print(f"  {name} failed: {why} (log: {out / 'logs' / (name + '.log')})", file=sys.stderr)
+    return prog

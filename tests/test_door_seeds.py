@@ -1,0 +1,74 @@
+"""coevo seeds --task door: the door traversal of Appendix B over seeds, through the replicate runner.
+
+Tiny: 2 seeds of 2 + 2 generations, population 4.  With --jobs 1 the seeds run in this process (the fast set);
+--jobs 2 (a pool of processes) and --cluster local:2 (Dask) give the very same numbers: each seed is one
+process's deterministic computation.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from coevo.cli import main
+
+TINY = ["seeds", "--task", "door", "--seeds", "2", "--generations", "2", "--ga", "population=4", "--ga", "episodes=4",
+        "--quiet"]
+FILES = {"report.md", "summary.json", "seeds.csv", "figure3.png", "figure4.png", "figure5.png", "door-seeds.json"}
+KEYS = ("default", "all_sonars", "drop", "adapted")
+
+
+def _numbers(out: Path) -> list[dict]:
+    assert FILES <= {p.name for p in out.iterdir()}, sorted(p.name for p in out.iterdir())
+    data = json.loads((out / "summary.json").read_text())
+    s = data["summary"]
+    assert s["runs_finished"] == s["runs_expected"] == 2
+    assert all(0 <= s["mean_success_1000_trials"][k] <= 100 for k in KEYS)
+    assert s["report"] == {"default": 25.0, "all_sonars": 63.0, "drop": 37.0, "adapted": 60.0}
+    for r in data["runs"]:
+        assert len(r["external_100"]) == 2 * 2 + 2 and all(0 <= x <= 100 for x in r["external_100"])
+        assert all(t >= 0 for t in r["ga_seconds"])
+    assert "| that best with front, front_right, right failed |" in (out / "report.md").read_text()
+    assert len((out / "seeds.csv").read_text().splitlines()) == 3
+    return [{k: r[k] for k in ("seed", *KEYS, "external_100", "best_adapted")} for r in data["runs"]]
+
+
+def test_the_door_over_seeds_writes_its_report_here(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "door"
+    assert main([*TINY, "--out", str(out)]) == 0
+    assert "(report 63 %)" in capsys.readouterr().out
+    _numbers(out)
+    assert main([*TINY, "--out", str(out), "--resume"]) == 0  # every seed finished: nothing runs again
+    assert main([*TINY[:-1], "--generations", "3", "--out", str(out), "--resume"]) == 2  # another experiment
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["--task", "door", "--behaviours", "docking"], "--behaviours: not a setting of --task door"),
+    (["--learn-arg=--generations=2", "--task", "door"], "--learn-arg: not a setting of --task door"),
+    (["--fail", "front"], "--fail: not a setting of --task fuel"),
+    (["--task", "door", "--fail", "nose"], "nose"),
+    (["--task", "door", "--fail", ","], "--fail ','"),
+    (["--task", "door", "--fail", ""], "--fail ''"),
+    (["--task", "door", "--world", "sonar_noise=nan"], "sonar_noise"),
+])
+def test_a_flag_of_the_other_task_or_a_bad_door_setting_is_one_line(argv: list[str], needle: str, tmp_path: Path,
+                                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["seeds", *argv, "--quiet", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("ConfigError: ") and needle in err[0], err
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.service
+def test_a_pool_of_processes_and_a_local_dask_cluster_give_the_same_numbers(tmp_path: Path) -> None:
+    got = []
+    for where, flags in (("here", ["--jobs", "1"]), ("pool", ["--jobs", "2"]), ("dask", ["--cluster", "local:2"])):
+        r = subprocess.run([sys.executable, "-m", "coevo", *TINY, "--out", str(tmp_path / where), *flags],
+                           capture_output=True, text=True, timeout=120, check=False)
+        assert r.returncode == 0, r.stdout + r.stderr
+        got.append(_numbers(tmp_path / where))
+    assert got[0] == got[1] == got[2]
