@@ -1,7 +1,8 @@
 """Tracking and Docking learned offline (``coevo learn``) at the report's parameters over seeds, against the
-learning targets of "The report's Table 1, reproduced" (``coevo seeds``, ``--task fuel``):
+learning targets (``coevo seeds``, ``--task fuel``):
 
-- Docking from random starts, median >= 60 %;
+- Docking from random starts, median >= 75 % (issue 25, "Docking learns the approach"; the first target,
+  of "The report's Table 1, reproduced", was 60 %);
 - Quality Tracking with the always-Track Executive, median > 60 %;
 - every run under a minute on one core (meaningful with ``--jobs 1`` on an idle machine).
 
@@ -24,7 +25,7 @@ from coevo.replicates.replicate import Replicate
 
 __all__ = ["TARGETS", "replicates", "write_report"]
 
-TARGETS = {"docking": ("docking_from_random_starts", 60.0), "tracking": ("quality_tracking", 60.0)}
+TARGETS = {"docking": ("docking_from_random_starts", 75.0), "tracking": ("quality_tracking", 60.0)}
 
 
 def _name(behaviour: str, seed: int) -> str:
