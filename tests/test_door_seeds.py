@@ -54,6 +54,8 @@ def test_the_door_over_seeds_writes_its_report_here(tmp_path: Path, capsys: pyte
     (["--task", "door", "--fail", ","], "--fail ','"),
     (["--task", "door", "--fail", ""], "--fail ''"),
     (["--task", "door", "--world", "sonar_noise=nan"], "sonar_noise"),
+    (["--ga", "specialise_fraction=2"], "specialise_fraction=2"),  # --task fuel checks them before anything runs
+    (["--world", "arena=-5"], "arena=-5"),
 ])
 def test_a_flag_of_the_other_task_or_a_bad_door_setting_is_one_line(argv: list[str], needle: str, tmp_path: Path,
                                                                     capsys: pytest.CaptureFixture[str]) -> None:
@@ -72,3 +74,12 @@ def test_a_pool_of_processes_and_a_local_dask_cluster_give_the_same_numbers(tmp_
         assert r.returncode == 0, r.stdout + r.stderr
         got.append(_numbers(tmp_path / where))
     assert got[0] == got[1] == got[2]
+
+
+def test_generations_world_and_ga_reach_every_coevo_learn_of_the_fuel_task(tmp_path: Path) -> None:
+    out = tmp_path / "fuel"
+    assert main(["seeds", "--seeds", "1", "--behaviours", "docking", "--generations", "2", "--ga", "population=4",
+                 "--ga", "episodes=4", "--world", "target_speed=3", "--quiet", "--out", str(out)]) == 0
+    cfg = json.loads((out / "runs" / "docking-seed0" / "config.json").read_text())
+    assert (cfg["ga"]["generations"], cfg["ga"]["population"], cfg["ga"]["episodes"]) == (2, 4, 4)
+    assert cfg["world"]["target_speed"] == 3

@@ -22,7 +22,7 @@ __all__ = ["configure_seeds", "cmd_seeds"]
 #: Seeds per behaviour by default: the learning targets' 5; the door experiment's 10 (Figure 3's runs).
 DEFAULT_SEEDS = {"fuel": 5, "door": 10}
 FUEL_FLAGS = ("behaviours", "learn_args")
-DOOR_FLAGS = ("generations", "fail", "world", "ga")
+DOOR_FLAGS = ("fail",)
 
 
 def _refuse(args: argparse.Namespace, names: tuple[str, ...], task: str) -> None:
@@ -43,6 +43,7 @@ def cmd_seeds(args: argparse.Namespace) -> int:
     from coevo.replicates.backends import ClusterLost
     from coevo.replicates.runner import run_replicates
 
+    extra = _fuel_settings(args) + list(args.learn_args or [])  # checked before anything is written
     out = Path(args.out) if args.out else Path("runs") / f"seeds-{time.strftime('%Y%m%d-%H%M%S')}"
     from coevo.rundir.layout import ensure_dir
 
@@ -51,7 +52,6 @@ def cmd_seeds(args: argparse.Namespace) -> int:
     ensure_dir(out, what="--out")
     behaviours = args.behaviours or ["docking", "tracking"]
     seeds = list(range(args.first_seed, args.first_seed + (args.seeds or DEFAULT_SEEDS["fuel"])))
-    extra = list(args.learn_args or [])
     reps = replicates(behaviours, seeds, extra)
     backend = backend_of(args, default_jobs=1)
     print(f"learning over seeds in {out}: {len(reps)} runs, {backend.description}", flush=True)
@@ -70,6 +70,20 @@ def cmd_seeds(args: argparse.Namespace) -> int:
     for v in results["verdicts"]:
         print(v["text"])
     return 1 if prog.failed else 0
+
+
+def _fuel_settings(args: argparse.Namespace) -> list[str]:
+    """``--generations``, ``--world`` and ``--ga`` as ``coevo learn`` arguments, checked first (a bad one is a
+    ConfigError naming it, before anything runs)."""
+    from coevo.config import GAConfig, build
+    from coevo.console import pairs
+    from coevo.tasks import get_task
+
+    world, ga = pairs(args.world, "world"), pairs(args.ga, "ga")
+    build(get_task("fuel").world_settings, world)
+    build(GAConfig, {**ga, **({} if args.generations is None else {"generations": args.generations})})
+    out = [] if args.generations is None else [f"--generations={args.generations}"]
+    return out + [f"--world={k}={v}" for k, v in world.items()] + [f"--ga={k}={v}" for k, v in ga.items()]
 
 
 def _door_spec(args: argparse.Namespace) -> dict[str, Any]:
@@ -132,12 +146,13 @@ def configure_seeds(p: argparse.ArgumentParser) -> None:
     fuel.add_argument("--behaviours", nargs="+", choices=["docking", "tracking"], help="default: docking tracking")
     fuel.add_argument("--learn-arg", dest="learn_args", action="append", metavar="ARG",
                       help="an argument passed on to every coevo learn (repeatable), e.g. --learn-arg=--generations=5")
+    p.add_argument("--generations", type=count_arg(1, 100_000),
+                   help="generations (default 50; --task door: with all sonars, and again after the failure)")
+    p.add_argument("--world", action="append", metavar="NAME=VALUE",
+                   help="a world setting, e.g. target_speed=3 (door: for both phases, e.g. sonar_noise=12; repeatable)")
+    p.add_argument("--ga", action="append", metavar="NAME=VALUE",
+                   help="a GA setting, e.g. specialise_fraction=0.1 (repeatable)")
     door = p.add_argument_group("--task door")
-    door.add_argument("--generations", type=count_arg(1, 100_000),
-                      help="generations with all sonars, and again after the failure (default 50)")
     door.add_argument("--fail", metavar="SONAR,SONAR", help="the sonars that fail (default front,front_right,right)")
-    door.add_argument("--world", action="append", metavar="NAME=VALUE",
-                      help="a door world setting for both phases, e.g. sonar_noise=12 (repeatable)")
-    door.add_argument("--ga", action="append", metavar="NAME=VALUE", help="a GA setting, e.g. episodes=20 (repeatable)")
     add_backend_flags(p, jobs_help="runs at once on this machine (default 1: the timing target is per core)")
     p.set_defaults(func=cmd_seeds)
