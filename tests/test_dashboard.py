@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -301,6 +302,20 @@ for (let i = 0; i < xs.length; i++) n += xs[i].length;
 return n;
 """
 
+# The robot's picture as the page holds it: its alt text and how many base64 characters its inline PNG has
+ROBOT_IMAGE = """
+function find(n) {
+  if (n.shadowRoot) { const r = find(n.shadowRoot); if (r) return r; }
+  for (const c of n.children || []) {
+    if (c.tagName === 'IMG' && c.classList.contains('robot')) return c;
+    const r = find(c); if (r) return r;
+  }
+  return null;
+}
+const img = find(document.body);
+return img ? [img.alt, img.src.length, img.naturalWidth] : null;
+"""
+
 
 def _browser(tmp_path: Path) -> Any:
     if not (os.path.exists(CHROMIUM) and os.path.exists(CHROMEDRIVER)):
@@ -341,7 +356,8 @@ def test_the_page_in_headless_chromium_follows_a_real_run(tmp_path: Path) -> Non
         poll(settings.exists, 60, "the run's run.json")
         endpoint = json.loads(settings.read_text())["endpoint"]
         port = free_port()
-        dash = coevo_proc("dashboard", "--connect", endpoint, "--port", str(port), log=tmp_path / "dashboard.log")
+        dash = coevo_proc("dashboard", "--connect", endpoint, "--port", str(port), "--run", "watched", "--runs-dir",
+                          str(tmp_path / "runs"), log=tmp_path / "dashboard.log")
         procs.append(dash)
         poll(lambda: "dashboard: http" in (tmp_path / "dashboard.log").read_text(), 60, "the dashboard's address")
         browser.get(f"http://127.0.0.1:{port}/")
@@ -355,6 +371,11 @@ def test_the_page_in_headless_chromium_follows_a_real_run(tmp_path: Path) -> Non
         poll(lambda: any(_generations(text()).get(w, 0) > g for w, g in first.items()), 60,
              lambda: f"a generation moving on from {first}: {text()[-600:]}")
         poll(lambda: browser.execute_script(CURVE_POINTS, "curve-tracking") > points, 60, "Tracking's curve growing")
+        # the robot, drawn from the run's newest policies once all three have published, with its rules
+        img = poll(lambda: browser.execute_script(ROBOT_IMAGE), 60, lambda: f"the robot's picture: {text()[-600:]}")
+        assert img[0] == "the robot of watched" and img[1] > 5_000 and img[2] > 100, img  # a decoded PNG
+        assert re.search(r"Robot of watched: docking v\d+, executive v\d+, tracking v\d+", text()), text()[-800:]
+        assert re.search(r"tracking: \d+ rules by strength.*?\d+ of \d+ rules fired", text()), text()[-800:]
         time.sleep(1.5)
         shot = tmp_path / "dashboard.png"
         browser.save_screenshot(str(shot))
@@ -368,3 +389,38 @@ def test_the_page_in_headless_chromium_follows_a_real_run(tmp_path: Path) -> Non
         for p in reversed(procs):
             stop(p)
     assert procs[1].returncode == 0, (tmp_path / "dashboard.log").read_text()
+
+
+# ---------------------------------------------------------------- the robot, from the publication logs
+def _publish(d: Path, behaviour: str, version: int, rules: Any) -> None:
+    with open(d / "workers" / behaviour / "published.jsonl", "a") as f:
+        f.write(json.dumps({"version": version, "behaviour": behaviour, "rules": rules.to_dict(), "fitness": 0.1}) + "\n")
+
+
+def test_the_robot_is_drawn_from_the_newest_policies_once_every_agent_published_and_at_most_so_often(
+        tmp_path: Path) -> None:
+    import numpy as np
+
+    from coevo.dashboard import render
+    from coevo.dashboard.model import View
+    from coevo.dashboard.robot import RobotPanel
+    from coevo.policy.rules import random_ruleset
+    from coevo.tasks import get_task
+
+    task = get_task("fuel")
+    d = _run_dir(tmp_path)
+    panel = RobotPanel(d, every=10.0)
+    assert not panel.update(now=0.0) and "waiting" in panel.picture.note  # nothing published yet
+    _publish(d, "tracking", 1, task.default_rules("tracking"))
+    _publish(d, "docking", 1, task.default_rules("docking"))
+    assert panel.update(now=1.0) and not panel.picture.png  # the Executive has not published: said, not drawn
+    assert "no robot yet" in panel.picture.note and "executive" in panel.picture.note
+    _publish(d, "executive", 1, random_ruleset("executive", 4, np.random.default_rng(0)))
+    assert not panel.update(now=5.0)  # ten seconds between drawings
+    assert panel.update(now=11.0) and panel.picture.versions == {"docking": 1, "executive": 1, "tracking": 1}
+    assert panel.picture.png and len(panel.picture.tables) == 3 and panel.picture.episodes >= 1
+    page = render.robot_html(View("t", robot=panel.picture))
+    assert 'class="robot"' in page and "data:image/png;base64," in page and "rules fired" in page
+    assert not panel.update(now=30.0)  # nothing newer: not drawn again
+    _publish(d, "tracking", 2, task.default_rules("tracking"))
+    assert panel.update(now=31.0) and panel.picture.versions["tracking"] == 2

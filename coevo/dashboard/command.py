@@ -32,6 +32,10 @@ def configure_dashboard(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stale", type=positive_float_arg(maximum=86400), default=120.0,
                    help="seen from its files only, seconds without a new line before a run counts as stopped (a "
                         "comparison's replicate: failed) (default 120)")
+    p.add_argument("--robot", metavar="RUN",
+                   help="draw this run's robot from its newest policies, redrawn as they are published: a run directory, "
+                        "or a run's name in the directory shown or in --runs-dir (default: the run shown, when it is one)")
+    p.add_argument("--no-robot", action="store_true", help="draw no robot (saves ~1 s of CPU per new policy)")
     p.add_argument("--key-file", metavar="FILE",
                    help="the run's key (with --run): show only its authenticated heartbeats (default: unverified)")
     from coevo.bus.flags import add_connection_args
@@ -50,6 +54,7 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
         raise RunDirError(f"--runs-dir {str(runs_dir)!r} is not a directory")
     if args.key_file and not args.run:
         raise ConfigError("--key-file is one run's key: give that run with --run")
+    robot = None if args.no_robot else _robot(args.robot, target, kind, runs_dir, args.run)
     on_bus = target is None or bool(args.connect)
     title = f"coevo dashboard: {kind} {target}" if target else "coevo dashboard" + (f": run {args.run}" if args.run else "")
 
@@ -59,13 +64,36 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     if not on_bus:
         from coevo.dashboard.server import serve
 
-        serve(Dashboard(target=target, runs_dir=runs_dir, stale=args.stale, title=title), host=args.host, port=args.port,
-              every=args.every, on_ready=ready)
+        serve(Dashboard(target=target, runs_dir=runs_dir, stale=args.stale, title=title, robot=robot), host=args.host,
+              port=args.port, every=args.every, on_ready=ready)
         return 0
-    return _on_bus(args, target, runs_dir, title, ready)
+    return _on_bus(args, target, runs_dir, title, ready, robot)
 
 
-def _on_bus(args: argparse.Namespace, target: Path | None, runs_dir: Path | None, title: str, ready: object) -> int:
+def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Path | None, run: str | None) -> object:
+    """The RobotPanel of the run ``--robot`` names (a path, or a run name under the directory shown or --runs-dir),
+    by default of the run shown when it is a single run (a run directory, or ``--run`` with ``--runs-dir``, whose
+    directory may not exist yet); None when there is none to draw."""
+    from coevo.dashboard.model import is_run
+    from coevo.dashboard.robot import RobotPanel
+
+    if name is None:
+        if kind == "run" and target is not None:
+            return RobotPanel(target)
+        return RobotPanel(runs_dir / run) if run and runs_dir is not None else None
+    places = [Path(name)]
+    if target is not None and kind in ("runs", "comparison"):
+        places.append(target / name if kind == "runs" else target / "runs" / name)
+    if runs_dir is not None:
+        places.append(runs_dir / name)
+    found = next((p for p in places if is_run(p)), None)
+    if found is None:
+        raise RunDirError(f"--robot {name!r}: no run directory there (looked at {', '.join(repr(str(p)) for p in places)})")
+    return RobotPanel(found)
+
+
+def _on_bus(args: argparse.Namespace, target: Path | None, runs_dir: Path | None, title: str, ready: object,
+            robot: object) -> int:
     from coevo.bus import keys
     from coevo.bus.session import config_from_args, open_session, sigterm_as_exit
     from coevo.dashboard.model import BusSource, Dashboard
@@ -86,7 +114,7 @@ def _on_bus(args: argparse.Namespace, target: Path | None, runs_dir: Path | None
     with open_session(conf, what="dashboard session", gate=gate) as session:
         source = BusSource(session, run=args.run, stall=args.stall)
         try:
-            serve(Dashboard(bus=source, target=target, runs_dir=runs_dir, stale=args.stale, title=title),
+            serve(Dashboard(bus=source, target=target, runs_dir=runs_dir, stale=args.stale, title=title, robot=robot),
                   host=args.host, port=args.port, every=args.every, on_ready=ready)
         finally:
             source.close()

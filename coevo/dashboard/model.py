@@ -30,7 +30,7 @@ from typing import Any
 
 from coevo.errors import RunDirError
 
-__all__ = ["Curve", "RunView", "View", "Tail", "RunFiles", "BusSource", "Dashboard", "classify_dir", "STALE"]
+__all__ = ["Curve", "RunView", "View", "Tail", "RunFiles", "BusSource", "Dashboard", "classify_dir", "is_run", "STALE"]
 
 log = logging.getLogger(__name__)
 
@@ -94,6 +94,7 @@ class View:
     runs: list[RunView] = field(default_factory=list)
     comparison: dict[str, Any] | None = None
     problems: list[str] = field(default_factory=list)
+    robot: Any = None  # coevo.dashboard.robot.RobotPicture of the run whose robot is drawn, if one is
 
     def fingerprint(self) -> str:
         """What the page shows, in short: equal fingerprints draw the same page (heartbeat ages left out)."""
@@ -104,8 +105,8 @@ class View:
                  "robots": [worker(w) for w in r.robots], "broker": r.broker, "final": r.final, "problems": r.problems,
                  "curves": {k: len(c) for k, (_, c) in r.curves.items()},
                  "external": len(r.external) if r.external else 0} for r in self.runs]
-        return json.dumps({"runs": runs, "comparison": self.comparison, "problems": self.problems}, sort_keys=True,
-                          default=str)
+        return json.dumps({"runs": runs, "comparison": self.comparison, "problems": self.problems,
+                           "robot": self.robot.key() if self.robot is not None else None}, sort_keys=True, default=str)
 
 
 # ---------------------------------------------------------------- files
@@ -198,15 +199,15 @@ def classify_dir(path: Path) -> str:
                           "directory of runs")
     if (p / "compare.json").exists():
         return "comparison"
-    if _is_run(p):
+    if is_run(p):
         return "run"
-    if any(_is_run(c) for c in _subdirs(p)):
+    if any(is_run(c) for c in _subdirs(p)):
         return "runs"
     raise RunDirError(f"{str(p)!r} is not a coevo run directory (no run.json or workers/*/worker.json), a comparison "
                       f"(no compare.json) or a directory of runs")
 
 
-def _is_run(p: Path) -> bool:
+def is_run(p: Path) -> bool:
     from coevo.rundir.layout import RunPaths
 
     paths = RunPaths(p)
@@ -442,8 +443,9 @@ class Dashboard:
     directory of runs), merged; :meth:`refresh` reads what is new and moves :attr:`version` when the page changes."""
 
     def __init__(self, *, bus: BusSource | None = None, runs_dir: Path | None = None, target: Path | None = None,
-                 stale: float = STALE, title: str = "coevo dashboard") -> None:
-        self.bus, self.stale, self.title = bus, stale, title
+                 stale: float = STALE, title: str = "coevo dashboard", robot: Any = None) -> None:
+        """``robot``: a :class:`~coevo.dashboard.robot.RobotPanel` drawing one run's robot, or None."""
+        self.bus, self.stale, self.title, self.robot = bus, stale, title, robot
         self.runs_dir = Path(runs_dir) if runs_dir else None
         self.target = Path(target) if target else None
         self.kind = classify_dir(self.target) if self.target else None
@@ -458,7 +460,7 @@ class Dashboard:
         if self.kind == "run":
             return [self.target]
         if self.kind == "runs":
-            return [d for d in _subdirs(self.target) if _is_run(d)]
+            return [d for d in _subdirs(self.target) if is_run(d)]
         if self.kind == "comparison":
             from coevo.dashboard.compare import ComparisonFiles
 
@@ -483,13 +485,18 @@ class Dashboard:
         if self.bus is not None:
             for v in self.bus.poll():
                 f = runs.get(v.run)
-                if f is None and self.runs_dir is not None and _is_run(self.runs_dir / v.run):
+                if f is None and self.runs_dir is not None and is_run(self.runs_dir / v.run):
                     f = self._files_for(self.runs_dir / v.run).read()
                 runs[v.run] = _merge(v, f) if f is not None else v
             if not runs and time.time() - self.bus.started > 5:
                 problems.append("no run seen on the bus yet (no worker token): is a run connected to this broker?")
         comparison = self._comparison.read() if self._comparison is not None else None
-        view = View(self.title, runs=[runs[k] for k in sorted(runs)], comparison=comparison, problems=problems)
+        robot = None
+        if self.robot is not None:
+            self.robot.update()
+            robot = self.robot.picture
+        view = View(self.title, runs=[runs[k] for k in sorted(runs)], comparison=comparison, problems=problems,
+                    robot=robot)
         fp = view.fingerprint()
         with self._lock:
             self.view = view

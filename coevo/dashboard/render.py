@@ -14,7 +14,7 @@ from typing import Any
 from coevo.dashboard.model import View
 
 __all__ = ["PALETTE", "problems_html", "runs_html", "workers_html", "comparison_html", "curve_lines", "behaviours", "measure_names",
-           "external_lines"]
+           "external_lines", "robot_html"]
 
 # Bokeh's Category10 (d3): distinct lines for up to ten runs, then repeated with another dash
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf")
@@ -187,3 +187,31 @@ def external_lines(view: View) -> dict[str, list[Any]]:
         cols["dash"].append(dash)
         cols["width"].append(2.0)
     return cols
+
+
+ROBOT_RULES = 12  # rules listed per rule set: the strongest that fired
+
+
+def robot_html(view: View) -> str:
+    """The drawn robot of one run: its picture (an inline PNG) and each rule set's strongest rules that fired."""
+    pic = view.robot
+    if pic is None:
+        return ""
+    versions = ", ".join(f"{_e(b)} v{v}" for b, v in pic.versions.items())
+    head = f'<h3 class="coevo">Robot of {_e(pic.run)}' + (f": {versions}" if versions else "") + "</h3>"
+    if not pic.png:
+        return _STYLE + head + f'<p class="robot-note" style="font:13px sans-serif">{_e(pic.note)}</p>'
+    what = "episode" if pic.episodes == 1 else "episodes"
+    parts = [_STYLE, head, f'<p style="font:12px sans-serif;color:#555;margin:0">{pic.episodes} {what} from seed 0, '
+             "redrawn when a newer policy is published (coevo show RUN_DIR draws the same)</p>",
+             f'<img class="robot" alt="the robot of {_e(pic.run)}" style="max-width:100%" '
+             f'src="data:image/png;base64,{pic.png}"/>']
+    for t in pic.tables:
+        fired = [r for r in t.rows if r.fired > 0]
+        rows = [[f"{_e(t.letter)}{r.number}", f"{r.strength:.2f}", str(r.fired), _e(r.text)] for r in fired[:ROBOT_RULES]]
+        more = len(fired) - len(rows)
+        parts.append(f'<h3 class="coevo">{_e(t.title)}</h3><p style="font:12px sans-serif;margin:0">'
+                     f'{len(fired)} of {len(t.rows)} rules fired' + (f"; the {len(rows)} strongest shown" if more > 0 else "")
+                     + "</p>")
+        parts.append(_table("rules", ["rule", "strength", "fired", "IF ... THEN ..."], rows, numeric={1, 2}))
+    return "".join(parts)

@@ -39,6 +39,7 @@ class _Page:
         self.runs = Div(text="", name="runs", sizing_mode="stretch_width")
         self.workers = Div(text="", name="workers", sizing_mode="stretch_width")
         self.comparison = Div(text="", name="comparison", sizing_mode="stretch_width")
+        self.robot = Div(text="", name="robot", sizing_mode="stretch_width")
         self.fitness_row = row(sizing_mode="stretch_width")
         self.measures_row = row(sizing_mode="stretch_width")
         self.external_row = row(sizing_mode="stretch_width")
@@ -46,7 +47,7 @@ class _Page:
         self.figures: dict[tuple[str, str], Any] = {}
         doc.title = dash.title
         doc.add_root(column(self.title, self.banner, self.runs, self.workers, self.fitness_row, self.measures_row,
-                            self.external_row, self.comparison, sizing_mode="stretch_width"))
+                            self.external_row, self.comparison, self.robot, sizing_mode="stretch_width"))
         self.update()
         doc.add_periodic_callback(self.update, REDRAW)
 
@@ -93,6 +94,7 @@ class _Page:
         self.runs.text = render.runs_html(view)
         self.workers.text = render.workers_html(view)
         self.comparison.text = render.comparison_html(view)
+        self.robot.text = render.robot_html(view)
         for b in render.behaviours(view):
             self._source(b, "fitness").data = render.curve_lines(view, b, "fitness")
             lines = render.curve_lines(view, b, "measures")
