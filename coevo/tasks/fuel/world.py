@@ -611,7 +611,9 @@ _WALL_DIR = np.array([180.0, 0.0, -90.0, 90.0, 0.0])  # west, east, south, north
 # checks both paths against numbers recorded before this code existed.
 
 _SENSOR_CODE = {name: i for i, name in enumerate(SENSOR_NAMES)}
-COMPILED_MIN_LANES = 1024  # numba is loaded (~0.35 s, ~90 MB) for a batch of at least this many lanes ...
+COMPILED_MIN_LANES = 256  # numba is loaded (~0.35 s, ~90 MB) for a batch of at least this many lanes (a GA's
+# population at the report's size: 50 x 9 = 450 lanes for Tracking and the Executive; 8 Tracking generations
+# 2.87 -> 1.95 CPU s once it is, docs/performance.md; the small batches of tests and coevo show stay numpy) ...
 COMPILED_WARM_MIN_LANES = 8  # ... and once loaded, used from this many on (numpy's ~300 calls a step cost more)
 _kernels: dict[str, object] = {}  # compiled functions (None without numba), made on first use
 
