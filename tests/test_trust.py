@@ -34,6 +34,7 @@ from coevo.errors import ConfigError, MessageError
 from coevo.policy import random_ruleset
 from coevo.runs.check import check_run
 from coevo.runs.local import free_port
+from coevo.rundir.layout import read_jsonl
 
 pytestmark = pytest.mark.service  # starts brokers, workers or whole runs as processes: run with --all
 
@@ -469,6 +470,54 @@ def test_genuine_messages_captured_and_replayed_from_outside_change_nothing_runn
     broker_log = (run_dir / "logs" / "broker.log").read_text()
     assert "rejected stale" in broker_log or "rejected replayed" in broker_log
     assert base64  # the sender used only zenoh, msgpack-free: bytes as captured
+
+
+def test_a_cel_runs_capability_lists_and_cases_replayed_from_outside_change_nothing(tmp_path: Path) -> None:
+    """Issue 29 item 7, the CEL kinds: a keyed ``coevo cel`` run with its case base; the raw zenoh client captures
+    its genuine messages (the robot's capability list after the failure, the learner's case, policies, statuses)
+    and puts them all again every 0.3 s until the run ends: the learner takes the one change the robot made, once;
+    the replays are counted (replayed or stale) by the learner and the robot; the run checks and replays."""
+    run_dir = tmp_path / "rc"
+    with open(tmp_path / "cel.out", "wb") as f:
+        p = subprocess.Popen([sys.executable, "-m", "coevo", "cel", "--run", "rc", "--root", str(tmp_path), "--quiet",
+                              "--seed", "2", "--generations", "40", "--fail", "3:front,front_right,right", "--case-base",
+                              "--population", "16", "--episodes", "20", "--ga", "best_episodes=20"],
+                             stdout=f, stderr=subprocess.STDOUT)
+    cap = tmp_path / "captured.jsonl"
+    procs = [p]
+    try:
+        endpoint = poll(lambda: (run_dir / "run.json").exists() and json.loads((run_dir / "run.json").read_text())
+                        .get("endpoint"), 60, "run.json with the broker's endpoint")
+        procs.append(_outsider(tmp_path, "capture", endpoint, "rc", cap, 300))
+        kinds = lambda: {k.split("/")[2] for k, _ in (json.loads(x) for x in cap.read_text().splitlines())} \
+            if cap.exists() else set()  # noqa: E731
+        poll(lambda: {"capabilities", "case", "policy"} <= kinds() or p.poll() is not None, 180,
+             lambda: f"a capability list, a case and a policy captured: {kinds()}")
+        assert p.poll() is None, "the run ended before anything could be replayed: make it longer"
+        (tmp_path / "captured.jsonl.stop").write_text("")
+        procs[1].wait(timeout=30)
+        (tmp_path / "captured.jsonl.stop").unlink()
+        flood = _outsider(tmp_path, "replay", endpoint, "rc", cap, 600)
+        procs.append(flood)
+        time.sleep(1.0)
+        assert p.poll() is None, "the run ended before the replays began: make it longer"
+        assert p.wait(timeout=600) == 0, (tmp_path / "cel.out").read_text()[-3000:]
+        (tmp_path / "captured.jsonl.stop").write_text("")
+        flood.wait(timeout=30)
+        assert int(flood.stdout.read().split()[-1]) > 0  # it did put them
+    finally:
+        for q in procs:
+            if q.poll() is None:
+                q.kill()
+                q.wait()
+    learner = json.loads((run_dir / "workers" / "door" / "done.json").read_text())
+    robot = json.loads((run_dir / "execution" / "done.json").read_text())
+    assert learner["finished"] and robot["finished"]
+    assert len(read_jsonl(run_dir / "workers" / "door" / "changes.jsonl")) == robot["changes"] == 1  # taken once
+    for who, counts in (("learner", learner["rejected"]), ("robot", robot["rejected"])):
+        assert counts.get("replayed", 0) + counts.get("stale", 0) > 0, (who, counts)
+    check = check_run(run_dir)
+    assert check.ok, check.problems
 
 
 # ---------------------------------------------------------------------------- runs started by hand (docs/trust.md)
