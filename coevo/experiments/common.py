@@ -17,7 +17,24 @@ from typing import Any
 from coevo.errors import RunDirError
 from coevo.replicates.replicate import Replicate
 
-__all__ = ["prepare_out", "open_out", "run_with_progress"]
+__all__ = ["held_spec", "prepare_out", "open_out", "run_with_progress"]
+
+
+def held_spec(out: Path, marker: str, mine: dict[str, Any], *, what: str = "experiment") -> dict[str, Any] | None:
+    """The settings an earlier run of this command left in ``out/marker`` (None: none there); a RunDirError naming
+    ``--out`` when they cannot be read or are not ``mine`` (another experiment, or other settings)."""
+    f = out / marker
+    if not f.exists():
+        return None
+    try:
+        held = json.loads(f.read_text())["spec"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise RunDirError(f"--out {str(out)!r}: {marker} cannot be read ({exc}); choose another --out") from exc
+    if held != mine:
+        diff = sorted(k for k in set(held) | set(mine) if held.get(k) != mine.get(k))
+        raise RunDirError(f"--out {str(out)!r} holds a different {what} (differs in: {', '.join(diff)}); choose "
+                          "another --out or repeat the original settings with --resume")
+    return held
 
 
 def prepare_out(out: Path, marker: str, spec: dict[str, Any], *, resume: bool) -> None:
@@ -29,16 +46,7 @@ def prepare_out(out: Path, marker: str, spec: dict[str, Any], *, resume: bool) -
     mine = json.loads(json.dumps(spec))
     if out.exists() and not out.is_dir():
         raise RunDirError(f"--out {str(out)!r} is a file, not a directory")
-    held = None
-    if f.exists():
-        try:
-            held = json.loads(f.read_text())["spec"]
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise RunDirError(f"--out {str(out)!r}: {marker} cannot be read ({exc}); choose another --out") from exc
-    if held is not None and held != mine:
-        diff = sorted(k for k in set(held) | set(mine) if held.get(k) != mine.get(k))
-        raise RunDirError(f"--out {str(out)!r} holds a different experiment (differs in: {', '.join(diff)}); choose "
-                          "another --out or repeat the original settings with --resume")
+    held = held_spec(out, marker, mine)
     if resume and held is None:
         raise RunDirError(f"--resume: {str(out)!r} holds no such experiment (no {marker})")
     if not resume and out.is_dir() and any(out.iterdir()):

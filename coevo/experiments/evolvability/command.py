@@ -60,27 +60,18 @@ def _prepare(out: Path, spec: Any, *, resume: bool) -> None:
     import json
 
     from coevo.errors import RunDirError
+    from coevo.experiments.common import held_spec
     from coevo.rundir.layout import ensure_dir, write_json
 
-    marker = out / "evolvability.json"
-    held = None
-    if marker.exists():
-        try:
-            held = json.loads(marker.read_text())["spec"]
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise RunDirError(f"{marker} cannot be read ({exc}); choose another --out") from exc
     mine = json.loads(json.dumps(spec.as_dict()))
-    if held is not None and held != mine:
-        diff = sorted(k for k in set(held) | set(mine) if held.get(k) != mine.get(k))
-        raise RunDirError(f"--out {str(out)!r} holds a different grid (differs in: {', '.join(diff)}); choose another "
-                          "--out or repeat the original settings with --resume")
+    held = held_spec(out, "evolvability.json", mine, what="grid")
     if held is not None and not resume and (out / "landscapes").exists():
         raise RunDirError(f"--out {str(out)!r} already holds this grid; add --resume to continue it")
     if resume and held is None:
         raise RunDirError(f"--resume: {str(out)!r} holds no grid (no evolvability.json)")
     ensure_dir(out, what="--out")
     if held is None:
-        write_json(marker, {"spec": mine, "created": time.time()})
+        write_json(out / "evolvability.json", {"spec": mine, "created": time.time()})
 
 
 def _number(text: str) -> float | str:
