@@ -11,6 +11,7 @@ worker, the check and the replay name no kind.
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -53,28 +54,21 @@ def _cel_worker() -> type[Worker]:
     return CelLearner
 
 
-def _cel_curve(*args: Any) -> Iterator[dict[str, Any]]:
-    from coevo.cel_service.audit import learner_curve
+def _later(module: str, name: str) -> Callable[..., Any]:
+    """``module.name``, imported when first called (a kind's code loads only where that kind is met)."""
+    def call(*args: Any) -> Any:
+        return getattr(importlib.import_module(module), name)(*args)
 
-    return learner_curve(*args)
-
-
-def _cel_check(run: RunPaths, published: Published) -> tuple[list[str], dict[str, Any]]:
-    from coevo.cel_service.audit import check_execution
-
-    return check_execution(run, published)
+    return call
 
 
-def _cel_replay(run: RunPaths) -> tuple[str, int, int | None, str]:
-    from coevo.cel_service.audit import replay_execution
-
-    return replay_execution(run)
-
+_AUDIT = "coevo.cel_service.audit"
 
 KINDS: dict[str, LearnerKind] = {
     "coevolution": LearnerKind("coevolution", _coevolution_worker),
-    "cel": LearnerKind("cel", _cel_worker, curve=_cel_curve, present=lambda run: run.execution.meta_json.exists(),
-                       check_run=_cel_check, replay_run=_cel_replay),
+    "cel": LearnerKind("cel", _cel_worker, curve=_later(_AUDIT, "learner_curve"),
+                       present=lambda run: run.execution.meta_json.exists(),
+                       check_run=_later(_AUDIT, "check_execution"), replay_run=_later(_AUDIT, "replay_execution")),
 }
 
 
