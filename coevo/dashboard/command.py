@@ -86,6 +86,7 @@ def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Pa
         places.append(target / name if kind == "runs" else target / "runs" / name)
     if runs_dir is not None:
         places.append(runs_dir / name)
+    places = list(dict.fromkeys(places))  # an absolute RUN is the same place under every directory
     found = next((p for p in places if is_run(p)), None)
     if found is None:
         raise RunDirError(f"--robot {name!r}: no run directory there (looked at {', '.join(repr(str(p)) for p in places)})")
