@@ -92,6 +92,11 @@ def main() -> None:
     ap.add_argument("--starts", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=7)
     args = ap.parse_args()
+    missing = [str(r) for r in args.runs if not (r / "best.rules").is_file() or not (r / "curve.csv").is_file()]
+    if missing:
+        ap.error(f"not a finished coevo learn run directory (no best.rules or curve.csv): {', '.join(missing)}")
+    if args.starts < 1:
+        ap.error(f"--starts must be at least 1, got {args.starts}")
     total: Counter[str] = Counter()
     spots = []
     print("| run | " + " | ".join(KINDS) + " | dock hits: axis, |offset|, |angle| | curve g10/20/30/40/50 |")

@@ -13,7 +13,8 @@ from coevo.tasks.fuel.evaluate import FuelEvaluator as Evaluator
 from coevo.tasks.fuel.settings import WorldConfig
 
 FUEL = get_task("fuel")
-from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise
+from coevo.ga.engine import _narrow_in
+from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise, split
 from coevo.policy import RuleSet, parse_ruleset, random_ruleset
 from coevo.policy.rules import interval_width
 from coevo.policy.strength import update_strengths
@@ -86,6 +87,46 @@ def test_specialise_with_recency_centres_on_late_decisions(rng) -> None:
         assert new is not None
         centres.append((int(new.lo[0, 0]) + int(new.hi[0, 0])) / 2)
     assert np.mean(centres) < 8  # the last decisions (small range bins) dominate
+
+
+def test_split_narrows_a_rule_to_where_it_paid(rng) -> None:
+    rs = parse_ruleset("IF bearing = [340, 20] THEN SET turn = 0 AND speed = 16 (strength 0.4)", "tracking")
+    far = [([r, 0, 0, 0, 0], 0, True, 0) for r in (20, 15, 10)]  # episode 0 pays 0.9: fired far out
+    crash = [([r, 0, 0, 0, 0], 0, True, 1) for r in (20, 3, 1)]  # episode 1 pays 0: still fired close in
+    got = split(rs, _exp([1, 1], [0.9, 0.0], far + crash, 5), rng)
+    assert got is not None
+    r, new = got
+    assert r == 0 and new.lo[0, 0] == 4 and new.hi[0, 0] == rs.hi[0, 0]  # range cut after bin 3: [20, 150] inches
+    assert (new.lo[0, 1:] == rs.lo[0, 1:]).all() and (new.hi[0, 1:] == rs.hi[0, 1:]).all()
+    assert (new.action == rs.action).all()
+    assert new.strength[0] == pytest.approx(0.45)  # both episodes fired on the kept side (bin 20)
+
+
+def test_split_needs_a_rule_that_fired_where_it_paid_and_where_it_failed(rng) -> None:
+    rs = parse_ruleset("IF ANY THEN SET turn = 0 AND speed = 16 (strength 0.4)\nIF ANY THEN SET turn = 8 AND speed = 4 (strength 0.4)", "tracking")
+    paid = [([r, 0, 0, 0, 0], 0, True, 0) for r in (20, 15)]
+    failed = [([r, 0, 0, 0, 0], 1, True, 1) for r in (3, 1)]
+    assert split(rs, _exp([1, 2], [0.9, 0.0], paid + failed, 5), rng) is None  # each rule fired in one kind only
+    assert split(rs, _exp([1, 1], [0.9, 0.5], paid + [(s, 0, f, e) for s, _, f, e in failed], 5), rng) is None  # no failure
+    same = [([20, 0, 0, 0, 0], 0, True, e) for e in (0, 1)]
+    assert split(rs, _exp([1, 1], [0.9, 0.0], same, 5), rng) is None  # nothing tells the two apart
+
+
+def test_a_split_rule_is_narrowed_in_place_in_the_child() -> None:
+    parent = parse_ruleset("IF ANY THEN SET turn = 0 AND speed = 16 (strength 0.4)\nIF ANY THEN SET turn = 8 AND speed = 4 (strength 0.3)", "tracking")
+    narrowed = parse_ruleset("IF range = [20, 150] THEN SET turn = 0 AND speed = 16 (strength 0.45)", "tracking")
+    child, extra = _narrow_in(parent, parent, 0, narrowed)
+    assert extra == [] and len(child) == 2 and child.take([0]) == narrowed and child.take([1]) == parent.take([1])
+    other = parent.take([1])  # crossover left the child without the rule: the narrowed copy joins it
+    child, extra = _narrow_in(other, parent, 0, narrowed)
+    assert child == other and len(extra) == 1 and extra[0] == narrowed
+
+
+def test_docking_splits_rules_by_default_the_others_do_not() -> None:
+    assert FUEL.split_rate("docking", GAConfig()) == 0.5
+    assert FUEL.split_rate("tracking", GAConfig()) == FUEL.split_rate("executive", GAConfig()) == 0.0
+    assert FUEL.split_rate("docking", GAConfig(split_rate=0.0)) == 0.0
+    assert FUEL.split_rate("tracking", GAConfig(split_rate=0.2)) == 0.2
 
 
 def test_partial_cover_widens_the_rule_that_fired(rng) -> None:

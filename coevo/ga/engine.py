@@ -32,7 +32,7 @@ from coevo.config import GAConfig
 from coevo.errors import ConfigError
 from coevo.ga.evaluator import Evaluation, Partners, Problem, Tick
 from coevo.ga.mutation import CONTROL_LEVELS, MutationModel, model_from_config
-from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise, trim
+from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise, split, trim
 from coevo.policy.rules import RuleSet, random_ruleset
 from coevo.policy.schema import schema
 from coevo.policy.strength import update_strengths
@@ -83,6 +83,7 @@ class GA:
         self.mutation = mutation or model_from_config(ga)
         self.evaluator = task.evaluator(self.behaviour, world, ga)
         self.keep_evaluated, self.best_candidates = task.selection(self.behaviour, ga)
+        self.split_rate = task.split_rate(self.behaviour, ga)
         learnable = task.learnable_sensors(self.behaviour, ga)
         self._unusable = None if learnable is None or learnable.all() else ~learnable
         self._use = None if self._unusable is None else ~self._unusable  # operators draw only over these sensors
@@ -309,7 +310,24 @@ class GA:
             r = cover(parent, exp, rng, partial=cfg.cover_partial)
             if r is not None:
                 extra.append(r)
+        if self.split_rate and rng.random() < self.split_rate:
+            got = split(parent, exp, rng, self._use)
+            if got is not None:
+                child, narrowed = _narrow_in(child, parent, *got)
+                extra += narrowed
         if extra:
             child = RuleSet.concat(child.behaviour, [child, *extra])
         child = self._mutate(child, self.generation_no, gene)
         return self._usable(trim(child, cfg.max_rules))
+
+
+def _narrow_in(child: RuleSet, parent: RuleSet, r: int, narrowed: RuleSet) -> tuple[RuleSet, list[RuleSet]]:
+    """``child`` with its copies of ``parent``'s rule ``r`` narrowed (:func:`~coevo.ga.operators.split`) in place,
+    or unchanged with ``[narrowed]`` to add where crossover left it none."""
+    same = ((child.lo == parent.lo[r]).all(axis=1) & (child.hi == parent.hi[r]).all(axis=1)
+            & (child.action == parent.action[r]).all(axis=1))
+    if not same.any():
+        return child, [narrowed]
+    lo, hi, strength = child.lo.copy(), child.hi.copy(), child.strength.copy()
+    lo[same], hi[same], strength[same] = narrowed.lo[0], narrowed.hi[0], narrowed.strength[0]
+    return child.replace(lo=lo, hi=hi, strength=strength), []

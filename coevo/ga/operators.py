@@ -10,8 +10,10 @@ Each operator is a small function of its inputs and an ``np.random.Generator``:
   one new rule for an offspring: :func:`specialise` (a weak, general rule that fired
   in a high-payoff episode gets a narrowed copy around the sensor values it fired
   on, strength = that payoff), :func:`generalise` (a strong rule gets a widened
-  copy), :func:`cover` (a state no rule matched gets a rule of its own); and
-  :func:`delete`, which drops a rule that never fired.
+  copy), :func:`cover` (a state no rule matched gets a rule of its own),
+  :func:`split` (a rule that fired both where episodes paid and where they failed is
+  narrowed on the sensor that tells the two apart); and :func:`delete`, which drops a
+  rule that never fired.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ __all__ = [
     "specialise",
     "generalise",
     "cover",
+    "split",
     "delete",
     "trim",
 ]
@@ -276,6 +279,58 @@ def _widened_to(rs: RuleSet, r: int, v: np.ndarray) -> RuleSet:
         else:
             lo[j], hi[j] = min(a, x), max(b, x)
     return RuleSet(rs.behaviour, lo[None], hi[None], rs.action[r][None], rs.strength[r][None])
+
+
+def split(
+    rs: RuleSet, exp: Experience, rng: np.random.Generator, usable: np.ndarray | None = None, *, min_gain: float = 0.2,
+) -> tuple[int, RuleSet] | None:
+    """``(r, narrowed)``: rule ``r`` of ``rs``, over-general by ``exp``, and its copy narrowed to where it paid; or None.
+
+    *(ours)* A rule that fired both in high-payoff episodes and in zero-payoff ones may be right in one
+    place and wrong in another (Docking: "straight ahead at 12 ips" far from the dock and just before
+    it).  One such rule is drawn; of every ``usable`` sensor and every cut inside the rule's interval,
+    the one whose side holds the largest share of the rule's high-payoff decisions beyond its share of
+    the zero-payoff ones wins (by at least ``min_gain``), and that side becomes the copy's interval on
+    the sensor.  The copy's strength is the mean payoff of the episodes it fired in on that side.
+    """
+    if exp.payoff.size == 0 or exp.rule.size == 0:
+        return None
+    high, zero = exp.high, exp.payoff <= 0
+    if not high.any() or not zero.any():
+        return None
+    in_high, in_zero = high[exp.episode], zero[exp.episode]  # per decision
+    both = np.intersect1d(exp.rule[in_high], exp.rule[in_zero])
+    if both.size == 0:
+        return None
+    r = int(rng.choice(both))
+    mine = exp.rule == r
+    states, h, z = exp.bins[mine].astype(np.int64), in_high[mine], in_zero[mine]
+    width = interval_width(rs)[r]
+    cols = range(rs.schema.n_sensors) if usable is None else np.flatnonzero(usable)
+    best_gain, best = min_gain, None
+    for j in cols:
+        w = int(width[j])
+        if w < 2:
+            continue
+        pos = (states[:, j] - int(rs.lo[r, j])) % rs.schema.sensors[j].bins  # place inside the interval
+        low_h = np.bincount(pos[h], minlength=w)[: w - 1].cumsum() / h.sum()  # share at or below each cut
+        low_z = np.bincount(pos[z], minlength=w)[: w - 1].cumsum() / z.sum()
+        gain = low_h - low_z  # > 0: keep the low side; < 0: the high side
+        c = int(np.argmax(np.abs(gain)))
+        if abs(gain[c]) > best_gain:
+            best_gain, best = abs(gain[c]), (int(j), c, bool(gain[c] > 0))
+    if best is None:
+        return None
+    j, c, low_side = best
+    bins = rs.schema.sensors[j].bins
+    lo, hi = rs.lo[r].astype(np.int64), rs.hi[r].astype(np.int64)
+    pos = (states[:, j] - lo[j]) % bins
+    if low_side:
+        hi[j], kept = (lo[j] + c) % bins, pos <= c
+    else:
+        lo[j], kept = (lo[j] + c + 1) % bins, pos > c
+    strength = exp.payoff[np.unique(exp.episode[mine][kept])].mean()
+    return r, RuleSet(rs.behaviour, lo[None], hi[None], rs.action[r][None], np.array([float(np.clip(strength, 0, 1))]))
 
 
 def delete(rs: RuleSet, idle: np.ndarray) -> tuple[RuleSet, np.ndarray]:

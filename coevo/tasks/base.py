@@ -83,6 +83,11 @@ class Task(ABC):
         (None) off."""
         return bool(ga.keep_evaluated), int(ga.best_candidates or 0)
 
+    def split_rate(self, behaviour: str, ga: GAConfig) -> float:
+        """The chance per offspring of :func:`~coevo.ga.operators.split` for a GA of ``behaviour``: the settings',
+        where they leave it to the task (None) 0."""
+        return float(ga.split_rate or 0.0)
+
     def initial_model(self, behaviour: str, ga: GAConfig, rng: np.random.Generator) -> RuleSet:
         """How a partner that has not published yet is modelled: its initial behaviour."""
         default = self.initial_rules(behaviour, ga) if ga.initial == "default" else None
