@@ -368,29 +368,13 @@ class BatchWorld:
         return {k: out[k] for k in names}
 
     def _sense_bins(self, sch: Schema, lanes: np.ndarray | None) -> np.ndarray:
-        """``sch.discretise(self._observe(sch.sensor_names, lanes))``, the same (n, S) uint8 bins: compiled
-        in one pass per lane for big batches (see :func:`.kernels.sense_bins`), else numpy's."""
-        m = self.n if lanes is None else len(lanes)
-        kernels = compiled_loops(m)
-        if kernels is None:
-            return sch.discretise(self._observe(sch.sensor_names, lanes))
-        names = sch.sensor_names
-        pick = (lambda a: a) if lanes is None else (lambda a: a[lanes])
-        rx, ry, rh, tx, ty = pick(self.rx), pick(self.ry), pick(self.rh), pick(self.tx), pick(self.ty)
-        th = pick(self.th) if "heading" in names else rx
-        fuel = pick(self.fuel) if "fuel" in names else rx
-        t_dir = q_dir = d_dir = rx
-        if {"range", "bearing", "heading", "target_bearing"} & set(names):
-            t_dir = np.degrees(np.arctan2(ty - ry, tx - rx))
-        if "bearing" in names:
-            qx = np.clip(rx, self.dock_x0, self.dock_x1)
-            qy = np.minimum(ry, self.cfg.dock_depth)
-            q_dir = np.degrees(np.arctan2(qy - ry, qx - rx))
-        if "dock_bearing" in names:
-            d_dir = np.degrees(np.arctan2(self.dock_point[1] - ry, self.dock_point[0] - rx))
-        out = np.empty((len(names), m), dtype=np.uint8)
-        kernels.sense_bins(sensor_tables(sch), rx, ry, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir, self._geom, out)
-        return out.T
+        """``sch.discretise(self._observe(sch.sensor_names, lanes))``: the (n, S) uint8 bins of ``lanes`` (None: all).
+        (run_lanes' compiled steps sense in :func:`.kernels.decide_lanes`.)"""
+        return sch.discretise(self._observe(sch.sensor_names, lanes))
+
+    def sensing_state(self) -> tuple[np.ndarray, ...]:
+        """What :func:`.kernels.decide_lanes` reads of the world: rx, ry, rh, tx, ty, th, fuel, geometry."""
+        return self.rx, self.ry, self.rh, self.tx, self.ty, self.th, self.fuel, self._geom
 
     def min_dock_steps(self, lanes: np.ndarray) -> np.ndarray:
         """Estimated fewest steps to dock from now (the report's m): turn to face the dock at full rate, drive
@@ -679,9 +663,10 @@ def compiled_loops(lanes: int) -> ModuleType | None:
 
 
 def _sense_kernel():
-    """The compiled sensing function, or None without numba (then numpy's observe + discretise)."""
+    """The compiled sensing (and deciding) of run_lanes' steps, or None without numba (then numpy's observe +
+    discretise)."""
     kernels = _kernels()
-    return None if kernels is None else kernels.sense_bins
+    return None if kernels is None else kernels.decide_lanes
 
 
 def _as_lanes(lanes: list[int]) -> np.ndarray:
