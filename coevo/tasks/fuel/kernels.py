@@ -25,26 +25,26 @@ import numpy as np
 __all__ = ["move", "reach", "assign_probes", "events", "active_lanes", "decide_lanes", "tally"]
 
 _jit = numba.njit(cache=True, nogil=True)
+_inline = numba.njit(cache=True, nogil=True, inline="always")  # helpers: numba inlines them into their callers
 _ONE = np.uint64(1)
 _ALL = np.uint64(0xFFFF_FFFF_FFFF_FFFF)
 _TWO_PI = 2 * np.pi
 _INV_TWO_PI = 0.5 / np.pi
 
-# Sensor codes: the index of each name in world.SENSOR_NAMES.
-# Geometry (BatchWorld._geom): arena, dock x0, dock x1, dock depth, robot radius, Target radius, dock point x, y.
+# A sensor's code is the index of its name in world.SENSOR_NAMES (world.sensor_tables); the geometry (``geom``,
+# BatchWorld._geom): arena, dock x0, dock x1, dock depth, robot radius, Target radius, dock point x, y.
 
 
 # ----------------------------------------------------------------- sensing (BatchWorld._observe + Schema.discretise)
-@_jit
+@_inline
 def _wrap(a):  # pragma: no cover - compiled by numba
     """world.wrap_deg of one angle."""
     return a - 360.0 * np.floor(a * (1.0 / 360.0))
 
 
-@_jit
-def _range_bearing(code, x, y, h, t_dist, t_dir, q_dir, geom):  # pragma: no cover - compiled by numba
+@_inline
+def _range_bearing(code, x, y, h, t_dist, t_dir, q_dir, arena, x0, x1, depth, r, tr):  # pragma: no cover
     """The ``range`` (code 0) or ``bearing`` (1) of the nearest object: ``_observe``'s gaps, first of equals winning."""
-    arena, x0, x1, depth, r, tr = geom[0], geom[1], geom[2], geom[3], geom[4], geom[5]
     qx = min(max(x, x0), x1)
     qy = min(y, depth)
     gx = x - qx
@@ -73,56 +73,50 @@ def _range_bearing(code, x, y, h, t_dist, t_dir, q_dir, geom):  # pragma: no cov
     return _wrap(od - h)
 
 
-@_jit
-def _sense(code, x, y, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir, geom):  # pragma: no cover - compiled by numba
-    """One raw sensor value of one lane (``t_dir``, ``q_dir``, ``d_dir``: numpy's arctan2 in degrees)."""
+@_inline
+def _sense_lane(sensors, x, y, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir, geom, out):  # pragma: no cover
+    """The bins of every sensor of one lane into ``out`` (S,): raw values as ``_observe`` computes them
+    (``t_dir``, ``q_dir``, ``d_dir``: numpy's arctan2 in degrees), binned as ``Sensor.discretise`` does."""
+    codes, inv_width, nbins, circular, origin = sensors
+    arena, x0, x1, depth, r, tr, dock_x, dock_y = geom[0], geom[1], geom[2], geom[3], geom[4], geom[5], geom[6], geom[7]
     h = np.degrees(rh)
     dx = tx - x
     dy = ty - y
     t_dist = np.sqrt(dx * dx + dy * dy)
-    if code <= 1:  # range, bearing
-        return _range_bearing(code, x, y, h, t_dist, t_dir, q_dir, geom)
-    if code == 2:  # heading
-        return _wrap(np.degrees(th) - t_dir)
-    if code == 3:  # target_range
-        return t_dist
-    if code == 4:  # target_bearing
-        return _wrap(t_dir - h)
-    if code == 5:  # dock_range
-        ddx = geom[6] - x
-        ddy = geom[7] - y
-        return np.sqrt(ddx * ddx + ddy * ddy)
-    if code == 6:  # dock_bearing
-        return _wrap(d_dir - h)
-    if code == 7:  # dock_orientation
-        return _wrap(h - -90.0)
-    if code == 8:  # fuel
-        return 100.0 * min(max(fuel, 0.0), 1.0)
-    if code == 9:  # dock_axis (dock_frame.observe)
-        return y - (geom[7] + geom[4])
-    return x - geom[6]  # dock_offset
-
-
-@_jit
-def _bin(v, inv_width, nbins, circular, origin):  # pragma: no cover - compiled by numba
-    """Sensor.discretise of one value."""
-    if origin != 0.0:
-        v = v - origin
-    if circular:
-        k = int((v - 360.0 * np.floor(v * (1.0 / 360.0))) * inv_width)
-        if k >= nbins:
-            k -= nbins
-        return k
-    return int(min(max(v * inv_width, 0.0), nbins - 1.0))
-
-
-@_jit
-def _sense_lane(sensors, x, y, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir, geom, out):  # pragma: no cover
-    """The bins of every sensor of one lane into ``out`` (S,)."""
-    codes, inv_width, nbins, circular, origin = sensors
     for j in range(codes.shape[0]):
-        v = _sense(codes[j], x, y, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir, geom)
-        out[j] = _bin(v, inv_width[j], nbins[j], circular[j], origin[j])
+        code = codes[j]
+        if code <= 1:  # range, bearing
+            v = _range_bearing(code, x, y, h, t_dist, t_dir, q_dir, arena, x0, x1, depth, r, tr)
+        elif code == 2:  # heading
+            v = _wrap(np.degrees(th) - t_dir)
+        elif code == 3:  # target_range
+            v = t_dist
+        elif code == 4:  # target_bearing
+            v = _wrap(t_dir - h)
+        elif code == 5:  # dock_range
+            ddx = dock_x - x
+            ddy = dock_y - y
+            v = np.sqrt(ddx * ddx + ddy * ddy)
+        elif code == 6:  # dock_bearing
+            v = _wrap(d_dir - h)
+        elif code == 7:  # dock_orientation
+            v = _wrap(h - -90.0)
+        elif code == 8:  # fuel
+            v = 100.0 * min(max(fuel, 0.0), 1.0)
+        elif code == 9:  # dock_axis (dock_frame.observe)
+            v = y - (dock_y + r)
+        else:  # dock_offset
+            v = x - dock_x
+        # Sensor.discretise
+        if origin[j] != 0.0:
+            v = v - origin[j]
+        if circular[j]:
+            k = int((v - 360.0 * np.floor(v * (1.0 / 360.0))) * inv_width[j])
+            if k >= nbins[j]:
+                k -= nbins[j]
+        else:
+            k = int(min(max(v * inv_width[j], 0.0), nbins[j] - 1.0))
+        out[j] = k
 
 
 # ----------------------------------------------------------------- stepping (BatchWorld.step)
@@ -226,7 +220,7 @@ def assign_probes(near, gx, gy, lane_probe, probe_lane, probe_row, io):  # pragm
             io[probe_row[q], 1] = gy[i]
 
 
-@_jit
+@_inline
 def _docking_accepted(x, y, rh, speed, c):  # pragma: no cover - compiled by numba
     """BatchWorld._docking_accepted for one lane: the dock's front face, head-on within the angle, slowly."""
     on_front = y >= c[1] and x >= c[2] and x <= c[3]
@@ -313,7 +307,16 @@ def active_lanes(active, group, n_groups, slots, rx, ry, tx, ty, geom, idx, boun
     return m
 
 
-@_jit
+@_inline
+def _bit_length(n):  # pragma: no cover - compiled by numba
+    """int.bit_length of a small positive n."""
+    k = 0
+    while n >> k:
+        k += 1
+    return k
+
+
+@_inline
 def _lowest_bit(mask):  # pragma: no cover - compiled by numba
     """matcher.lowest_bit of one uint64 (64 for 0, as there)."""
     k = 0
@@ -322,31 +325,34 @@ def _lowest_bit(mask):  # pragma: no cover - compiled by numba
     return k
 
 
-@_jit
-def _strongest(flat, base, B, valid, bins):  # pragma: no cover - compiled by numba
+@_inline
+def _strongest(flat, base, B, valid, bins, planes):  # pragma: no cover - compiled by numba
     """CompiledPolicies.decide with conflict='strongest' for one situation: (rank, full match).  The rule
-    matching every condition, else the one satisfying the most, ties (and matches) to the strongest."""
+    matching every condition, else (CompiledPolicies._best_partial) the one satisfying the most, counted
+    bit-sliced in ``planes`` (bit_length(S) words), the strongest of equals in both cases."""
     match = _ALL
     for s in range(bins.shape[0]):
         match &= flat[base + s * B + bins[s]]
     if match != 0:
         return _lowest_bit(match), True
-    best, most = 64, -1
-    for k in range(64):
-        bit = np.uint64(k)
-        if ((valid >> bit) & _ONE) == 0:
-            continue
-        n = 0
-        for s in range(bins.shape[0]):
-            if (flat[base + s * B + bins[s]] >> bit) & _ONE:
-                n += 1
-        if n > most:
-            best, most = k, n
-    return best, False
+    planes[:] = 0
+    for s in range(bins.shape[0]):
+        carry = flat[base + s * B + bins[s]] & valid
+        for b in range(planes.shape[0]):
+            nxt = planes[b] & carry
+            planes[b] ^= carry
+            carry = nxt
+    cand = valid
+    for b in range(planes.shape[0] - 1, -1, -1):
+        narrowed = cand & planes[b]
+        if narrowed != 0:
+            cand = narrowed
+    return _lowest_bit(cand), False
 
 
 @_jit
-def decide_lanes(lanes, a0, m, ang, slots, world, sensors, policy, turn, speed, logged, trace, k, t):  # pragma: no cover
+def decide_lanes(lanes, a0, m, ang, slots, world, sensors, policy, turn, speed, logged, trace, k,
+                 t):  # pragma: no cover - compiled by numba
     """runner._decide with conflict='strongest' for one controller's active ``lanes`` (positions ``a0``...
     in :func:`active_lanes`' order): sense, match, set the commands, and if ``logged`` (the learner) write
     step ``t`` of episode ``k`` into its ``trace``: bins, rule, full (``runner.Trace``'s arrays) and fired.
@@ -358,7 +364,9 @@ def decide_lanes(lanes, a0, m, ang, slots, world, sensors, policy, turn, speed, 
     rx, ry, rh, tx, ty, th, fuel, geom = world
     flat, stride, B, valid, lane_policy, turn_of, speed_of, rank_to_rule = policy
     tr_bins, tr_rule, tr_full, fired = trace
-    bins = np.empty(sensors[0].shape[0], dtype=np.uint8)
+    S = sensors[0].shape[0]
+    bins = np.empty(S, dtype=np.uint8)
+    planes = np.empty(_bit_length(S), dtype=np.uint64)
     for j in range(lanes.shape[0]):
         i = lanes[j]
         pos = a0 + j
@@ -367,7 +375,7 @@ def decide_lanes(lanes, a0, m, ang, slots, world, sensors, policy, turn, speed, 
         d_dir = np.degrees(ang[slots[2] * m + pos]) if slots[2] >= 0 else 0.0
         _sense_lane(sensors, rx[i], ry[i], rh[i], tx[i], ty[i], th[i], fuel[i], t_dir, q_dir, d_dir, geom, bins)
         p = lane_policy[i]
-        rank, full = _strongest(flat, p * stride, B, valid[p], bins)
+        rank, full = _strongest(flat, p * stride, B, valid[p], bins, planes)
         turn[i] = turn_of[p * 64 + rank]
         speed[i] = speed_of[p * 64 + rank]
         if logged:

@@ -167,9 +167,10 @@ class BatchWorld:
         t_step = c.target_speed * c.step_seconds
         self._walk = np.array([c.target_avoid, lo, c.arena - lo, c.dock_depth + lo + c.target_avoid / 2, c.arena / 2,
                                c.dock_width, t_step, self._centre[0], self._centre[1]], dtype=np.float64)
-        self._event_consts = np.array([c.robot_radius + c.target_radius, c.dock_depth, self.dock_x0, self.dock_x1,
-                                       c.dock_max_angle, c.dock_max_speed, self._centre[0], t_step, c.fuel_idle,
-                                       c.fuel_per_ips, c.fuel_per_dps, c.tracking_min, c.tracking_max], dtype=np.float64)
+        self._event_consts = np.array([
+            c.robot_radius + c.target_radius, c.dock_depth, self.dock_x0, self.dock_x1, c.dock_max_angle,
+            c.dock_max_speed, self._centre[0], t_step, c.fuel_idle, c.fuel_per_ips, c.fuel_per_dps, c.tracking_min,
+            c.tracking_max], dtype=np.float64)
         self._idx = np.empty(n, dtype=np.int64)  # the active lanes of a step
         self._blocked = np.empty(n, dtype=np.int64)  # ... the lanes whose Target turns away, and its arctan2's
         self._bdy, self._bdx, self._bang = np.empty(n), np.empty(n), np.empty(n)  # arguments and result
@@ -457,7 +458,7 @@ class BatchWorld:
         m, nb = kernels.move(active, speed, turn, self.speed, self.turn, dt, state, self._walk, target_noise,
                              self._idx, self._blocked, self._bdy, self._bdx)
         if nb:  # Targets turning away from a wall or the dock, towards the centre: numpy's arctan2
-            self._touching = set()  # (as the compiled step always did; the numpy step does not: see docs/performance.md)
+            self._touching = set()  # as the compiled step always did (the numpy step does not: docs/performance.md)
             np.arctan2(self._bdy[:nb], self._bdx[:nb], out=self._bang[:nb])
         self._sense_contacts(dt, kernels)
         wall, dock = self._contacts[_WALL], self._contacts[_DOCK]
@@ -537,7 +538,8 @@ class BatchWorld:
             return False
         if free < need:
             self._grow(max(need - free, 16))
-        kernels.assign_probes(self._near, self._gx, self._gy, self._lane_probe, self._probe_lane, self._probe_row, self._io)
+        kernels.assign_probes(self._near, self._gx, self._gy, self._lane_probe, self._probe_lane, self._probe_row,
+                              self._io)
         return True
 
     def _pymunk_contacts(self, dt: float) -> None:
