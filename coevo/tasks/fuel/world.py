@@ -622,7 +622,7 @@ _SENSOR_CODE = {name: i for i, name in enumerate(SENSOR_NAMES)}
 COMPILED_MIN_LANES = 256  # numba is loaded (~0.35 s, ~90 MB) for a batch of at least this many lanes (a GA's
 # population at the report's size: 50 x 9 = 450 lanes for Tracking and the Executive; 8 Tracking generations
 # 2.87 -> 1.95 CPU s once it is, docs/performance.md; the small batches of tests and coevo show stay numpy) ...
-COMPILED_WARM_MIN_LANES = 8  # ... and once loaded, used from this many on (numpy's ~300 calls a step cost more)
+COMPILED_WARM_MIN_LANES = 1  # ... and once loaded, for any batch (a compiled step's fixed cost is ~1/4 of numpy's)
 _loaded: dict[str, ModuleType | None] = {}  # "kernels": the compiled loops once a batch wanted them (None: no numba)
 _NO_LANES = np.zeros(0, dtype=np.int64)
 _TABLES: dict[str, tuple[np.ndarray, ...]] = {}
@@ -644,7 +644,7 @@ def sensor_tables(sch: Schema) -> tuple[np.ndarray, ...]:
 
 
 def _worth_compiling(lanes: int) -> bool:
-    """Compiled loops for a batch of ``lanes``: a big one, or any but the tiniest once numba is loaded."""
+    """Compiled loops for a batch of ``lanes``: a big one, or any once numba is loaded."""
     return lanes >= COMPILED_MIN_LANES or (bool(_loaded) and lanes >= COMPILED_WARM_MIN_LANES)
 
 
