@@ -22,7 +22,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["move", "reach", "assign_probes", "events", "active_lanes", "decide_lanes", "tally"]
+__all__ = ["move", "assign_probes", "events", "active_lanes", "decide_lanes", "tally"]
 
 _jit = numba.njit(cache=True, nogil=True)
 _inline = numba.njit(cache=True, nogil=True, inline="always")  # helpers: numba inlines them into their callers
@@ -121,13 +121,16 @@ def _sense_lane(sensors, x, y, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir, geom, 
 
 # ----------------------------------------------------------------- stepping (BatchWorld.step)
 @_jit
-def move(active, speed_in, turn_in, speed, turn, dt, state, walk, noise, idx, blocked, bdy, bdx):  # pragma: no cover
-    """The robots' kinematic integration and the Targets' random walk of the ``active`` lanes.
+def move(active, speed_in, turn_in, speed, turn, dt, state, walk, noise, idx, blocked, bdy, bdx, reach,
+         probing):  # pragma: no cover - compiled by numba
+    """The robots' kinematic integration and the Targets' random walk of the ``active`` lanes, then
+    :func:`_reach` of the robots where they now are.
 
     Stores the commands (``speed``, ``turn``: those given where active, else 0) and the active lanes in
     ``idx``; a Target that must turn away from a wall or the dock is left for :func:`events` with its lane
     in ``blocked`` and the arguments of its arctan2 (towards the arena's centre) in ``bdy``, ``bdx``.
-    Returns (active lanes, blocked Targets).  ``state``: rh, gx, gy, ga, ox, oy, rx, ry, th, tx, ty.
+    ``state``: rh, gx, gy, ga, ox, oy, rx, ry, th, tx, ty.  Returns (active lanes, blocked Targets, and
+    :func:`_reach`'s three).
     """
     rh, gx, gy, ga, ox, oy, rx, ry, th, tx, ty = state
     avoid, lo, hi, dock_y, half, dock_w = walk[0], walk[1], walk[2], walk[3], walk[4], walk[5]
@@ -170,15 +173,22 @@ def move(active, speed_in, turn_in, speed, turn, dt, state, walk, noise, idx, bl
             tx[i] = tx[i] + t_step * c
             ty[i] = ty[i] + t_step * s
             th[i] = t
-    return m, nb
+    stepping, need, free = _reach(gx, gy, reach, probing)
+    return m, nb, stepping, need, free
 
 
-@_jit
-def reach(gx, gy, midx, midy, near_half, near_dock_y, near_dock_x, lane_probe, probe_lane, probe_row, io, void,
-          near):  # pragma: no cover - compiled by numba
-    """BatchWorld._sense_contacts' test of which robots are within reach of a wall or the dock (into ``near``);
+@_inline
+def _reach(gx, gy, reach, probing):  # pragma: no cover - compiled by numba
+    """BatchWorld._lend_probes' test of which robots are within reach of a wall or the dock (into ``near``);
     lanes no longer within reach give their probe back (parked in the void).  Returns (pymunk must step:
-    a lane is within reach or a probe went back, lanes needing a probe, free probes)."""
+    a lane is within reach or a probe went back, lanes needing a probe, free probes).
+
+    ``reach``: the arenas' middles (x, y) and (near_half, near_dock_y, near_dock_x); ``probing``: lane_probe,
+    probe_lane, probe_row, io, void, near (BatchWorld._probe_state).
+    """
+    midx, midy, lim = reach
+    lane_probe, probe_lane, probe_row, io, void, near = probing
+    near_half, near_dock_y, near_dock_x = lim[0], lim[1], lim[2]
     stepping = False
     need = 0
     for i in range(gx.shape[0]):
@@ -203,9 +213,10 @@ def reach(gx, gy, midx, midy, near_half, near_dock_y, near_dock_x, lane_probe, p
 
 
 @_jit
-def assign_probes(near, gx, gy, lane_probe, probe_lane, probe_row, io):  # pragma: no cover - compiled by numba
+def assign_probes(gx, gy, probing):  # pragma: no cover - compiled by numba
     """The lanes within reach without a probe take the free ones (both in ascending order), and every lent
     probe is put at its robot's pose (``io``, pymunk's batch buffer of body positions)."""
+    lane_probe, probe_lane, probe_row, io, _, near = probing
     p = 0
     for i in range(near.shape[0]):
         if near[i] and lane_probe[i] < 0:
@@ -236,10 +247,11 @@ def events(idx, blocked, bang, noise, wall, dock, state, speed, turn, fuel, c, o
     arctan2 towards the centre), robots that touched a wall or the dock are parked (in pymunk's pose only),
     Robot-Target collisions, wall collisions, dockings, fuel, and who ran dry or tracked.
 
-    ``state``: rh, gx, gy, ox, oy, rx, ry, th, tx, ty; ``c``: BatchWorld._event_consts; ``out``: the
-    collided, docked, dry and tracking rows of a zeroed (4, n) array.
+    ``state``: rh, gx, gy, ox, oy, rx, ry, th, tx, ty; ``c``: BatchWorld._event_consts; ``out``: (4, n),
+    the collided, docked, dry and tracking rows (every lane's set).
     """
     rh, gx, gy, ox, oy, rx, ry, th, tx, ty = state
+    out[:] = False
     reach_, half, t_step = c[0], c[6], c[7]
     for b in range(blocked.shape[0]):
         i = blocked[b]
@@ -387,15 +399,15 @@ def decide_lanes(lanes, a0, m, ang, slots, world, sensors, policy, turn, speed, 
 
 
 @_jit
-def tally(k, active, ev_collided, ev_docked, ev_dry, ev_tracking, steps, tracked, collided, docked,
-          dry):  # pragma: no cover - compiled by numba
-    """runner._play_episode's bookkeeping of a step: its events (``ev_*``, a StepEvents) into episode ``k``'s
-    columns, every lane's as there; the lanes that collided, docked or ran dry stop."""
+def tally(k, active, events, steps, tracked, collided, docked, dry):  # pragma: no cover - compiled by numba
+    """runner._play_episode's bookkeeping of a step: its ``events`` (BatchWorld.step_compiled's rows collided,
+    docked, dry, tracking) into episode ``k``'s columns, every lane's as there; the lanes that collided, docked or
+    ran dry stop."""
     for i in range(active.shape[0]):
         steps[i, k] += active[i]
-        tracked[i, k] += ev_tracking[i]
-        collided[i, k] |= ev_collided[i]
-        docked[i, k] |= ev_docked[i]
-        dry[i, k] |= ev_dry[i]
-        if ev_collided[i] or ev_docked[i] or ev_dry[i]:
+        tracked[i, k] += events[3, i]
+        collided[i, k] |= events[0, i]
+        docked[i, k] |= events[1, i]
+        dry[i, k] |= events[2, i]
+        if events[0, i] or events[1, i] or events[2, i]:
             active[i] = False

@@ -324,29 +324,28 @@ def _play_compiled(s: _Lanes, c: _Controls, k: int, groups: list, active: np.nda
         group[slice(None) if sel is None else sel] = g
     names = {n for beh, *_ in groups for n in schema(beh).sensor_names}
     need = [bool(names & d) for d in _DIRECTIONS]
-    slots = np.where(need, np.cumsum(need) - 1, -1).astype(np.int64)
+    slots, nd = np.where(need, np.cumsum(need) - 1, -1).astype(np.int64), sum(need)
     per_group = [(sensor_tables(ctrl.compiled.schema), _policy_tables(ctrl), c.learner == beh,
                   (s.trace.bins, s.trace.rule, s.trace.full, s.fired) if c.learner == beh else _NO_TRACE)
                  for beh, ctrl, _, _ in groups]
     idx, bounds = np.empty(L, dtype=np.int64), np.empty(len(groups) + 1, dtype=np.int64)
     dy, dx, ang = np.empty(3 * L), np.empty(3 * L), np.empty(3 * L)
-    turn, speed = np.zeros(L), np.zeros(L)
+    turn, speed, events = np.zeros(L), np.zeros(L), np.zeros((4, L), dtype=np.bool_)
+    state = world.sensing_state()
+    rx, ry, _, tx, ty, _, _, geom = state
     for t in range(s.T):
-        state = world.sensing_state()
-        rx, ry, _, tx, ty, _, _, geom = state
         m = kernels.active_lanes(active, group, len(groups), slots, rx, ry, tx, ty, geom, idx, bounds, dy, dx)
         if m == 0:
             break
-        n = sum(need) * m
+        n = nd * m
         np.arctan2(dy[:n], dx[:n], out=ang[:n])
         for g, (sensors, policy, logged, trace) in enumerate(per_group):
             a0 = bounds[g]
             kernels.decide_lanes(idx[a0:bounds[g + 1]], a0, m, ang, slots, state, sensors, policy, turn, speed, logged,
                                  trace, k, t)
         noise = c.rng.normal(0.0, s.cfg.target_turn_sd, s.g)[s.slot]
-        ev = world.step(active, turn, speed, noise)
-        kernels.tally(k, active, ev.collided, ev.docked, ev.dry, ev.tracking, s.steps, s.tracked, s.collided,
-                      s.docked, s.dry)
+        world.step_compiled(kernels, events, active, turn, speed, noise)
+        kernels.tally(k, active, events, s.steps, s.tracked, s.collided, s.docked, s.dry)
 
 
 def _policy_tables(ctrl: Rules) -> tuple:

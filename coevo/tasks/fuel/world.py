@@ -175,6 +175,17 @@ class BatchWorld:
         self._blocked = np.empty(n, dtype=np.int64)  # ... the lanes whose Target turns away, and its arctan2's
         self._bdy, self._bdx, self._bang = np.empty(n), np.empty(n), np.empty(n)  # arguments and result
         self._near = np.empty(n, dtype=np.bool_)  # lanes within reach of a wall or the dock
+        # The kernels' views of the state (its arrays are only ever written in place).
+        self._sensing = (self.rx, self.ry, self.rh, self.tx, self.ty, self.th, self.fuel, self._geom)
+        self._moving = (self.rh, self._gx, self._gy, self._ga, self._ox, self._oy, self.rx, self.ry, self.th, self.tx,
+                        self.ty)
+        self._settling = (self.rh, self._gx, self._gy, self._ox, self._oy, self.rx, self.ry, self.th, self.tx, self.ty)
+        self._reach = (self._midx, self._midy, np.array([self._near_half, self._near_dock_y, self._near_dock_x]))
+        self._probing = self._probe_state()
+
+    def _probe_state(self) -> tuple[np.ndarray, ...]:
+        """The probes' arrays as the kernels take them (new ones whenever the pool grows)."""
+        return self._lane_probe, self._probe_lane, self._probe_row, self._io, self._void, self._near
 
     @staticmethod
     def _static(shape: pymunk.Shape, ctype: int, filt: pymunk.ShapeFilter) -> pymunk.Shape:
@@ -209,6 +220,7 @@ class BatchWorld:
         self._probe_ids, self._probe_of_id = pid[order], order
         self._io = np.zeros((len(ids), 2))
         self._io[self._probe_row] = self._void
+        self._probing = self._probe_state()
 
     def _void_point(self, j: int) -> tuple[float, float]:
         step = max(self.cfg.hash_cell, 4 * self.cfg.robot_radius) * 2
@@ -299,9 +311,9 @@ class BatchWorld:
 
     def _push_positions(self) -> None:
         """Every robot's pymunk pose set from the state (as a kinematic body's position and angle would be)."""
-        self._gx = self.rx + self.origin[:, 0]
-        self._gy = self.ry + self.origin[:, 1]
-        self._ga = self.rh.copy()
+        np.add(self.rx, self.origin[:, 0], out=self._gx)
+        np.add(self.ry, self.origin[:, 1], out=self._gy)
+        self._ga[:] = self.rh
 
     # ----------------------------------------------------------------- sensing
     def observe(self, names: tuple[str, ...] = SENSOR_NAMES) -> dict[str, np.ndarray]:
@@ -375,7 +387,7 @@ class BatchWorld:
 
     def sensing_state(self) -> tuple[np.ndarray, ...]:
         """What :func:`.kernels.decide_lanes` reads of the world: rx, ry, rh, tx, ty, th, fuel, geometry."""
-        return self.rx, self.ry, self.rh, self.tx, self.ty, self.th, self.fuel, self._geom
+        return self._sensing
 
     def min_dock_steps(self, lanes: np.ndarray) -> np.ndarray:
         """Estimated fewest steps to dock from now (the report's m): turn to face the dock at full rate, drive
@@ -396,7 +408,9 @@ class BatchWorld:
         """
         kernels = compiled_loops(int(np.count_nonzero(active)))
         if kernels is not None:
-            return self._step_compiled(kernels, active, turn, speed, target_noise)
+            events = np.zeros((4, self.n), dtype=np.bool_)
+            self.step_compiled(kernels, events, active, turn, speed, target_noise)
+            return StepEvents(collided=events[0], docked=events[1], dry=events[2], tracking=events[3])
         c = self.cfg
         dt = c.step_seconds
         speed = np.where(active, speed, 0.0)
@@ -449,24 +463,30 @@ class BatchWorld:
             collided[lanes[~ok]] = True
         return docked
 
-    def _step_compiled(self, kernels: ModuleType, active: np.ndarray, turn: np.ndarray, speed: np.ndarray,
-                       target_noise: np.ndarray) -> StepEvents:
-        """:meth:`step` with compiled loops (:func:`.kernels.move`, :func:`.kernels.events`): the same operations
-        in the same order, pymunk's contacts and numpy's arctan2 in between."""
+    def step_compiled(self, kernels: ModuleType, events: np.ndarray, active: np.ndarray, turn: np.ndarray,
+                      speed: np.ndarray, target_noise: np.ndarray) -> None:
+        """:meth:`step` with the compiled loops (``kernels``, from :func:`compiled_loops`), its events written
+        into ``events``: (4, n) bool, rows collided, docked, dry, tracking (as :class:`StepEvents`).
+
+        :func:`.kernels.move`, pymunk's contacts, :func:`.kernels.events`: the same operations in the same
+        order as numpy's step, numpy's arctan2 for Targets turning away from a wall or the dock.
+        """
         dt = self.cfg.step_seconds
-        state = (self.rh, self._gx, self._gy, self._ga, self._ox, self._oy, self.rx, self.ry, self.th, self.tx, self.ty)
-        m, nb = kernels.move(active, speed, turn, self.speed, self.turn, dt, state, self._walk, target_noise,
-                             self._idx, self._blocked, self._bdy, self._bdx)
+        m, nb, stepping, need, free = kernels.move(active, speed, turn, self.speed, self.turn, dt, self._moving,
+                                                   self._walk, target_noise, self._idx, self._blocked, self._bdy,
+                                                   self._bdx, self._reach, self._probing)
         if nb:  # Targets turning away from a wall or the dock, towards the centre: numpy's arctan2
             self._touching = set()  # as the compiled step always did (the numpy step does not: docs/performance.md)
             np.arctan2(self._bdy[:nb], self._bdx[:nb], out=self._bang[:nb])
-        self._sense_contacts(dt, kernels)
-        wall, dock = self._contacts[_WALL], self._contacts[_DOCK]
-        out = np.zeros((4, self.n), dtype=np.bool_)
-        state = (self.rh, self._gx, self._gy, self._ox, self._oy, self.rx, self.ry, self.th, self.tx, self.ty)
-        kernels.events(self._idx[:m], self._blocked[:nb], self._bang[:nb], target_noise, _as_lanes(wall),
-                       _as_lanes(dock), state, self.speed, self.turn, self.fuel, self._event_consts, out)
-        return StepEvents(collided=out[0], docked=out[1], dry=out[2], tracking=out[3])
+        self._contacts = {_WALL: [], _DOCK: []}
+        if stepping:  # a robot is within reach of a wall or the dock, or a probe went back: pymunk tests
+            if free < need:
+                self._grow(max(need - free, 16))
+            kernels.assign_probes(self._gx, self._gy, self._probing)
+            self._pymunk_contacts(dt)
+        kernels.events(self._idx[:m], self._blocked[:nb], self._bang[:nb], target_noise,
+                       _as_lanes(self._contacts[_WALL]), _as_lanes(self._contacts[_DOCK]), self._settling, self.speed,
+                       self.turn, self.fuel, self._event_consts, events)
 
     def _park(self, lanes: list[int]) -> None:
         """Move robots that touched a wall or the dock to their arena's centre, in pymunk only.
@@ -478,7 +498,7 @@ class BatchWorld:
         self._gx[i] = self.origin[i, 0] + self._centre[0]
         self._gy[i] = self.origin[i, 1] + self._centre[1]
 
-    def _sense_contacts(self, dt: float, kernels: ModuleType | None = None) -> None:
+    def _sense_contacts(self, dt: float) -> None:
         """pymunk's contact tests of the robots at their new poses (``self._g*``); fills ``self._contacts``
         with the lanes whose robot began touching a wall or the dock.
 
@@ -487,12 +507,11 @@ class BatchWorld:
         the robot's shape, put at the robot's pose.  A lane keeps its probe as long as it stays within
         reach, so the probe's contact pairs are the lane's, and pymunk's "begin" (touching now, not at
         the previous step) means what it meant with one body per lane.  Free probes wait in the void.
-        The probes are lent by numpy, or by ``kernels`` (:func:`.kernels.reach`), the same way.
+        (The compiled step lends them in :func:`.kernels.move` and :func:`.kernels.assign_probes`.)
         """
         self._contacts = {_WALL: [], _DOCK: []}
-        if not (self._lend_probes() if kernels is None else self._lend_probes_compiled(kernels)):
-            return
-        self._pymunk_contacts(dt)
+        if self._lend_probes():
+            self._pymunk_contacts(dt)
 
     def _lend_probes(self) -> bool:
         """Probes lent to the lanes within reach and put at their robots' poses (``self._io``), those of the
@@ -527,19 +546,6 @@ class BatchWorld:
         rows = self._probe_row[mine]
         self._io[rows, 0] = self._gx[pl[mine]]
         self._io[rows, 1] = self._gy[pl[mine]]
-        return True
-
-    def _lend_probes_compiled(self, kernels: ModuleType) -> bool:
-        """:meth:`_lend_probes` by :func:`.kernels.reach` and :func:`.kernels.assign_probes`."""
-        stepping, need, free = kernels.reach(self._gx, self._gy, self._midx, self._midy, self._near_half,
-                                             self._near_dock_y, self._near_dock_x, self._lane_probe, self._probe_lane,
-                                             self._probe_row, self._io, self._void, self._near)
-        if not stepping:
-            return False
-        if free < need:
-            self._grow(max(need - free, 16))
-        kernels.assign_probes(self._near, self._gx, self._gy, self._lane_probe, self._probe_lane, self._probe_row,
-                              self._io)
         return True
 
     def _pymunk_contacts(self, dt: float) -> None:
