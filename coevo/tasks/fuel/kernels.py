@@ -22,7 +22,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["move", "assign_probes", "events", "active_lanes", "decide_lanes", "tally"]
+__all__ = ["move", "assign_probes", "contact_codes", "events", "active_lanes", "decide_lanes", "tally"]
 
 _jit = numba.njit(cache=True, nogil=True)
 _inline = numba.njit(cache=True, nogil=True, inline="always")  # helpers: numba inlines them into their callers
@@ -229,6 +229,21 @@ def assign_probes(gx, gy, probing):  # pragma: no cover - compiled by numba
         if i >= 0:
             io[probe_row[q], 0] = gx[i]
             io[probe_row[q], 1] = gy[i]
+
+
+@_jit
+def contact_codes(pairs, probe_ids, probe_of_id, side_ids, side_of, probe_lane, out):  # pragma: no cover
+    """BatchWorld._contact_codes: lane * 5 + side of each (probe body, side body) pair of pymunk ids, in either
+    order (``probe_ids``, ``side_ids``: sorted; ``probe_of_id``, ``side_of``: their indices) into ``out``."""
+    last = probe_ids.shape[0] - 1
+    for j in range(pairs.shape[0]):
+        a = pairs[j, 0]
+        b = pairs[j, 1]
+        i = min(np.searchsorted(probe_ids, a), last)
+        if probe_ids[i] != a:
+            a, b = b, a
+            i = min(np.searchsorted(probe_ids, a), last)
+        out[j] = probe_lane[probe_of_id[i]] * 5 + side_of[np.searchsorted(side_ids, b)]
 
 
 @_inline

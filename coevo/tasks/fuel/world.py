@@ -486,7 +486,7 @@ class BatchWorld:
             if free < need:
                 self._grow(max(need - free, 16))
             kernels.assign_probes(self._gx, self._gy, self._probing)
-            self._pymunk_contacts(dt)
+            self._pymunk_contacts(dt, kernels)
         kernels.events(self._idx[:m], self._blocked[:nb], self._bang[:nb], target_noise,
                        _as_lanes(self._contacts[_WALL]), _as_lanes(self._contacts[_DOCK]), self._settling, self.speed,
                        self.turn, self.fuel, self._event_consts, events)
@@ -551,9 +551,9 @@ class BatchWorld:
         self._io[rows, 1] = self._gy[pl[mine]]
         return True
 
-    def _pymunk_contacts(self, dt: float) -> None:
-        """pymunk's contact test of the probes where :meth:`_lend_probes` put them: ``self._contacts``."""
-        pl = self._probe_lane
+    def _pymunk_contacts(self, dt: float, kernels: ModuleType | None = None) -> None:
+        """pymunk's contact test of the probes where :meth:`_lend_probes` put them: ``self._contacts``
+        (its arbiters read by numpy, or by ``kernels``: :func:`.kernels.contact_codes`)."""
         self._wbuf.set_float_buf(self._io.reshape(-1))
         pb.set_space_bodies(self.space, pb.BodyFields.POSITION, self._wbuf)
         self.space.step(dt)  # the probes stand still (velocity zero): pymunk only tests contacts
@@ -567,6 +567,20 @@ class BatchWorld:
         if pairs.size == 0:
             self._touching = set()
             return
+        if kernels is None:
+            codes = self._contact_codes(pairs)
+        else:
+            codes = np.empty(len(pairs), dtype=np.int64)
+            kernels.contact_codes(pairs, self._probe_ids, self._probe_of_id, self._side_order_ids,
+                                  self._side_of_sorted, self._probe_lane, codes)
+        touching = set(codes.tolist())  # lane * 5 + side, a few
+        began = touching - self._touching
+        self._touching = touching
+        self._contacts = {_WALL: [c // 5 for c in began if c % 5 != _DOCK_SIDE],
+                          _DOCK: [c // 5 for c in began if c % 5 == _DOCK_SIDE]}
+
+    def _contact_codes(self, pairs: np.ndarray) -> np.ndarray:
+        """lane * 5 + side of each (probe body, side body) pair of ids, in either order."""
         a, b = pairs[:, 0], pairs[:, 1]  # pymunk puts the circle (probe) first; checked, not assumed
         last = len(self._probe_ids) - 1
         i = np.minimum(np.searchsorted(self._probe_ids, a), last)
@@ -575,11 +589,7 @@ class BatchWorld:
             a, b = np.where(swap, b, a), np.where(swap, a, b)
             i = np.minimum(np.searchsorted(self._probe_ids, a), last)
         side = self._side_of_sorted[np.searchsorted(self._side_order_ids, b)]
-        touching = set((pl[self._probe_of_id[i]] * 5 + side).tolist())  # lane * 5 + side, a few
-        began = touching - self._touching
-        self._touching = touching
-        self._contacts = {_WALL: [c // 5 for c in began if c % 5 != _DOCK_SIDE],
-                          _DOCK: [c // 5 for c in began if c % 5 == _DOCK_SIDE]}
+        return self._probe_lane[self._probe_of_id[i]] * 5 + side
 
     def _docking_accepted(self, lanes: np.ndarray, speed: np.ndarray) -> np.ndarray:
         """Contact with the dock docks only on its front face, head-on within the angle, slowly enough."""
