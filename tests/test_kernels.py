@@ -49,3 +49,26 @@ def test_compiled_steps_give_numpys_numbers(monkeypatch, lanes: int, learner: Be
     assert numpy_run.keys() == compiled_run.keys()
     for name, a in numpy_run.items():
         assert np.array_equal(a, compiled_run[name]), name
+
+
+@pytest.mark.parametrize("behaviour", [Behaviour.TRACKING, Behaviour.DOCKING])
+def test_compiled_experiences_are_numpys(monkeypatch, behaviour: Behaviour) -> None:
+    """FuelEvaluator's experiences of a population in one compiled pass: the arrays of its per-individual numpy
+    code, under an Executive with rules too (where some of a lane's episodes are the other behaviour's)."""
+    from coevo.config import GAConfig
+    from coevo.tasks.fuel import default_ruleset
+    from coevo.tasks.fuel.evaluate import FuelEvaluator
+
+    monkeypatch.setattr(world_mod, "COMPILED_MIN_LANES", 0)
+    rng = np.random.default_rng(4)
+    pols = [random_ruleset(behaviour, 24, rng) for _ in range(5)]
+    other = "docking" if behaviour == Behaviour.TRACKING else "tracking"
+    for partners in ({}, {"executive": random_ruleset(Behaviour.EXECUTIVE, 8, rng), other: default_ruleset(other)}):
+        ev = FuelEvaluator(behaviour, WorldConfig(), GAConfig(episodes=30))
+        out = ev.evaluate(pols, partners, np.random.default_rng(6)).details
+        per, K = out.played.shape[0] // len(pols), out.played.shape[1]
+        for i, exp in enumerate(ev._experiences(out, len(pols), per, K)):
+            ref = ev._experience(out, slice(i * per, (i + 1) * per), K)
+            for name in ("fired", "payoff", "bins", "rule", "full", "episode"):
+                a, b = getattr(exp, name), getattr(ref, name)
+                assert a.dtype == b.dtype and np.array_equal(a, b), (partners.keys(), i, name)

@@ -22,7 +22,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["move", "assign_probes", "contact_codes", "events", "active_lanes", "decide_lanes", "tally"]
+__all__ = ["move", "assign_probes", "contact_codes", "events", "active_lanes", "decide_lanes", "tally",
+           "experiences"]
 
 _jit = numba.njit(cache=True, nogil=True)
 _inline = numba.njit(cache=True, nogil=True, inline="always")  # helpers: numba inlines them into their callers
@@ -426,3 +427,67 @@ def tally(k, active, events, steps, tracked, collided, docked, dry):  # pragma: 
         dry[i, k] |= events[2, i]
         if events[0, i] or events[1, i] or events[2, i]:
             active[i] = False
+
+
+# ----------------------------------------------------------------- the evaluator (evaluate.FuelEvaluator)
+@_jit
+def experiences(per, mine, fired, payoff, rule, bins, full):  # pragma: no cover - compiled by numba
+    """FuelEvaluator._experience of every individual (lanes ``[i*per, (i+1)*per)``) of a Tracking or Docking
+    learner, one individual's rows after the other's.
+
+    Its episodes (``mine``, (L, K)) in (lane, episode) order, their ``fired`` and ``payoff``; the steps
+    whose rule was its (``rule`` >= 0) in those episodes, in (episode, step, lane) order, their bins, rule,
+    full and episode (numbered as its episodes are listed).  Returns (episode starts, fired, payoff,
+    decision starts, bins, rule, full, episode): individual ``i``'s rows are ``starts[i]:starts[i+1]``.
+    """
+    L, K = mine.shape
+    T = rule.shape[1]
+    P = L // per
+    epmap = np.full((L, K), -1, dtype=np.int64)
+    e_starts = np.zeros(P + 1, dtype=np.int64)
+    for i in range(L):
+        for k in range(K):
+            if mine[i, k]:
+                e_starts[i // per + 1] += 1
+    for p in range(P):
+        e_starts[p + 1] += e_starts[p]
+    out_fired = np.empty(e_starts[P], dtype=np.uint64)
+    out_payoff = np.empty(e_starts[P], dtype=np.float64)
+    for p in range(P):
+        c = 0
+        for i in range(p * per, (p + 1) * per):
+            for k in range(K):
+                if mine[i, k]:
+                    out_fired[e_starts[p] + c] = fired[i, k]
+                    out_payoff[e_starts[p] + c] = payoff[i, k]
+                    epmap[i, k] = c
+                    c += 1
+    # Decisions: counted per individual, then written in the trace's own order (an individual's rows
+    # come in its (episode, step, lane) order), each individual at its own cursor.
+    d_starts = np.zeros(P + 1, dtype=np.int64)
+    for k in range(K):
+        for t in range(T):
+            for i in range(L):
+                if rule[k, t, i] >= 0 and epmap[i, k] >= 0:
+                    d_starts[i // per + 1] += 1
+    for p in range(P):
+        d_starts[p + 1] += d_starts[p]
+    n, S = d_starts[P], bins.shape[3]
+    out_bins = np.empty((n, S), dtype=np.uint8)
+    out_rule = np.empty(n, dtype=np.int64)
+    out_full = np.empty(n, dtype=np.bool_)
+    out_ep = np.empty(n, dtype=np.int64)
+    cursor = d_starts[:P].copy()
+    for k in range(K):
+        for t in range(T):
+            for i in range(L):
+                if rule[k, t, i] >= 0 and epmap[i, k] >= 0:
+                    p = i // per
+                    j = cursor[p]
+                    cursor[p] = j + 1
+                    for s in range(S):
+                        out_bins[j, s] = bins[k, t, i, s]
+                    out_rule[j] = rule[k, t, i]
+                    out_full[j] = full[k, t, i]
+                    out_ep[j] = epmap[i, k]
+    return e_starts, out_fired, out_payoff, d_starts, out_bins, out_rule, out_full, out_ep
