@@ -36,6 +36,26 @@ def lowest_bit(mask: np.ndarray) -> np.ndarray:
     return np.bitwise_count(iso - _ONE).astype(np.int64)
 
 
+def _interval_bits(lo: np.ndarray, hi: np.ndarray, bit: np.ndarray, bins: int) -> np.ndarray:
+    """(P, S, bins) uint64: bit ``bit[p, k]`` set in ``[p, s, b]`` where rank ``k``'s interval ``[lo, hi]`` on
+    sensor ``s`` (``lo``, ``hi``: (P, K, S); wrapping through 0 where lo > hi) holds bin ``b``.
+
+    A running XOR over the bins of a table of toggles: a rank's bit toggles on where its interval starts and
+    off after it ends (a wrapped one: on at 0, off after hi, on again at lo).  XOR is order-free, so the
+    toggles can be scattered in any order (``ufunc.at``); one pass, not a (P, K, S, bins) membership array.
+    """
+    P, K, S = lo.shape
+    toggles = np.zeros((P, S, bins + 1), dtype=np.uint64)
+    p = np.broadcast_to(np.arange(P)[:, None, None], lo.shape)
+    s = np.broadcast_to(np.arange(S)[None, None, :], lo.shape)
+    b = np.broadcast_to(bit[:, :, None], lo.shape)
+    np.bitwise_xor.at(toggles, (p, s, lo), b)
+    np.bitwise_xor.at(toggles, (p, s, hi + 1), b)
+    wrap = lo > hi
+    np.bitwise_xor.at(toggles, (p[wrap], s[wrap], 0), b[wrap])
+    return np.bitwise_xor.accumulate(toggles, axis=2)[..., :bins].copy()
+
+
 class CompiledPolicies:
     """Match tables for a list of rule sets of one behaviour."""
 
@@ -66,14 +86,10 @@ class CompiledPolicies:
             lo[p, :r] = rs.lo[order]
             hi[p, :r] = rs.hi[order]
             valid[p, :r] = True
-        b = np.arange(B)[None, None, None, :]
-        lo4, hi4 = lo[..., None], hi[..., None]
-        member = np.where(lo4 <= hi4, (b >= lo4) & (b <= hi4), (b >= lo4) | (b <= hi4)) & valid[:, :, None, None]
-        # (P, K, S, B) -> (P, S, B, K) -> pack the K=64 rule bits little-endian into one uint64.
-        packed = np.packbits(member.transpose(0, 2, 3, 1), axis=-1, bitorder="little")
-        self.table = np.ascontiguousarray(packed).view("<u8")[..., 0].astype(np.uint64)  # (P, S, B)
         weights = (_ONE << np.arange(K, dtype=np.uint64))[None, :]
-        self.valid = np.bitwise_or.reduce(np.where(valid, weights, np.uint64(0)), axis=1).astype(np.uint64)
+        bit = np.where(valid, weights, np.uint64(0))  # (P, K): the rank's bit, 0 for an empty slot
+        self.table = _interval_bits(lo, hi, bit, B)  # (P, S, B)
+        self.valid = np.bitwise_or.reduce(bit, axis=1).astype(np.uint64)
         self._flat = self.table.reshape(-1)
         self._stride = S * B
         self._offsets = np.arange(S, dtype=np.int64) * B

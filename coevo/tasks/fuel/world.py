@@ -8,8 +8,8 @@ with the walls and the dock, static shapes, through probe bodies lent to the lan
 within reach of them (:meth:`BatchWorld._sense_contacts`).  Contact is a mission
 failure, except a head-on slow contact with the dock's front, which is a docking.
 State lives in numpy arrays of shape ``(n, ...)``; sensing and stepping are
-whole-array numpy passes, or for big batches compiled loops (numba) doing the same
-operations in the same order (see the end of this module).
+whole-array numpy passes, or for big batches compiled loops (numba, :mod:`.kernels`)
+doing the same operations in the same order.
 
 The Target is a point random walk kept in numpy, and Robot-Target contact is an
 exact circle-circle test there *(ours, for speed)*: the Target never touches the
@@ -25,6 +25,7 @@ face at ``y = dock_depth`` facing north; docking head-on means heading -90°.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 import pymunk
@@ -95,7 +96,10 @@ class BatchWorld:
 
         space = pymunk.Space()
         space.collision_persistence = 1
-        space.use_spatial_hash(c.hash_cell, max(1000, 20 * n))
+        # The hash's cell count serves the static shapes (5 per lane) and the few probes alike; pymunk clears all
+        # cells of the probes' hash every step, which at 20 cells a lane was most of a 450-lane step's pymunk time
+        # (13 us; 5 us at 1000 cells).  Which shapes touch does not depend on it (the hash only proposes pairs).
+        space.use_spatial_hash(c.hash_cell, max(1000, 2 * n))
         self.space = space
         wall_f = pymunk.ShapeFilter(categories=_WALL, mask=_ROBOT)
         dock_f = pymunk.ShapeFilter(categories=_DOCK, mask=_ROBOT)
@@ -153,6 +157,38 @@ class BatchWorld:
         self.speed = np.zeros(n)  # the last commanded speed, ips
         self.turn = np.zeros(n)  # the last commanded turn rate, deg/s
         self._centre = np.array([A / 2, A / 2])
+        self._compiled_constants()
+
+    def _compiled_constants(self) -> None:
+        """What the compiled loops (:mod:`.kernels`) take as arrays, and their buffers."""
+        c, n = self.cfg, self.n
+        self._ox, self._oy = self.origin[:, 0].copy(), self.origin[:, 1].copy()
+        self._midx, self._midy = self._mid[:, 0].copy(), self._mid[:, 1].copy()
+        self._geom = np.array([c.arena, self.dock_x0, self.dock_x1, c.dock_depth, c.robot_radius, c.target_radius,
+                               self.dock_point[0], self.dock_point[1]], dtype=np.float64)
+        lo = c.target_radius + 2.0
+        t_step = c.target_speed * c.step_seconds
+        self._walk = np.array([c.target_avoid, lo, c.arena - lo, c.dock_depth + lo + c.target_avoid / 2, c.arena / 2,
+                               c.dock_width, t_step, self._centre[0], self._centre[1]], dtype=np.float64)
+        self._event_consts = np.array([
+            c.robot_radius + c.target_radius, c.dock_depth, self.dock_x0, self.dock_x1, c.dock_max_angle,
+            c.dock_max_speed, self._centre[0], t_step, c.fuel_idle, c.fuel_per_ips, c.fuel_per_dps, c.tracking_min,
+            c.tracking_max], dtype=np.float64)
+        self._idx = np.empty(n, dtype=np.int64)  # the active lanes of a step
+        self._blocked = np.empty(n, dtype=np.int64)  # ... the lanes whose Target turns away, and its arctan2's
+        self._bdy, self._bdx, self._bang = np.empty(n), np.empty(n), np.empty(n)  # arguments and result
+        self._near = np.empty(n, dtype=np.bool_)  # lanes within reach of a wall or the dock
+        # The kernels' views of the state (its arrays are only ever written in place).
+        self._sensing = (self.rx, self.ry, self.rh, self.tx, self.ty, self.th, self.fuel, self._geom)
+        self._moving = (self.rh, self._gx, self._gy, self._ga, self._ox, self._oy, self.rx, self.ry, self.th, self.tx,
+                        self.ty)
+        self._settling = (self.rh, self._gx, self._gy, self._ox, self._oy, self.rx, self.ry, self.th, self.tx, self.ty)
+        self._reach = (self._midx, self._midy, np.array([self._near_half, self._near_dock_y, self._near_dock_x]))
+        self._probing = self._probe_state()
+
+    def _probe_state(self) -> tuple[np.ndarray, ...]:
+        """The probes' arrays as the kernels take them (new ones whenever the pool grows)."""
+        return self._lane_probe, self._probe_lane, self._probe_row, self._io, self._void, self._near
 
     @staticmethod
     def _static(shape: pymunk.Shape, ctype: int, filt: pymunk.ShapeFilter) -> pymunk.Shape:
@@ -187,6 +223,7 @@ class BatchWorld:
         self._probe_ids, self._probe_of_id = pid[order], order
         self._io = np.zeros((len(ids), 2))
         self._io[self._probe_row] = self._void
+        self._probing = self._probe_state()
 
     def _void_point(self, j: int) -> tuple[float, float]:
         step = max(self.cfg.hash_cell, 4 * self.cfg.robot_radius) * 2
@@ -277,9 +314,9 @@ class BatchWorld:
 
     def _push_positions(self) -> None:
         """Every robot's pymunk pose set from the state (as a kinematic body's position and angle would be)."""
-        self._gx = self.rx + self.origin[:, 0]
-        self._gy = self.ry + self.origin[:, 1]
-        self._ga = self.rh.copy()
+        np.add(self.rx, self.origin[:, 0], out=self._gx)
+        np.add(self.ry, self.origin[:, 1], out=self._gy)
+        self._ga[:] = self.rh
 
     # ----------------------------------------------------------------- sensing
     def observe(self, names: tuple[str, ...] = SENSOR_NAMES) -> dict[str, np.ndarray]:
@@ -347,33 +384,13 @@ class BatchWorld:
         return {k: out[k] for k in names}
 
     def _sense_bins(self, sch: Schema, lanes: np.ndarray | None) -> np.ndarray:
-        """``sch.discretise(self._observe(sch.sensor_names, lanes))``, the same (n, S) uint8 bins: compiled
-        in one pass per lane for big batches (see :func:`_sense_bins_py`), else numpy's."""
-        m = self.n if lanes is None else len(lanes)
-        kernel = _sense_kernel() if _worth_compiling(m) else None
-        if kernel is None:
-            return sch.discretise(self._observe(sch.sensor_names, lanes))
-        c = self.cfg
-        names = sch.sensor_names
-        pick = (lambda a: a) if lanes is None else (lambda a: a[lanes])
-        rx, ry, rh, tx, ty = pick(self.rx), pick(self.ry), pick(self.rh), pick(self.tx), pick(self.ty)
-        th = pick(self.th) if "heading" in names else rx
-        fuel = pick(self.fuel) if "fuel" in names else rx
-        t_dir = q_dir = d_dir = rx
-        if {"range", "bearing", "heading", "target_bearing"} & set(names):
-            t_dir = np.degrees(np.arctan2(ty - ry, tx - rx))
-        if "bearing" in names:
-            qx = np.clip(rx, self.dock_x0, self.dock_x1)
-            qy = np.minimum(ry, c.dock_depth)
-            q_dir = np.degrees(np.arctan2(qy - ry, qx - rx))
-        if "dock_bearing" in names:
-            d_dir = np.degrees(np.arctan2(self.dock_point[1] - ry, self.dock_point[0] - rx))
-        codes, inv_width, nbins, circular, origin = _sensor_tables(sch)
-        out = np.empty((len(names), m), dtype=np.uint8)
-        kernel(codes, inv_width, nbins, circular, origin, rx, ry, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir,
-               float(c.arena), float(self.dock_x0), float(self.dock_x1), float(c.dock_depth), float(c.robot_radius),
-               float(c.target_radius), float(self.dock_point[0]), float(self.dock_point[1]), out)
-        return out.T
+        """``sch.discretise(self._observe(sch.sensor_names, lanes))``: the (n, S) uint8 bins of ``lanes`` (None: all).
+        (run_lanes' compiled steps sense in :func:`.kernels.decide_lanes`.)"""
+        return sch.discretise(self._observe(sch.sensor_names, lanes))
+
+    def sensing_state(self) -> tuple[np.ndarray, ...]:
+        """What :func:`.kernels.decide_lanes` reads of the world: rx, ry, rh, tx, ty, th, fuel, geometry."""
+        return self._sensing
 
     def min_dock_steps(self, lanes: np.ndarray) -> np.ndarray:
         """Estimated fewest steps to dock from now (the report's m): turn to face the dock at full rate, drive
@@ -392,13 +409,16 @@ class BatchWorld:
         ``turn`` (deg/s) and ``speed`` (ips) are the robot commands; ``target_noise``
         (deg) perturbs each Target's heading for its random walk.  All ``(n,)``.
         """
+        kernels = compiled_loops(int(np.count_nonzero(active)))
+        if kernels is not None:
+            events = np.zeros((4, self.n), dtype=np.bool_)
+            self.step_compiled(kernels, events, active, turn, speed, target_noise)
+            return StepEvents(collided=events[0], docked=events[1], dry=events[2], tracking=events[3])
         c = self.cfg
         dt = c.step_seconds
         speed = np.where(active, speed, 0.0)
         turn = np.where(active, turn, 0.0)
         idx = np.flatnonzero(active)
-        if _worth_compiling(idx.size) and _compiled("_move_py") is not None:
-            return self._step_compiled(idx, speed, turn, target_noise)
         # Robots and Targets of standing lanes do not move, so everything below is computed on the
         # active lanes only (all of them: ``a`` a slice, no copies).
         a = slice(None) if idx.size == self.n else idx
@@ -446,43 +466,30 @@ class BatchWorld:
             collided[lanes[~ok]] = True
         return docked
 
-    def _step_compiled(self, idx: np.ndarray, speed: np.ndarray, turn: np.ndarray, target_noise: np.ndarray) -> StepEvents:
-        """:meth:`step` of the active lanes ``idx`` with compiled loops (see :func:`_move_py`): the same
-        operations in the same order, pymunk's contacts and numpy's arctan2 in between."""
-        c = self.cfg
-        dt = c.step_seconds
-        lo = c.target_radius + 2.0
-        blocked = np.empty(idx.size, dtype=np.bool_)
-        _compiled("_move_py")(
-            idx, speed, turn, dt, self.rh, self._gx, self._gy, self._ga, self.origin[:, 0], self.origin[:, 1],
-            self.rx, self.ry, self.th, self.tx, self.ty, target_noise,
-            c.target_avoid, lo, c.arena - lo, c.dock_depth + lo + c.target_avoid / 2, c.arena / 2, c.dock_width,
-            c.target_speed * c.step_seconds, blocked)
-        if blocked.any():  # Targets turning away from a wall or the dock: as _target_walk does
-            k = idx[blocked]
-            self._touching = set()
-            tx, ty = self.tx[k], self.ty[k]
-            th = _signed_rad(np.arctan2(self._centre[1] - ty, self._centre[0] - tx) + np.radians(target_noise[k]))
-            step = c.target_speed * c.step_seconds
-            self.tx[k] = tx + step * np.cos(th)
-            self.ty[k] = ty + step * np.sin(th)
-            self.th[k] = th
-        self._sense_contacts(dt)
-        self.speed[:] = speed
-        self.turn[:] = turn
-        wall = self._contacts[_WALL]
-        dock = self._contacts[_DOCK]
-        if wall or dock:
-            self._park(wall + dock)
-        dist = np.empty(idx.size)
-        collided = np.zeros(self.n, dtype=bool)
-        _compiled("_near_target_py")(idx, self.rx, self.ry, self.tx, self.ty, c.robot_radius + c.target_radius, dist, collided)
-        docked = self._touched(wall, dock, speed, collided)
-        dry = np.zeros(self.n, dtype=bool)
-        tracking = np.zeros(self.n, dtype=bool)
-        _compiled("_spend_py")(idx, speed, turn, self.fuel, c.fuel_idle, c.fuel_per_ips, c.fuel_per_dps, dist,
-                               c.tracking_min, c.tracking_max, collided, docked, dry, tracking)
-        return StepEvents(collided=collided, docked=docked, dry=dry, tracking=tracking)
+    def step_compiled(self, kernels: ModuleType, events: np.ndarray, active: np.ndarray, turn: np.ndarray,
+                      speed: np.ndarray, target_noise: np.ndarray) -> None:
+        """:meth:`step` with the compiled loops (``kernels``, from :func:`compiled_loops`), its events written
+        into ``events``: (4, n) bool, rows collided, docked, dry, tracking (as :class:`StepEvents`).
+
+        :func:`.kernels.move`, pymunk's contacts, :func:`.kernels.events`: the same operations in the same
+        order as numpy's step, numpy's arctan2 for Targets turning away from a wall or the dock.
+        """
+        dt = self.cfg.step_seconds
+        m, nb, stepping, need, free = kernels.move(active, speed, turn, self.speed, self.turn, dt, self._moving,
+                                                   self._walk, target_noise, self._idx, self._blocked, self._bdy,
+                                                   self._bdx, self._reach, self._probing)
+        if nb:  # Targets turning away from a wall or the dock, towards the centre: numpy's arctan2
+            self._touching = set()  # as the compiled step always did (the numpy step does not: docs/performance.md)
+            np.arctan2(self._bdy[:nb], self._bdx[:nb], out=self._bang[:nb])
+        self._contacts = {_WALL: [], _DOCK: []}
+        if stepping:  # a robot is within reach of a wall or the dock, or a probe went back: pymunk tests
+            if free < need:
+                self._grow(max(need - free, 16))
+            kernels.assign_probes(self._gx, self._gy, self._probing)
+            self._pymunk_contacts(dt, kernels)
+        kernels.events(self._idx[:m], self._blocked[:nb], self._bang[:nb], target_noise,
+                       _as_lanes(self._contacts[_WALL]), _as_lanes(self._contacts[_DOCK]), self._settling, self.speed,
+                       self.turn, self.fuel, self._event_consts, events)
 
     def _park(self, lanes: list[int]) -> None:
         """Move robots that touched a wall or the dock to their arena's centre, in pymunk only.
@@ -503,7 +510,15 @@ class BatchWorld:
         the robot's shape, put at the robot's pose.  A lane keeps its probe as long as it stays within
         reach, so the probe's contact pairs are the lane's, and pymunk's "begin" (touching now, not at
         the previous step) means what it meant with one body per lane.  Free probes wait in the void.
+        (The compiled step lends them in :func:`.kernels.move` and :func:`.kernels.assign_probes`.)
         """
+        self._contacts = {_WALL: [], _DOCK: []}
+        if self._lend_probes():
+            self._pymunk_contacts(dt)
+
+    def _lend_probes(self) -> bool:
+        """Probes lent to the lanes within reach and put at their robots' poses (``self._io``), those of the
+        others back in the void.  False if no lane is within reach and none gave a probe back: nothing to test."""
         # Centres relative to the arena's middle; |.| beyond half: within reach of a wall.
         mx, my = self._gx - self._mid[:, 0], self._gy - self._mid[:, 1]
         np.abs(mx, out=mx)
@@ -528,13 +543,17 @@ class BatchWorld:
             got = free[: need.size]
             pl[got] = need
             lp[need] = got
-        self._contacts = {_WALL: [], _DOCK: []}
         if not (near.any() or gone.size):
-            return
+            return False
         mine = np.flatnonzero(pl >= 0)
         rows = self._probe_row[mine]
         self._io[rows, 0] = self._gx[pl[mine]]
         self._io[rows, 1] = self._gy[pl[mine]]
+        return True
+
+    def _pymunk_contacts(self, dt: float, kernels: ModuleType | None = None) -> None:
+        """pymunk's contact test of the probes where :meth:`_lend_probes` put them: ``self._contacts``
+        (its arbiters read by numpy, or by ``kernels``: :func:`.kernels.contact_codes`)."""
         self._wbuf.set_float_buf(self._io.reshape(-1))
         pb.set_space_bodies(self.space, pb.BodyFields.POSITION, self._wbuf)
         self.space.step(dt)  # the probes stand still (velocity zero): pymunk only tests contacts
@@ -548,6 +567,20 @@ class BatchWorld:
         if pairs.size == 0:
             self._touching = set()
             return
+        if kernels is None:
+            codes = self._contact_codes(pairs)
+        else:
+            codes = np.empty(len(pairs), dtype=np.int64)
+            kernels.contact_codes(pairs, self._probe_ids, self._probe_of_id, self._side_order_ids,
+                                  self._side_of_sorted, self._probe_lane, codes)
+        touching = set(codes.tolist())  # lane * 5 + side, a few
+        began = touching - self._touching
+        self._touching = touching
+        self._contacts = {_WALL: [c // 5 for c in began if c % 5 != _DOCK_SIDE],
+                          _DOCK: [c // 5 for c in began if c % 5 == _DOCK_SIDE]}
+
+    def _contact_codes(self, pairs: np.ndarray) -> np.ndarray:
+        """lane * 5 + side of each (probe body, side body) pair of ids, in either order."""
         a, b = pairs[:, 0], pairs[:, 1]  # pymunk puts the circle (probe) first; checked, not assumed
         last = len(self._probe_ids) - 1
         i = np.minimum(np.searchsorted(self._probe_ids, a), last)
@@ -556,11 +589,7 @@ class BatchWorld:
             a, b = np.where(swap, b, a), np.where(swap, a, b)
             i = np.minimum(np.searchsorted(self._probe_ids, a), last)
         side = self._side_of_sorted[np.searchsorted(self._side_order_ids, b)]
-        touching = set((pl[self._probe_of_id[i]] * 5 + side).tolist())  # lane * 5 + side, a few
-        began = touching - self._touching
-        self._touching = touching
-        self._contacts = {_WALL: [c // 5 for c in began if c % 5 != _DOCK_SIDE],
-                          _DOCK: [c // 5 for c in began if c % 5 == _DOCK_SIDE]}
+        return self._probe_lane[self._probe_of_id[i]] * 5 + side
 
     def _docking_accepted(self, lanes: np.ndarray, speed: np.ndarray) -> np.ndarray:
         """Contact with the dock docks only on its front face, head-on within the angle, slowly enough."""
@@ -602,105 +631,24 @@ _REACH_MARGIN = 1.0  # inches: the bounding-box reach test is this much generous
 _WALL_DIR = np.array([180.0, 0.0, -90.0, 90.0, 0.0])  # west, east, south, north walls; dock filled in
 
 
-# ----------------------------------------------------------------- compiled sensing
-# BatchWorld.sense_bins: observe + Schema.discretise in one pass per lane, compiled with numba where
-# the batch is big enough to pay for it.  Every value is computed with the same floating-point
-# operations in the same order as observe() and Sensor.discretise (cos, sin, sqrt and floor are the
-# same libm/IEEE functions in numba; numba does not contract a*b+c into FMA), except arctan2, which
-# numpy computes with its own SIMD code: those arrays come from numpy.  tests/test_exact_curves.py
-# checks both paths against numbers recorded before this code existed.
+# ----------------------------------------------------------------- compiled loops
+# BatchWorld's sensing and stepping, and the agent loop's steps (runner.py), have compiled versions in
+# kernels.py (numba): the same floating-point operations in the same order, numpy's arctan2 in between
+# (see that module).  tests/test_exact_curves.py checks both paths against numbers recorded before the
+# compiled ones existed.
 
 _SENSOR_CODE = {name: i for i, name in enumerate(SENSOR_NAMES)}
 COMPILED_MIN_LANES = 256  # numba is loaded (~0.35 s, ~90 MB) for a batch of at least this many lanes (a GA's
 # population at the report's size: 50 x 9 = 450 lanes for Tracking and the Executive; 8 Tracking generations
 # 2.87 -> 1.95 CPU s once it is, docs/performance.md; the small batches of tests and coevo show stay numpy) ...
-COMPILED_WARM_MIN_LANES = 8  # ... and once loaded, used from this many on (numpy's ~300 calls a step cost more)
-_kernels: dict[str, object] = {}  # compiled functions (None without numba), made on first use
-
-
-def _sense_bins_py(codes, inv_width, nbins, circular, origin, rx, ry, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir,
-                   arena, x0, x1, depth, r, tr, dock_x, dock_y, out):  # pragma: no cover - compiled by numba
-    n = rx.shape[0]
-    for i in range(n):
-        x = rx[i]
-        y = ry[i]
-        h = np.degrees(rh[i])
-        dx = tx[i] - x
-        dy = ty[i] - y
-        t_dist = np.sqrt(dx * dx + dy * dy)
-        for j in range(codes.shape[0]):
-            code = codes[j]
-            if code == 0 or code == 1:  # range, bearing
-                qx = min(max(x, x0), x1)
-                qy = min(y, depth)
-                gx = x - qx
-                gy = y - qy
-                g4 = np.sqrt(gx * gx + gy * gy) - r
-                g0 = x - r
-                g1 = (arena - x) - r
-                g2 = y - r
-                g3 = (arena - y) - r
-                g5 = (t_dist - tr) - r
-                nearest = min(min(min(min(min(g0, g1), g2), g3), g4), g5)
-                if code == 0:
-                    v = nearest if nearest >= 0.0 else 0.0
-                else:
-                    if g0 == nearest:
-                        od = 180.0
-                    elif g1 == nearest:
-                        od = 0.0
-                    elif g2 == nearest:
-                        od = -90.0
-                    elif g3 == nearest:
-                        od = 90.0
-                    elif g4 == nearest:
-                        od = q_dir[i]
-                    else:
-                        od = t_dir[i]
-                    a = od - h
-                    v = a - 360.0 * np.floor(a * (1.0 / 360.0))
-            elif code == 2:  # heading
-                a = np.degrees(th[i]) - t_dir[i]
-                v = a - 360.0 * np.floor(a * (1.0 / 360.0))
-            elif code == 3:  # target_range
-                v = t_dist
-            elif code == 4:  # target_bearing
-                a = t_dir[i] - h
-                v = a - 360.0 * np.floor(a * (1.0 / 360.0))
-            elif code == 5:  # dock_range
-                ddx = dock_x - x
-                ddy = dock_y - y
-                v = np.sqrt(ddx * ddx + ddy * ddy)
-            elif code == 6:  # dock_bearing
-                a = d_dir[i] - h
-                v = a - 360.0 * np.floor(a * (1.0 / 360.0))
-            elif code == 7:  # dock_orientation
-                a = h - -90.0
-                v = a - 360.0 * np.floor(a * (1.0 / 360.0))
-            elif code == 8:  # fuel
-                f = min(max(fuel[i], 0.0), 1.0)
-                v = 100.0 * f
-            elif code == 9:  # dock_axis (dock_frame.observe)
-                v = y - (dock_y + r)
-            else:  # dock_offset
-                v = x - dock_x
-            # Sensor.discretise
-            if origin[j] != 0.0:
-                v = v - origin[j]
-            if circular[j]:
-                k = int((v - 360.0 * np.floor(v * (1.0 / 360.0))) * inv_width[j])
-                if k >= nbins[j]:
-                    k -= nbins[j]
-            else:
-                k = int(min(max(v * inv_width[j], 0.0), nbins[j] - 1.0))
-            out[j, i] = k
-
-
+COMPILED_WARM_MIN_LANES = 1  # ... and once loaded, for any batch (a compiled step's fixed cost is ~1/4 of numpy's)
+_loaded: dict[str, ModuleType | None] = {}  # "kernels": the compiled loops once a batch wanted them (None: no numba)
+_NO_LANES = np.zeros(0, dtype=np.int64)
 _TABLES: dict[str, tuple[np.ndarray, ...]] = {}
 
 
-def _sensor_tables(sch: Schema) -> tuple[np.ndarray, ...]:
-    """A schema's sensors as the kernel's arrays: code, 1 / width (as Sensor.discretise computes it), bins,
+def sensor_tables(sch: Schema) -> tuple[np.ndarray, ...]:
+    """A schema's sensors as the kernels' arrays: code, 1 / width (as Sensor.discretise computes it), bins,
     circular, origin."""
     t = _TABLES.get(sch.behaviour)
     if t is None or len(t[0]) != sch.n_sensors:
@@ -715,80 +663,32 @@ def _sensor_tables(sch: Schema) -> tuple[np.ndarray, ...]:
 
 
 def _worth_compiling(lanes: int) -> bool:
-    """Compiled loops for a batch of ``lanes``: a big one, or any but the tiniest once numba is loaded."""
-    return lanes >= COMPILED_MIN_LANES or (bool(_kernels) and lanes >= COMPILED_WARM_MIN_LANES)
+    """Compiled loops for a batch of ``lanes``: a big one, or any once numba is loaded."""
+    return lanes >= COMPILED_MIN_LANES or (bool(_loaded) and lanes >= COMPILED_WARM_MIN_LANES)
 
 
-def _compiled(name: str):
-    """The numba-compiled version of the module function ``name``, or None without numba (then numpy)."""
-    if name not in _kernels:
+def _kernels() -> ModuleType | None:
+    """The compiled loops (:mod:`.kernels`, importing numba on first use), or None without numba (then numpy)."""
+    if "kernels" not in _loaded:
         try:
-            import numba
+            from coevo.tasks.fuel import kernels
         except ImportError:  # pragma: no cover - numba is a dependency; a stripped install still works
-            _kernels[name] = None
-        else:
-            _kernels[name] = numba.njit(cache=True, nogil=True)(globals()[name])
-    return _kernels[name]
+            kernels = None
+        _loaded["kernels"] = kernels
+    return _loaded["kernels"]
+
+
+def compiled_loops(lanes: int) -> ModuleType | None:
+    """The compiled loops if a batch of ``lanes`` should use them (see ``COMPILED_MIN_LANES``), else None."""
+    return _kernels() if _worth_compiling(lanes) else None
 
 
 def _sense_kernel():
-    """The compiled sensing function, or None without numba (then numpy's observe + discretise)."""
-    return _compiled("_sense_bins_py")
+    """The compiled sensing (and deciding) of run_lanes' steps, or None without numba (then numpy's observe +
+    discretise)."""
+    kernels = _kernels()
+    return None if kernels is None else kernels.decide_lanes
 
 
-def _move_py(idx, speed, turn, dt, rh, gx, gy, ga, ox, oy, rx, ry, th, tx, ty, noise,
-             avoid, lo, hi, dock_y, half, dock_w, t_step, blocked):  # pragma: no cover - compiled by numba
-    """BatchWorld.step's moves of the lanes ``idx``: the robot's kinematic integration and state, and the
-    Target's random walk where it is not blocked (``blocked[j]`` set for idx[j]; numpy finishes those)."""
-    two_pi = 2 * np.pi
-    inv_two_pi = 0.5 / np.pi
-    for j in range(idx.shape[0]):
-        i = idx[j]
-        sp = speed[i]
-        r = rh[i]
-        x = gx[i] + sp * np.cos(r) * dt
-        y = gy[i] + sp * np.sin(r) * dt
-        a = ga[i] + np.radians(turn[i]) * dt
-        gx[i] = x
-        gy[i] = y
-        ga[i] = a
-        rx[i] = x - ox[i]
-        ry[i] = y - oy[i]
-        rh[i] = a - two_pi * np.floor((a + np.pi) * inv_two_pi)
-        t = th[i] + np.radians(noise[i])
-        t = t - two_pi * np.floor((t + np.pi) * inv_two_pi)
-        c = np.cos(t)
-        s = np.sin(t)
-        ax = tx[i] + avoid * c
-        ay = ty[i] + avoid * s
-        if ax < lo or ax > hi or ay < lo or ay > hi or (ay < dock_y and abs(ax - half) < dock_w):
-            blocked[j] = True
-        else:
-            blocked[j] = False
-            tx[i] = tx[i] + t_step * c
-            ty[i] = ty[i] + t_step * s
-            th[i] = t
-
-
-def _near_target_py(idx, rx, ry, tx, ty, reach, dist, collided):  # pragma: no cover - compiled by numba
-    """Robot-Target distances of the lanes ``idx`` (into ``dist[j]``) and their collisions."""
-    for j in range(idx.shape[0]):
-        i = idx[j]
-        dx = tx[i] - rx[i]
-        dy = ty[i] - ry[i]
-        d = np.sqrt(dx * dx + dy * dy)
-        dist[j] = d
-        collided[i] = d < reach
-
-
-def _spend_py(idx, speed, turn, fuel, idle, per_ips, per_dps, dist, t_min, t_max, collided, docked, dry,
-              tracking):  # pragma: no cover - compiled by numba
-    """Fuel spent by the lanes ``idx``, and which ran dry or tracked."""
-    for j in range(idx.shape[0]):
-        i = idx[j]
-        f = fuel[i] - (idle + per_ips * abs(speed[i]) + per_dps * abs(turn[i]))
-        fuel[i] = f
-        going = not collided[i]
-        dry[i] = f <= 0.0 and going and not docked[i]
-        d = dist[j]
-        tracking[i] = d >= t_min and d <= t_max and going
+def _as_lanes(lanes: list[int]) -> np.ndarray:
+    return np.array(lanes, dtype=np.int64) if lanes else _NO_LANES
