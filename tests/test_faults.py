@@ -165,6 +165,7 @@ def test_worker_directory_rules_fail_before_connecting(tmp_path: Path) -> None:
 
 
 # ---------------------------------------------------------------------------- worker death
+@pytest.mark.slow
 def test_a_killed_worker_shows_dead_within_a_second_the_others_go_on_and_it_resumes(tmp_path: Path) -> None:
     lr = _local_run(tmp_path, "kill")
     lr.start(resume=False)
@@ -195,6 +196,7 @@ def test_a_killed_worker_shows_dead_within_a_second_the_others_go_on_and_it_resu
 
 
 # ---------------------------------------------------------------------------- broker death
+@pytest.mark.slow
 def test_a_killed_broker_loses_nothing_once_restarted(tmp_path: Path) -> None:
     # 24 generations: the slowest worker is at 3 when the broker dies and needs 3 more before it comes back, so every
     # worker publishes versions the dead broker never hears (a fast one may finish meanwhile, allowed for below).
@@ -238,6 +240,7 @@ def test_a_killed_broker_loses_nothing_once_restarted(tmp_path: Path) -> None:
         assert store.latest(lr.run, b, worker=roster[b]).version == newest, b
 
 
+@pytest.mark.slow
 def test_pacing_holds_while_the_broker_is_down(tmp_path: Path) -> None:
     """The router carries every token: while it is down the partners are unknown, not gone, so a worker keeps to
     --max-lead (here 1: a worker finishes at most 2 generations more than any partner) and the run goes on once
@@ -270,6 +273,7 @@ def test_pacing_holds_while_the_broker_is_down(tmp_path: Path) -> None:
     assert "unknown, not gone" in log
 
 
+@pytest.mark.slow
 def test_a_whole_run_killed_at_once_continues_with_run_resume(tmp_path: Path) -> None:
     # 12 generations: killed when Docking (the fastest) has 4, so every worker has some left to resume.
     args = ["--regime", "independent", "--run", "crash", "--root", str(tmp_path), "--generations", "12", *SMALL,
@@ -403,6 +407,7 @@ def test_a_broker_flooded_beyond_its_inbox_drops_and_counts_and_still_stores(tmp
 
 
 # ---------------------------------------------------------------------------- chaos
+@pytest.mark.slow
 def test_coevo_chaos_kills_and_restarts_and_the_run_comes_out_complete(tmp_path: Path) -> None:
     # 20 generations: several seconds of run, time for some of the 4 faults (a gap of 0.5-1.5 s before each)
     r = subprocess.run([sys.executable, "-m", "coevo", "chaos", "--run", "ch", "--root", str(tmp_path), "--seed", "2",
@@ -434,6 +439,7 @@ def _broker_of(pid: int) -> int | None:
     return None
 
 
+@pytest.mark.slow
 def test_coevo_run_whose_broker_is_killed_twice_restarts_it_completes_and_checks(tmp_path: Path) -> None:
     """Item 3 of issue 29: the run supervises its broker (same endpoint, same data directory); nothing is lost and
     the store's latest is each worker's newest (coevo check); a finishing worker is never shown dead."""

@@ -427,6 +427,7 @@ def _rejected(run_dir: Path) -> dict[str, int]:
     return total
 
 
+@pytest.mark.slow
 def test_genuine_messages_captured_and_replayed_from_outside_change_nothing_running_or_resumed(tmp_path: Path) -> None:
     """Issue 29 item 7: a raw zenoh client (no coevo import) captures a keyed run's genuine messages (policies,
     current policies, statuses, the broker's status, the stop of a Ctrl-C) and puts them again, into the running
