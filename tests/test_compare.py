@@ -41,94 +41,101 @@ def _csv(path: Path) -> list[dict[str, str]]:
 
 
 @pytest.mark.service
-def test_tiny_comparison_writes_a_consistent_report(tiny: Path) -> None:
-    for name in ("compare.json", "report.md", "results.json", "runs.csv", "curves.csv",
-                 "figure-mutual.png", "figure-independent.png", "regimes.png"):
-        assert (tiny / name).is_file(), name
-    for png in tiny.glob("*.png"):
-        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+@pytest.mark.slow
+class TestTinyComparison:
+    """The two tests on the module's comparison (half a minute to make): a class, so that the whole suite's scheduler
+    (tests/conftest.py) gives both to one xdist worker, which makes it once; the second changes it, after the first
+    has read it."""
 
-    res = json.loads((tiny / "results.json").read_text())
-    assert res["runs_expected"] == res["runs_finished"] == 4
-    assert sorted(x["run"] for x in res["runs"]) == sorted(RUNS)
+    def test_tiny_comparison_writes_a_consistent_report(self, tiny: Path) -> None:
+        for name in ("compare.json", "report.md", "results.json", "runs.csv", "curves.csv",
+                     "figure-mutual.png", "figure-independent.png", "regimes.png"):
+            assert (tiny / name).is_file(), name
+        for png in tiny.glob("*.png"):
+            assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
 
-    # Every run's measures are its own summary's, and its class follows from them.
-    for x in res["runs"]:
-        summary = json.loads((tiny / "runs" / x["run"] / "summary.json").read_text())
-        assert x["measures"] == pytest.approx(summary["measures"])
-        assert x["class"] == classify(summary["measures"])
-        assert 0.0 <= x["docking_from_random_starts"] <= 100.0
-        for beh, final in x["final_best_so_far"].items():
-            rows = (tiny / "runs" / x["run"] / "workers" / beh / "curve.jsonl").read_text().splitlines()
-            assert len(rows) == 3 and final == pytest.approx(json.loads(rows[-1])["best_so_far"])
+        res = json.loads((tiny / "results.json").read_text())
+        assert res["runs_expected"] == res["runs_finished"] == 4
+        assert sorted(x["run"] for x in res["runs"]) == sorted(RUNS)
 
-    # Table 1 counts are the classes of the runs, nine columns per regime, beside the report's own.
-    for regime in ("mutual", "independent"):
-        counts = res["table1"][regime]
-        assert set(counts) == set(CLASSES)  # results.json keeps keys sorted
-        assert counts == count(x["class"] for x in res["runs"] if x["regime"] == regime)
-        assert sum(counts.values()) == 2
-    assert res["table1_report"] == REPORT_COUNTS
+        # Every run's measures are its own summary's, and its class follows from them.
+        for x in res["runs"]:
+            summary = json.loads((tiny / "runs" / x["run"] / "summary.json").read_text())
+            assert x["measures"] == pytest.approx(summary["measures"])
+            assert x["class"] == classify(summary["measures"])
+            assert 0.0 <= x["docking_from_random_starts"] <= 100.0
+            for beh, final in x["final_best_so_far"].items():
+                rows = (tiny / "runs" / x["run"] / "workers" / beh / "curve.jsonl").read_text().splitlines()
+                assert len(rows) == 3 and final == pytest.approx(json.loads(rows[-1])["best_so_far"])
 
-    # The rank tests are recomputable from the per-run numbers.
-    tests = {t["measure"]: t for t in res["tests"]}
-    assert set(tests) == {"final_executive_fitness", "successful_docking"}
-    by = {r: [x for x in res["runs"] if x["regime"] == r] for r in ("mutual", "independent")}
-    again = compare_samples("final_executive_fitness", "mutual", [x["final_best_so_far"]["executive"] for x in by["mutual"]],
-                            "independent", [x["final_best_so_far"]["executive"] for x in by["independent"]])
-    assert tests["final_executive_fitness"] == pytest.approx(again.as_dict())
-    for t in tests.values():
-        assert 0.0 <= t["p_value"] <= 1.0 and 0.0 <= t["a12"] <= 1.0
-    assert res["verdict"]
+        # Table 1 counts are the classes of the runs, nine columns per regime, beside the report's own.
+        for regime in ("mutual", "independent"):
+            counts = res["table1"][regime]
+            assert set(counts) == set(CLASSES)  # results.json keeps keys sorted
+            assert counts == count(x["class"] for x in res["runs"] if x["regime"] == regime)
+            assert sum(counts.values()) == 2
+        assert res["table1_report"] == REPORT_COUNTS
 
-    # The CSVs say what results.json says.
-    rows = {r["run"]: r for r in _csv(tiny / "runs.csv")}
-    assert set(rows) == set(RUNS)
-    for x in res["runs"]:
-        assert rows[x["run"]]["class"] == x["class"]
-        assert float(rows[x["run"]]["docking_from_random_starts"]) == pytest.approx(x["docking_from_random_starts"])
-        assert float(rows[x["run"]]["successful_docking"]) == pytest.approx(x["measures"]["successful_docking"])
-    curves = _csv(tiny / "curves.csv")
-    assert len(curves) == 4 * 3 * 3  # runs x behaviours x generations
-    assert Counter(r["behaviour"] for r in curves) == {"tracking": 12, "docking": 12, "executive": 12}
+        # The rank tests are recomputable from the per-run numbers.
+        tests = {t["measure"]: t for t in res["tests"]}
+        assert set(tests) == {"final_executive_fitness", "successful_docking"}
+        by = {r: [x for x in res["runs"] if x["regime"] == r] for r in ("mutual", "independent")}
+        again = compare_samples("final_executive_fitness",
+                                "mutual", [x["final_best_so_far"]["executive"] for x in by["mutual"]],
+                                "independent", [x["final_best_so_far"]["executive"] for x in by["independent"]])
+        assert tests["final_executive_fitness"] == pytest.approx(again.as_dict())
+        for t in tests.values():
+            assert 0.0 <= t["p_value"] <= 1.0 and 0.0 <= t["a12"] <= 1.0
+        assert res["verdict"]
 
-    md = (tiny / "report.md").read_text()
-    for part in ("## Verdict", "## Table 1", "| mutual (ours) |", "| mutual (report) |", "| independent (report) |",
-                 "## Statistical comparison", "## Runs", "![regimes.png](regimes.png)", res["verdict"]):
-        assert part in md, part
-    for run in RUNS:
-        assert f"| {run} |" in md
+        # The CSVs say what results.json says.
+        rows = {r["run"]: r for r in _csv(tiny / "runs.csv")}
+        assert set(rows) == set(RUNS)
+        for x in res["runs"]:
+            assert rows[x["run"]]["class"] == x["class"]
+            assert float(rows[x["run"]]["docking_from_random_starts"]) == pytest.approx(x["docking_from_random_starts"])
+            assert float(rows[x["run"]]["successful_docking"]) == pytest.approx(x["measures"]["successful_docking"])
+        curves = _csv(tiny / "curves.csv")
+        assert len(curves) == 4 * 3 * 3  # runs x behaviours x generations
+        assert Counter(r["behaviour"] for r in curves) == {"tracking": 12, "docking": 12, "executive": 12}
 
-    # Each live regime's best and worst run by executive payoff, drawn playing one epoch.
-    for regime in ("mutual", "independent"):
-        runs = sorted(by[regime], key=lambda x: (x["measures"]["executive_payoff"], x["run"]))
-        shown = {r["which"]: r for r in res["robots"] if r["regime"] == regime}
-        assert shown["best"]["run"] == runs[-1]["run"] and shown["worst"]["run"] == runs[0]["run"]
-        for which in ("best", "worst"):
-            name = f"robot-{regime}-{which}.png"
-            assert (tiny / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-            assert f"![{name}]({name})" in md
+        md = (tiny / "report.md").read_text()
+        for part in ("## Verdict", "## Table 1", "| mutual (ours) |", "| mutual (report) |", "| independent (report) |",
+                     "## Statistical comparison", "## Runs", "![regimes.png](regimes.png)", res["verdict"]):
+            assert part in md, part
+        for run in RUNS:
+            assert f"| {run} |" in md
+
+        # Each live regime's best and worst run by executive payoff, drawn playing one epoch.
+        for regime in ("mutual", "independent"):
+            runs = sorted(by[regime], key=lambda x: (x["measures"]["executive_payoff"], x["run"]))
+            shown = {r["which"]: r for r in res["robots"] if r["regime"] == regime}
+            assert shown["best"]["run"] == runs[-1]["run"] and shown["worst"]["run"] == runs[0]["run"]
+            for which in ("best", "worst"):
+                name = f"robot-{regime}-{which}.png"
+                assert (tiny / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+                assert f"![{name}]({name})" in md
 
 
-@pytest.mark.service
-def test_resume_reruns_only_what_is_unfinished(tiny: Path) -> None:
-    kept = {r: (tiny / "runs" / r / "summary.json").read_bytes() for r in RUNS if r != "mutual-01"}
-    (tiny / "runs" / "mutual-01" / "summary.json").unlink()  # as if killed before the end
-    curve = (tiny / "runs" / "mutual-01" / "workers" / "docking" / "curve.jsonl").read_bytes()
+    def test_resume_reruns_only_what_is_unfinished(self, tiny: Path) -> None:
+        kept = {r: (tiny / "runs" / r / "summary.json").read_bytes() for r in RUNS if r != "mutual-01"}
+        (tiny / "runs" / "mutual-01" / "summary.json").unlink()  # as if killed before the end
+        curve = (tiny / "runs" / "mutual-01" / "workers" / "docking" / "curve.jsonl").read_bytes()
 
-    again = coevo("compare", "--out", str(tiny), *TINY)
-    assert again.returncode == 2 and "add --resume" in again.stderr
-    r = coevo("compare", "--out", str(tiny), "--resume", *TINY)
-    assert r.returncode == 0, r.stdout + r.stderr
-    assert "3 of 4 runs already done, 1 to run" in r.stdout
-    for run, body in kept.items():
-        assert (tiny / "runs" / run / "summary.json").read_bytes() == body, run
-    assert json.loads((tiny / "runs" / "mutual-01" / "summary.json").read_text())["resumed"] is True
-    assert (tiny / "runs" / "mutual-01" / "workers" / "docking" / "curve.jsonl").read_bytes() == curve  # continued, not redone
-    assert json.loads((tiny / "results.json").read_text())["runs_finished"] == 4
+        again = coevo("compare", "--out", str(tiny), *TINY)
+        assert again.returncode == 2 and "add --resume" in again.stderr
+        r = coevo("compare", "--out", str(tiny), "--resume", *TINY)
+        assert r.returncode == 0, r.stdout + r.stderr
+        assert "3 of 4 runs already done, 1 to run" in r.stdout
+        for run, body in kept.items():
+            assert (tiny / "runs" / run / "summary.json").read_bytes() == body, run
+        assert json.loads((tiny / "runs" / "mutual-01" / "summary.json").read_text())["resumed"] is True
+        # continued, not redone
+        assert (tiny / "runs" / "mutual-01" / "workers" / "docking" / "curve.jsonl").read_bytes() == curve
+        assert json.loads((tiny / "results.json").read_text())["runs_finished"] == 4
 
-    other = coevo("compare", "--out", str(tiny), "--resume", *TINY, "--seed", "7")
-    assert other.returncode == 2 and "different comparison" in other.stderr and "seed" in other.stderr
+        other = coevo("compare", "--out", str(tiny), "--resume", *TINY, "--seed", "7")
+        assert other.returncode == 2 and "different comparison" in other.stderr and "seed" in other.stderr
 
 
 @pytest.mark.parametrize(("args", "message"), [

@@ -341,6 +341,7 @@ def _generations(text: str) -> dict[str, int]:
 
 
 @pytest.mark.service
+@pytest.mark.slow
 def test_the_page_in_headless_chromium_follows_a_real_run(tmp_path: Path) -> None:
     from procs import coevo_proc, poll, stop
 

@@ -68,6 +68,7 @@ def lab():
         yield lab
 
 
+@pytest.mark.slow
 def test_two_sites_in_namespaces_match_loopback_and_survive_a_cut_link(lab: Lab, tmp_path: Path) -> None:
     # The loopback reference: the same seeds (coevo run gives behaviour i the seed SEED + i).
     ref = subprocess.run(_coevo("run", "--regime", "independent", "--run", "ref", "--root", str(tmp_path / "loop"),

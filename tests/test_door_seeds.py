@@ -66,6 +66,7 @@ def test_a_flag_of_the_other_task_or_a_bad_door_setting_is_one_line(argv: list[s
 
 
 @pytest.mark.service
+@pytest.mark.slow
 def test_a_pool_of_processes_and_a_local_dask_cluster_give_the_same_numbers(tmp_path: Path) -> None:
     got = []
     for where, flags in (("here", ["--jobs", "1"]), ("pool", ["--jobs", "2"]), ("dask", ["--cluster", "local:2"])):

@@ -51,7 +51,9 @@ from coevo.rundir.settings import RunSettings
 pytestmark = pytest.mark.service  # starts brokers, workers or whole runs as processes: run with --all
 
 T, D, E = Behaviour.TRACKING, Behaviour.DOCKING, Behaviour.EXECUTIVE
-MID = GAConfig(generations=30, population=8, episodes=20, best_episodes=20, initial_rules=8)
+# 12 generations: killed at its third, the worker stays dead while the others (paced: they led it by at most 2) go on
+# 2 more, and resumes with generations left; coevo check replays every generation of the three.
+MID = GAConfig(generations=12, population=8, episodes=20, best_episodes=20, initial_rules=8)
 
 
 def _view(board: StatusBoard, behaviour: str) -> dict:
@@ -163,6 +165,7 @@ def test_worker_directory_rules_fail_before_connecting(tmp_path: Path) -> None:
 
 
 # ---------------------------------------------------------------------------- worker death
+@pytest.mark.slow
 def test_a_killed_worker_shows_dead_within_a_second_the_others_go_on_and_it_resumes(tmp_path: Path) -> None:
     lr = _local_run(tmp_path, "kill")
     lr.start(resume=False)
@@ -193,8 +196,11 @@ def test_a_killed_worker_shows_dead_within_a_second_the_others_go_on_and_it_resu
 
 
 # ---------------------------------------------------------------------------- broker death
+@pytest.mark.slow
 def test_a_killed_broker_loses_nothing_once_restarted(tmp_path: Path) -> None:
-    ga = GAConfig(generations=40, population=8, episodes=20, best_episodes=20, initial_rules=8)
+    # 24 generations: the slowest worker is at 3 when the broker dies and needs 3 more before it comes back, so every
+    # worker publishes versions the dead broker never hears (a fast one may finish meanwhile, allowed for below).
+    ga = GAConfig(generations=24, population=8, episodes=20, best_episodes=20, initial_rules=8)
     # Unpaced: with pacing, workers hold at --max-lead while the broker is down (the next test); here they must
     # publish versions the dead broker never hears.
     lr = _local_run(tmp_path, "nobroker", ga=ga, seed=8, max_lead=None)
@@ -234,6 +240,7 @@ def test_a_killed_broker_loses_nothing_once_restarted(tmp_path: Path) -> None:
         assert store.latest(lr.run, b, worker=roster[b]).version == newest, b
 
 
+@pytest.mark.slow
 def test_pacing_holds_while_the_broker_is_down(tmp_path: Path) -> None:
     """The router carries every token: while it is down the partners are unknown, not gone, so a worker keeps to
     --max-lead (here 1: a worker finishes at most 2 generations more than any partner) and the run goes on once
@@ -266,8 +273,10 @@ def test_pacing_holds_while_the_broker_is_down(tmp_path: Path) -> None:
     assert "unknown, not gone" in log
 
 
+@pytest.mark.slow
 def test_a_whole_run_killed_at_once_continues_with_run_resume(tmp_path: Path) -> None:
-    args = ["--regime", "independent", "--run", "crash", "--root", str(tmp_path), "--generations", "30", *SMALL,
+    # 12 generations: killed when Docking (the fastest) has 4, so every worker has some left to resume.
+    args = ["--regime", "independent", "--run", "crash", "--root", str(tmp_path), "--generations", "12", *SMALL,
             "--measure-epochs", "2", "--quiet"]
     p = subprocess.Popen([sys.executable, "-m", "coevo", "run", *args], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                          start_new_session=True)
@@ -398,16 +407,18 @@ def test_a_broker_flooded_beyond_its_inbox_drops_and_counts_and_still_stores(tmp
 
 
 # ---------------------------------------------------------------------------- chaos
+@pytest.mark.slow
 def test_coevo_chaos_kills_and_restarts_and_the_run_comes_out_complete(tmp_path: Path) -> None:
+    # 20 generations: several seconds of run, time for some of the 4 faults (a gap of 0.5-1.5 s before each)
     r = subprocess.run([sys.executable, "-m", "coevo", "chaos", "--run", "ch", "--root", str(tmp_path), "--seed", "2",
-                        "--generations", "30", "--population", "8", "--episodes", "20", "--ga", "best_episodes=20",
+                        "--generations", "20", "--population", "8", "--episodes", "20", "--ga", "best_episodes=20",
                         "--ga", "initial_rules=8", "--faults", "4", "--gap", "0.5", "1.5", "--down", "0.3", "1.5",
                         "--measure-epochs", "2"], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stdout + r.stderr
     report = json.loads((tmp_path / "ch" / "chaos.json").read_text())
     assert report["complete"] and sum(report["faults"].values()) >= 1
     for b in ("tracking", "docking", "executive"):
-        assert report["facts"][b]["generations"] == 30
+        assert report["facts"][b]["generations"] == 20
 
 
 def _children(pid: int) -> list[int]:
@@ -428,13 +439,16 @@ def _broker_of(pid: int) -> int | None:
     return None
 
 
+@pytest.mark.slow
 def test_coevo_run_whose_broker_is_killed_twice_restarts_it_completes_and_checks(tmp_path: Path) -> None:
     """Item 3 of issue 29: the run supervises its broker (same endpoint, same data directory); nothing is lost and
     the store's latest is each worker's newest (coevo check); a finishing worker is never shown dead."""
+    # 30 generations: the second kill comes when the slowest worker (Tracking) has 6, the fastest (Docking) near its end
+    generations = 30
     out = tmp_path / "run.out"
     with open(out, "wb") as f:
         p = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--run", "sup", "--root", str(tmp_path),
-                              "--generations", "40", *SMALL, "--measure-epochs", "2", "--max-lead", "off"], stdout=f,
+                              "--generations", str(generations), *SMALL, "--measure-epochs", "2", "--max-lead", "off"], stdout=f,
                              stderr=subprocess.STDOUT)
     run_dir = tmp_path / "sup"
     try:
@@ -456,7 +470,8 @@ def test_coevo_run_whose_broker_is_killed_twice_restarts_it_completes_and_checks
     assert check.ok, check.problems
     # While the broker (the router the status session reaches the workers through) is down every worker looks dead;
     # a worker that finished its generations never does.
-    assert not [x for x in text.splitlines() if " gen 40/40 " in x and x.rstrip().endswith(" dead")], text[-3000:]
+    done = f" gen {generations}/{generations} "
+    assert not [x for x in text.splitlines() if done in x and x.rstrip().endswith(" dead")], text[-3000:]
 
 
 def _curve_len_dir(run_dir: Path) -> int:

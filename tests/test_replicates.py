@@ -182,6 +182,7 @@ def _form(out: Path) -> tuple[set[str], set[str], list[str]]:
 
 
 @pytest.mark.service
+@pytest.mark.slow
 def test_a_tiny_comparison_on_a_local_dask_cluster_writes_the_report_it_writes_here(tmp_path: Path) -> None:
     here, dask = tmp_path / "here", tmp_path / "dask"
     r = coevo("compare", "--out", str(here), "--jobs", "2", *TINY)
@@ -200,6 +201,7 @@ def test_a_tiny_comparison_on_a_local_dask_cluster_writes_the_report_it_writes_h
 
 
 @pytest.mark.service
+@pytest.mark.slow
 def test_the_evolvability_grid_on_a_local_dask_cluster_gives_the_same_curves(tmp_path: Path) -> None:
     import numpy as np
 
@@ -236,6 +238,7 @@ def _children(pid: int) -> list[int]:
 
 
 @pytest.mark.service
+@pytest.mark.slow
 def test_a_comparison_across_namespaced_dask_hosts_survives_a_dead_worker(tmp_path: Path) -> None:
     """The scheduler, two Dask workers and the experiment each on a host of their own (a network namespace, one
     LAN): a replicate is a whole run on its worker's loopback, its folder comes back to the experiment over Dask.

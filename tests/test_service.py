@@ -129,6 +129,7 @@ def test_worker_with_no_broker_fails_clearly(tmp_path: Path) -> None:
     assert r.returncode == 2 and "ServiceError" in r.stderr and "broker" in r.stderr
 
 
+@pytest.mark.slow
 def test_executive_learns_from_a_recorded_history_at_a_rate(tmp_path: Path) -> None:
     r = subprocess.run([sys.executable, "-m", "coevo", "run", "--regime", "independent", "--run", "hist", "--root", str(tmp_path),
                         "--generations", "4", *SMALL, "--measure-epochs", "2", "--quiet"], capture_output=True, text=True, timeout=300)

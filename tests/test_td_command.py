@@ -55,6 +55,7 @@ def test_the_runner_gives_run_tasks_results_and_resumes(tmp_path: Path, capsys: 
 
 
 @pytest.mark.service
+@pytest.mark.slow
 def test_a_pool_of_processes_and_a_local_dask_cluster_give_the_same_results(tmp_path: Path) -> None:
     got = []
     for where, flags in (("here", ["--jobs", "1"]), ("pool", ["--jobs", "2"]), ("dask", ["--cluster", "local:2"])):
