@@ -23,6 +23,7 @@ from pathlib import Path
 import msgpack
 import numpy as np
 import pytest
+import zenoh
 from procs import SMALL, coevo_proc, poll, stop
 
 from coevo.agents.checkpoint import load_checkpoint, save_checkpoint
@@ -357,7 +358,9 @@ def test_every_kind_of_bad_message_is_rejected_counted_and_named_and_changes_not
             poll(lambda: _view(board, "executive")["generation"] >= 1, 60, "first heartbeat")
             key = keys.policy("bad", "tracking")
             for payload in MALFORMED.values():
-                s.put(key, payload)
+                # Blocking, not zenoh's default for a put (dropped when a link's queue is full): each is sent once,
+                # and in a full run on a busy machine the megabyte one never reached the worker (not even rejected).
+                s.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK)
                 time.sleep(0.3)  # one at a time: each reaches the worker's ring before the next
             poll(lambda: set(MALFORMED) <= set(_view(board, "executive").get("rejected_by_reason", {})), 30,
                  "every reason counted by the worker")
