@@ -222,7 +222,9 @@ def test_a_killed_broker_loses_no_case_and_a_whole_run_killed_at_once_resumes(tm
     curve = lr.paths.worker("door").curve
     n = lambda f: len(f.read_text().splitlines()) if f.exists() else 0  # noqa: E731
     try:
-        poll(lambda: n(cases) >= 1, 120, "the learner's first case")
+        # In the broker's store, not only in the learner's own file: killed before it had written it, the broker left
+        # no store file to take away (and the test failed on the unlink below, once, in a full run).
+        poll(lambda: n(cases) >= 1 and n(lr.paths.case_file("door")) >= 1, 120, "the learner's first case, stored")
         lr.broker.send_signal(signal.SIGKILL)
         lr.broker.wait()
         lr.paths.case_file("door").unlink()  # the store lost the case
