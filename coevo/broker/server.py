@@ -199,7 +199,11 @@ class Broker:
         cm.__exit__(None, None, None)
 
     def serve_forever(self) -> None:
-        self._stop.wait()
+        # A wait with a timeout, so that a signal lands: an untimed wait blocks in C, and a SIGTERM that the kernel
+        # hands to one of zenoh's threads then never reaches Python's handler in the main thread (seen: a broker
+        # signalled while its workers were still talking to it slept through SIGTERM until killed 10 s later).
+        while not self._stop.wait(0.25):
+            pass
 
     # Callbacks: check the size, queue and return (policies and cases alike).
     def _on_policy(self, sample: Any) -> None:
