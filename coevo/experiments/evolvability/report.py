@@ -252,8 +252,8 @@ def _plots(res: GridResults, out: Path, hyper: dict[str, Any]) -> list[str]:
             for mi, m in enumerate(models):
                 col, mk = STYLE[m]
                 ax.plot(rates, perf[mi], color=col, marker=mk, label=LABEL[m])
-            ax.set(xscale="log", xlabel="base mutation rate", ylabel=f"{what} performance",
-                   title=f"{what.capitalize()} on {c} landscapes")
+            ax.set(xlabel="base mutation rate", ylabel=f"{what} performance", title=f"{what.capitalize()} on {c} landscapes")
+            _rate_axis(ax, rates)
             ax.legend(fontsize=8)
             save(fig, f"fig{figno.get((c, kind), 4)}_{what.replace('-', '_')}_{c}.png")
     if "gh" in models and "abrupt" in res.best:
@@ -404,3 +404,12 @@ def write_report(res: GridResults, out: Path, *, elapsed: float | None = None) -
     (out / "results.json").write_text(json.dumps(results, indent=1), encoding="utf-8")
     (out / "report.md").write_text(_markdown(res, rows, claims, files, elapsed), encoding="utf-8")
     return results
+
+
+def _rate_axis(ax: object, rates: list[float]) -> None:
+    """A log axis for the mutation rates; symmetric-log when a rate of 0 is among them (log cannot show it)."""
+    positive = [r for r in rates if r > 0]
+    if len(positive) == len(rates):
+        ax.set_xscale("log")  # type: ignore[attr-defined]
+    else:
+        ax.set_xscale("symlog", linthresh=min(positive, default=1.0))  # type: ignore[attr-defined]
