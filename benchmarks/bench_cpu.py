@@ -16,15 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-from coevo.policy.matcher import CompiledPolicies
-from coevo.policy.rules import random_ruleset
 from coevo.policy.text import parse_ruleset
 from coevo.tasks.fuel.behaviours import Behaviour
-from coevo.tasks.fuel.runner import ALWAYS_DOCK, ALWAYS_TRACK, Rules, run_lanes
+from coevo.tasks.fuel.bench import policies_for, workload
+from coevo.tasks.fuel.runner import run_lanes
 from coevo.tasks.fuel.settings import WorldConfig
 from coevo.tasks.fuel.world import BatchWorld
 
-LANES, POLICIES, RULES = 4500, 50, 32
+LANES, POLICIES, RULES = 4500, 50, 32  # coevo bench's defaults
 
 
 def main() -> None:
@@ -34,16 +33,8 @@ def main() -> None:
     p.add_argument("--repeats", type=int, default=3)
     a = p.parse_args()
     beh = Behaviour(a.behaviour)
-    rng = np.random.default_rng(0)
-    if a.policy is not None:
-        pols = [parse_ruleset(a.policy.read_text(encoding="utf-8"), beh)] * POLICIES
-    else:
-        pols = [random_ruleset(beh, RULES, rng) for _ in range(POLICIES)]
-    ctrl = Rules(CompiledPolicies(pols), np.arange(LANES) % POLICIES)
-    if beh == Behaviour.TRACKING:
-        kw = dict(tracking=ctrl, docking=None, executive=ALWAYS_TRACK)
-    else:
-        kw = dict(tracking=None, docking=ctrl, executive=ALWAYS_DOCK)
+    policy = parse_ruleset(a.policy.read_text(encoding="utf-8"), beh) if a.policy is not None else None
+    kw = workload(beh, policies_for(beh, POLICIES, RULES, np.random.default_rng(0), policy), LANES)
     world = BatchWorld(WorldConfig(), LANES)
     run_lanes(world, lane_episodes=1, restart_epochs=False, rng=np.random.default_rng(99), **kw)  # warm-up
     best = 0.0

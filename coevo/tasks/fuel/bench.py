@@ -13,6 +13,7 @@ import resource
 import time
 import tracemalloc
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -24,7 +25,7 @@ from coevo.tasks.fuel.settings import WorldConfig
 from coevo.tasks.fuel.single import run_episode
 from coevo.tasks.fuel.world import BatchWorld
 
-__all__ = ["BenchResult", "bench"]
+__all__ = ["BenchResult", "bench", "policies_for", "workload"]
 
 
 @dataclass(frozen=True)
@@ -44,6 +45,21 @@ class BenchResult:
         return asdict(self)
 
 
+def workload(behaviour: Behaviour, pols: list[RuleSet], lanes: int) -> dict[str, Any]:
+    """The batched side's controllers, as :func:`.runner.run_lanes`' keyword arguments: ``pols`` spread over
+    ``lanes`` lanes, under the trivial Executive."""
+    ctrl = Rules(CompiledPolicies(pols), np.arange(lanes) % len(pols))
+    if behaviour == Behaviour.DOCKING:
+        return dict(tracking=None, docking=ctrl, executive=ALWAYS_DOCK)
+    return dict(tracking=ctrl, docking=None, executive=ALWAYS_TRACK)
+
+
+def policies_for(behaviour: Behaviour, policies: int, rules: int, rng: np.random.Generator,
+                 policy: RuleSet | None = None) -> list[RuleSet]:
+    """``policies`` random rule sets of ``rules`` rules, or ``policy`` as many times."""
+    return [policy] * policies if policy is not None else [random_ruleset(behaviour, rules, rng) for _ in range(policies)]
+
+
 def bench(
     *,
     world: WorldConfig,
@@ -57,11 +73,8 @@ def bench(
     policy: RuleSet | None = None,
 ) -> BenchResult:
     rng = np.random.default_rng(seed)
-    pols = [policy] * policies if policy is not None else [random_ruleset(behaviour, rules, rng) for _ in range(policies)]
-    ctrl = Rules(CompiledPolicies(pols), np.arange(lanes) % policies)
-    kw = dict(tracking=ctrl, docking=None, executive=ALWAYS_TRACK)
-    if behaviour == Behaviour.DOCKING:
-        kw = dict(tracking=None, docking=ctrl, executive=ALWAYS_DOCK)
+    pols = policies_for(behaviour, policies, rules, rng, policy)
+    kw = workload(behaviour, pols, lanes)
     w = BatchWorld(world, lanes)
     best = 0.0
     steps_total = 0
