@@ -318,13 +318,12 @@ def split(
         gain = low_h - low_z  # > 0: keep the low side; < 0: the high side
         c = int(np.argmax(np.abs(gain)))
         if abs(gain[c]) > best_gain:
-            best_gain, best = abs(gain[c]), (int(j), c, bool(gain[c] > 0))
+            best_gain, best = abs(gain[c]), (int(j), c, bool(gain[c] > 0), pos)
     if best is None:
         return None
-    j, c, low_side = best
+    j, c, low_side, pos = best
     bins = rs.schema.sensors[j].bins
     lo, hi = rs.lo[r].astype(np.int64), rs.hi[r].astype(np.int64)
-    pos = (states[:, j] - lo[j]) % bins
     if low_side:
         hi[j], kept = (lo[j] + c) % bins, pos <= c
     else:
