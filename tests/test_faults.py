@@ -46,7 +46,7 @@ FUEL = get_task("fuel")
 from coevo.bus.messages import MAX_BYTES, PolicyUpdate, Status, encode
 from coevo.bus.status import StatusBoard
 from coevo.policy import random_ruleset
-from coevo.runs.local import LocalRun, end_processes
+from coevo.runs.local import LocalRun
 from coevo.rundir.settings import RunSettings
 
 pytestmark = pytest.mark.service  # starts brokers, workers or whole runs as processes: run with --all
@@ -268,10 +268,6 @@ def test_pacing_holds_while_the_broker_is_down(tmp_path: Path) -> None:
         again = {b: _curve_len(lr, b) for b in Behaviour}
         poll(lambda: all(_curve_len(lr, b) >= again[b] + 3 for b in Behaviour), 120, "every worker going on after")
     finally:
-        # The workers first, then the broker: a broker sent SIGTERM while its workers still talk to it sometimes
-        # sleeps through it (the signal lands on one of zenoh's threads, not the one waiting in serve_forever), and
-        # end_all waits 10 s before it kills it.
-        end_processes(list(lr.workers.values()))
         lr.end_all()
     assert worst <= 2, f"a worker led by {worst} generations while the broker was down ({during} done meanwhile)"
     log = (lr.dir / "logs" / "worker-executive.log").read_text()
