@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from coevo.errors import CoevoError
 from coevo.policy.text import parse_ruleset
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.bench import policies_for, workload
@@ -32,8 +33,15 @@ def main() -> None:
     p.add_argument("--policy", type=Path, help="a rule file driving every lane (default: random rule sets)")
     p.add_argument("--repeats", type=int, default=3)
     a = p.parse_args()
+    if a.repeats < 1:
+        p.error(f"--repeats must be at least 1, got {a.repeats}")
     beh = Behaviour(a.behaviour)
-    policy = parse_ruleset(a.policy.read_text(encoding="utf-8"), beh) if a.policy is not None else None
+    policy = None
+    if a.policy is not None:
+        try:
+            policy = parse_ruleset(a.policy.read_text(encoding="utf-8"), beh)
+        except (OSError, UnicodeDecodeError, CoevoError) as exc:
+            p.error(f"--policy {a.policy}: not a readable {beh} rule file ({exc})")
     kw = workload(beh, policies_for(beh, POLICIES, RULES, np.random.default_rng(0), policy), LANES)
     world = BatchWorld(WorldConfig(), LANES)
     run_lanes(world, lane_episodes=1, restart_epochs=False, rng=np.random.default_rng(99), **kw)  # warm-up

@@ -28,6 +28,8 @@ def load(spec: str, behaviour: str, measure: str) -> dict[int, float]:
     """seed -> ``measure`` over the ``coevo seeds`` folders in ``spec`` (comma-separated)."""
     out: dict[int, float] = {}
     for part in spec.split(","):
+        if not part.strip():
+            raise SystemExit(f"paired_seeds: an empty folder name in {spec!r}")
         path = Path(part) / "summary.json"
         try:
             runs = json.loads(path.read_text())["runs"]
