@@ -35,3 +35,9 @@ def test_a_folder_without_a_summary_is_named(tmp_path: Path) -> None:
     r = _run(str(tmp_path / "nowhere"), _summary(tmp_path / "b", {0: 1.0, 1: 2.0}))
     assert r.returncode == 1 and "Traceback" not in r.stderr
     assert "nowhere" in r.stderr and "coevo seeds" in r.stderr
+
+
+def test_an_empty_folder_name_in_a_variant_is_named(tmp_path: Path) -> None:
+    good = _summary(tmp_path / "a", {0: 1.0, 1: 2.0})
+    r = _run(good, f"{good},,{good}")
+    assert r.returncode == 1 and "Traceback" not in r.stderr and "empty folder name" in r.stderr
