@@ -62,9 +62,11 @@ def _ga(**kw: object) -> GA:
 
 def test_docking_keeps_the_policy_as_it_was_evaluated_by_default_the_others_do_not() -> None:
     fuel = get_task("fuel")
-    assert fuel.selection("docking", GAConfig()) == (True, 3)
-    assert fuel.selection("tracking", GAConfig()) == (False, 0)
-    assert fuel.selection("docking", GAConfig(keep_evaluated=False, best_candidates=0)) == (False, 0)
+    docking, tracking = fuel.ga_settings("docking", GAConfig()), fuel.ga_settings("tracking", GAConfig())
+    assert (docking.keep_evaluated, docking.best_candidates) == (True, 3)
+    assert (tracking.keep_evaluated, tracking.best_candidates) == (False, 0)
+    told = fuel.ga_settings("docking", GAConfig(keep_evaluated=False, best_candidates=0))
+    assert (told.keep_evaluated, told.best_candidates) == (False, 0)
     ga = _ga()
     before = list(ga.population)
     ga.generation({})

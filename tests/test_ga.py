@@ -123,10 +123,21 @@ def test_a_split_rule_is_narrowed_in_place_in_the_child() -> None:
 
 
 def test_docking_splits_rules_by_default_the_others_do_not() -> None:
-    assert FUEL.split_rate("docking", GAConfig()) == 0.5
-    assert FUEL.split_rate("tracking", GAConfig()) == FUEL.split_rate("executive", GAConfig()) == 0.0
-    assert FUEL.split_rate("docking", GAConfig(split_rate=0.0)) == 0.0
-    assert FUEL.split_rate("tracking", GAConfig(split_rate=0.2)) == 0.2
+    def split_rate(behaviour: str, **given: object) -> float | None:
+        return FUEL.ga_settings(behaviour, GAConfig(**given)).split_rate
+
+    assert split_rate("docking") == 0.5
+    assert split_rate("tracking") == split_rate("executive") == 0.0
+    assert split_rate("docking", split_rate=0.0) == 0.0
+    assert split_rate("tracking", split_rate=0.2) == 0.2
+
+
+def test_every_setting_left_to_the_task_is_filled_in_for_every_behaviour() -> None:
+    left = [name for name, field in GAConfig.model_fields.items() if field.default is None]
+    assert left, "GAConfig leaves no setting to the task"
+    for behaviour in FUEL.behaviours:
+        filled = FUEL.ga_settings(behaviour, GAConfig())
+        assert all(getattr(filled, name) is not None for name in left), (behaviour, filled)
 
 
 def test_partial_cover_widens_the_rule_that_fired(rng) -> None:

@@ -78,12 +78,10 @@ class GA:
         self.task = task
         self.behaviour = task.check_behaviour(behaviour)
         self.world_cfg = world
-        self.cfg = ga
+        self.cfg = ga = task.ga_settings(self.behaviour, ga)  # the settings left to the task, filled in
         self.rng = np.random.default_rng(seed)
         self.mutation = mutation or model_from_config(ga)
         self.evaluator = task.evaluator(self.behaviour, world, ga)
-        self.keep_evaluated, self.best_candidates = task.selection(self.behaviour, ga)
-        self.split_rate = task.split_rate(self.behaviour, ga)
         learnable = task.learnable_sensors(self.behaviour, ga)
         self._unusable = None if learnable is None or learnable.all() else ~learnable
         self._use = None if self._unusable is None else ~self._unusable  # operators draw only over these sensors
@@ -212,11 +210,11 @@ class GA:
         ]
         top = int(np.argmax(ev.fitness))
         # keep_evaluated: the policy selected is the one whose fitness was measured, strengths and all.
-        chosen = self.population[top] if self.keep_evaluated else learned[top]
+        chosen = self.population[top] if self.cfg.keep_evaluated else learned[top]
         self.current, self.current_fitness = chosen, float(ev.fitness[top])
         check = self.evaluator.evaluate([chosen], partners, self._child_rng(), episodes=cfg.best_episodes)
         best_fit = float(check.fitness[0])
-        if self.best_candidates:
+        if self.cfg.best_candidates:
             improved = self._pool_evidence(chosen, best_fit, partners)
         else:
             improved = best_fit > self.best_fitness
@@ -224,7 +222,7 @@ class GA:
                 self.best, self.best_fitness = chosen, best_fit
         measures = self.evaluator.measures(chosen, partners, check, self._child_rng)
         self.generation_no += 1
-        elite_pool = self.population if self.keep_evaluated else learned
+        elite_pool = self.population if self.cfg.keep_evaluated else learned
         self.population, self.genes = self._breed(learned, ev.fitness, ev.experience, elite_pool)
         return GenerationReport(
             generation=self.generation_no,
@@ -239,7 +237,7 @@ class GA:
         )
 
     def _pool_evidence(self, chosen: RuleSet, fit: float, partners: Partners) -> bool:
-        """Best so far by all the evidence (``best_candidates`` > 0, see ``Task.selection``): the candidates (the best
+        """Best so far by all the evidence (``best_candidates`` > 0, see ``Task.ga_settings``): the candidates (the best
         few policies chosen so far) are re-evaluated every generation and judged by the mean of all their
         re-evaluations, so one lucky re-evaluation of ``best_episodes`` no longer makes a policy the best for good.
         True if the best changed."""
@@ -254,7 +252,7 @@ class GA:
                 again = self.evaluator.evaluate([rs], partners, rng, episodes=cfg.best_episodes)
                 rec[0] += float(again.fitness[0])
                 rec[1] += 1
-        ranked = sorted(pool.items(), key=lambda kv: -kv[1][0] / kv[1][1])[: self.best_candidates]
+        ranked = sorted(pool.items(), key=lambda kv: -kv[1][0] / kv[1][1])[: self.cfg.best_candidates]
         self.candidates = [(rs, total, n) for rs, (total, n) in ranked]
         top, (total, n) = ranked[0]
         changed = self.best is None or top != self.best
@@ -310,7 +308,7 @@ class GA:
             r = cover(parent, exp, rng, partial=cfg.cover_partial)
             if r is not None:
                 extra.append(r)
-        if self.split_rate and rng.random() < self.split_rate:
+        if cfg.split_rate and rng.random() < cfg.split_rate:
             got = split(parent, exp, rng, self._use)
             if got is not None:
                 child, narrowed = _narrow_in(child, parent, *got)

@@ -40,6 +40,9 @@ if TYPE_CHECKING:
 
 __all__ = ["Task", "Evaluator", "Evaluation", "Partners", "Tick", "ChildRng"]
 
+#: What a GA setting left to the task (``None`` in :class:`GAConfig`) is when the task makes no choice of its own.
+TASK_CHOICE_OFF: dict[str, object] = {"keep_evaluated": False, "best_candidates": 0, "split_rate": 0.0}
+
 class Task(ABC):
     """A world with learning behaviours; see the module docstring."""
 
@@ -78,15 +81,16 @@ class Task(ABC):
         """(S,) bool: the sensors a GA with settings ``ga`` may put conditions on (None: all of them)."""
         return None
 
-    def selection(self, behaviour: str, ga: GAConfig) -> tuple[bool, int]:
-        """(keep_evaluated, best_candidates) for a GA of ``behaviour``: the settings, where they leave it to the task
-        (None) off."""
-        return bool(ga.keep_evaluated), int(ga.best_candidates or 0)
+    def ga_choices(self, behaviour: str) -> dict[str, object]:
+        """The task's own values for the GA settings a :class:`GAConfig` leaves to it (``None``), for ``behaviour``.
+        A setting the task does not choose falls back to :data:`TASK_CHOICE_OFF`."""
+        return {}
 
-    def split_rate(self, behaviour: str, ga: GAConfig) -> float:
-        """The chance per offspring of :func:`~coevo.ga.operators.split` for a GA of ``behaviour``: the settings',
-        where they leave it to the task (None) 0."""
-        return float(ga.split_rate or 0.0)
+    def ga_settings(self, behaviour: str, ga: GAConfig) -> GAConfig:
+        """``ga`` with every setting it leaves to the task (``None``) filled in: the task's choice for
+        ``behaviour`` (:meth:`ga_choices`), else off.  Settings given explicitly are kept."""
+        choices = {**TASK_CHOICE_OFF, **self.ga_choices(self.check_behaviour(behaviour))}
+        return ga.model_copy(update={k: v for k, v in choices.items() if getattr(ga, k) is None})
 
     def initial_model(self, behaviour: str, ga: GAConfig, rng: np.random.Generator) -> RuleSet:
         """How a partner that has not published yet is modelled: its initial behaviour."""
