@@ -78,7 +78,11 @@ class GAConfig(Settings):
     parents_fraction: float = Field(0.5, gt=0, le=1, description="(ours) the top fraction that reproduces, two offspring each pair")
     elite: int = Field(1, ge=0, description="(ours) best individuals copied unchanged")
     initial_rules: int = Field(16, ge=1, le=64, description="(ours) rules per random initial policy")
-    max_rules: int = Field(48, ge=1, le=64, description="(ours) most rules a policy may hold (matching packs rules in 64 bits)")
+    max_rules: int | None = Field(
+        None, ge=1, le=64, description="(ours) most rules a policy may hold (matching packs rules in 64 bits; a "
+        "symmetric policy's mirror images take half).  None: the task's choice (fuel: 32 for Docking, whose rules "
+        "are symmetric; 48 for the others)"
+    )
     crossover_rate: float = Field(0.8, ge=0, le=1, description="(ours) chance a pair is recombined")
     high_payoff_quantile: float = Field(0.5, ge=0, le=1, description="(ours) episodes above this payoff quantile count as 'high payoff'")
     mutation_rate: float = Field(0.1, ge=0, le=1, description="(ours) base per-rule mutation probability mr (FM, FH, GH)")
@@ -98,6 +102,12 @@ class GAConfig(Settings):
         "narrowed, on the sensor that best tells apart where it fired in paying and in failed episodes, to the paying "
         "side (coevo.ga.operators.split).  None: the task's choice (fuel: 0.5 for Docking, docking from random starts, "
         "median of seeds 0-9: 58.3 % against 50.1 % without; 0 for the others, not measured there)"
+    )
+    symmetric_rules: bool | None = Field(
+        None, description="(ours) in a world that is its own mirror image, each rule also stands for its mirror "
+        "image (coevo.ga.symmetry): what is learned on one side holds on the other; needs max_rules <= 32.  None: "
+        "the task's choice (fuel: on for Docking, docking from random starts, median of development seeds 0-19 71.1 % "
+        "against 60.1 %, of held-out seeds 1000-1019 70.9 % against 52.1 %; off for the others, not measured there)"
     )
     strength_rate: float = Field(0.3, gt=0, le=1, description="(ours) step size of strength updates towards episode payoffs")
     low_strength: float = Field(0.3, ge=0, le=1, description="(ours) below this a rule counts as weak (specialisation trigger)")
@@ -165,7 +175,7 @@ class GAConfig(Settings):
 
     @model_validator(mode="after")
     def _check(self) -> GAConfig:
-        if self.initial_rules > self.max_rules:
+        if self.max_rules is not None and self.initial_rules > self.max_rules:
             raise ValueError(f"initial_rules ({self.initial_rules}) exceeds max_rules ({self.max_rules})")
         if self.elite >= self.population:
             raise ValueError(f"elite ({self.elite}) must be smaller than population ({self.population})")

@@ -167,7 +167,7 @@ class Worker:
         self._completed = ga.generation_no
         self._best = float(ga.best_fitness) if ga.generation_no else 0.0
         if ga.best is not None:
-            write_text(self.paths.best_rules, format_ruleset(ga.best))
+            write_text(self.paths.best_rules, format_ruleset(ga.played(ga.best)))
         log.info("%s resumed after generation %d", self.worker_id, ga.generation_no)
         return float(w["pace_seconds"])
 
@@ -204,7 +204,7 @@ class Worker:
         """One generation: its report, the new best so far to publish (None: no improvement), the best so far's
         fitness."""
         rep = ga.generation(self.models.partners(), tick=self._tick)
-        return rep, (ga.best if rep.improved else None), rep.best_so_far
+        return rep, (ga.played(ga.best) if rep.improved and ga.best is not None else None), rep.best_so_far
 
     def _take_in(self, inbox: Inbox, completed: int) -> None:
         """Between generations: what arrived for the learner (partner policies)."""
@@ -308,7 +308,7 @@ class Worker:
         self._checkpoint(ga, pacer.waited)
         t0 = time.perf_counter()
         if ga.current is not None:
-            outbox.put_current(self._policy(rep.generation, rep, ga.current.to_dict(), ga.current_fitness,
+            outbox.put_current(self._policy(rep.generation, rep, ga.played(ga.current).to_dict(), ga.current_fitness,
                                             self.ga_cfg.episodes))
         outbox.put_latest()
         self._heartbeat(done=False)

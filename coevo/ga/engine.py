@@ -33,6 +33,7 @@ from coevo.errors import ConfigError
 from coevo.ga.evaluator import Evaluation, Partners, Problem, Tick
 from coevo.ga.mutation import CONTROL_LEVELS, MutationModel, model_from_config
 from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise, split, trim
+from coevo.ga.symmetry import MAX_SYMMETRIC_RULES, MirroredEvaluator, with_mirror_images
 from coevo.policy.rules import RuleSet, random_ruleset
 from coevo.policy.schema import schema
 from coevo.policy.strength import update_strengths
@@ -82,6 +83,14 @@ class GA:
         self.rng = np.random.default_rng(seed)
         self.mutation = mutation or model_from_config(ga)
         self.evaluator = task.evaluator(self.behaviour, world, ga)
+        if ga.symmetric_rules:  # each rule also stands for its mirror image (coevo.ga.symmetry)
+            if not task.mirror_symmetric:
+                raise ConfigError(f"symmetric_rules needs a world that is its own mirror image; task "
+                                  f"{getattr(task, 'name', task)!r}'s is not")
+            if ga.max_rules > MAX_SYMMETRIC_RULES:
+                raise ConfigError(f"symmetric_rules needs max_rules <= {MAX_SYMMETRIC_RULES} (the mirror images take "
+                                  f"the rest of the matcher's 64), got {ga.max_rules}")
+            self.evaluator = MirroredEvaluator(self.evaluator)
         learnable = task.learnable_sensors(self.behaviour, ga)
         self._unusable = None if learnable is None or learnable.all() else ~learnable
         self._use = None if self._unusable is None else ~self._unusable  # operators draw only over these sensors
@@ -105,6 +114,11 @@ class GA:
         # The candidates' re-evaluations draw from a stream of their own: the run's learning is the same with or without.
         self.evidence_rng = np.random.default_rng([seed, 1])
         self.last: Evaluation | None = None
+
+    def played(self, rs: RuleSet) -> RuleSet:
+        """``rs`` (one of this GA's individuals, its ``best`` or ``current``) as it is played: what to publish and
+        write for everyone else to read as a plain rule set (with its mirror images if the rules are symmetric)."""
+        return with_mirror_images(rs) if self.cfg.symmetric_rules else rs
 
     # ------------------------------------------------------------ checkpoints
     def state_dict(self) -> dict[str, Any]:

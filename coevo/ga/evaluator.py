@@ -62,6 +62,18 @@ class Evaluator(ABC):
 class Problem(Protocol):
     """What the GA needs of a task (:class:`coevo.tasks.base.Task` is one)."""
 
+    #: Its world is its own mirror image (GAConfig.symmetric_rules needs it).
+    mirror_symmetric: bool
+
+    def ga_settings(self, behaviour: str, ga: GAConfig) -> GAConfig:
+        """``ga`` with the settings it leaves to the task (None) filled in for ``behaviour``."""
+
+    def initial_rules(self, behaviour: str, ga: GAConfig) -> RuleSet | None:
+        """The rules a GA with settings ``ga`` starts from, or None where it starts random."""
+
+    def learnable_sensors(self, behaviour: str, ga: GAConfig) -> np.ndarray | None:
+        """(S,) bool: the sensors the GA may put conditions on (None: all)."""
+
     def check_behaviour(self, behaviour: str) -> str:
         """``behaviour`` if the task has it, else a ConfigError naming it."""
 

@@ -21,7 +21,7 @@ import numpy as np
 from coevo.errors import RuleSetError
 from coevo.policy.schema import Schema, Sensor, schema
 
-__all__ = ["RuleSet", "MAX_RULES", "random_ruleset", "interval_width"]
+__all__ = ["RuleSet", "MAX_RULES", "random_ruleset", "interval_width", "mirror_image"]
 
 MAX_RULES = 64  # matching packs one rule per bit of a uint64
 _FIELDS = ("behaviour", "lo", "hi", "action", "strength")  # a rule set's whole dict form
@@ -191,6 +191,21 @@ def interval_width(rs: RuleSet) -> np.ndarray:
     lo = rs.lo.astype(np.int64)
     hi = rs.hi.astype(np.int64)
     return np.where(lo <= hi, hi - lo + 1, bins - lo + hi + 1)
+
+
+def mirror_image(rs: RuleSet) -> RuleSet:
+    """The rules as they would be written for the world's mirror image (:attr:`Sensor.mirrored` conditions and
+    :attr:`Action.mirrored` actions reflected, the rest as they are; strengths kept).  In a world that is its
+    own mirror image a rule and its image are equally right, each on its own side."""
+    sch = rs.schema
+    lo, hi, action = rs.lo.copy(), rs.hi.copy(), rs.action.copy()
+    for j, s in enumerate(sch.sensors):
+        if s.mirrored:  # [lo, hi] -> [last - hi, last - lo], wrapping where the interval wraps
+            lo[:, j], hi[:, j] = s.bins - 1 - rs.hi[:, j], s.bins - 1 - rs.lo[:, j]
+    for k, a in enumerate(sch.actions):
+        if a.mirrored:
+            action[:, k] = len(a.values) - 1 - rs.action[:, k]
+    return rs.replace(lo=lo, hi=hi, action=action)
 
 
 def random_ruleset(behaviour: str, n_rules: int, rng: np.random.Generator, usable: np.ndarray | None = None) -> RuleSet:

@@ -30,6 +30,9 @@ class Sensor:
     """A discretised sensor: bin ``k`` holds values in ``[origin + k*width, origin + (k+1)*width)``.
 
     ``origin`` (0 unless given) lets a non-circular sensor hold signed values (a lateral offset).
+    ``mirrored``: the value changes sign in the world's mirror image (a bearing relative to the robot's
+    heading, a signed lateral offset); then bin ``k`` mirrors to bin ``bins - 1 - k``, which needs the
+    bins to lie symmetric about 0 (a full circle, or ``origin = -bins * width / 2``).
     """
 
     name: str
@@ -38,6 +41,12 @@ class Sensor:
     circular: bool
     unit: str
     origin: float = 0.0
+    mirrored: bool = False
+
+    def __post_init__(self) -> None:
+        if self.mirrored and (self.bins * self.width != 360.0 if self.circular else
+                              self.origin != -self.bins * self.width / 2):
+            raise RuleSetError(f"sensor {self.name!r} is mirrored but its bins do not lie symmetric about 0")
 
     def label(self, k: int) -> int | float:
         """The printed value of bin ``k`` (its lower edge)."""
@@ -69,10 +78,19 @@ class Sensor:
 
 @dataclass(frozen=True)
 class Action:
-    """A control variable with a finite set of values."""
+    """A control variable with a finite set of values.
+
+    ``mirrored``: the value changes sign in the world's mirror image (a turn rate); then value ``i``
+    mirrors to value ``len(values) - 1 - i``, which needs the values to lie symmetric about 0.
+    """
 
     name: str
     values: tuple[float | str, ...]
+    mirrored: bool = False
+
+    def __post_init__(self) -> None:
+        if self.mirrored and list(self.values) != [-v for v in reversed(self.values)]:  # type: ignore[operator]
+            raise RuleSetError(f"action {self.name!r} is mirrored but its values {self.values} are not symmetric about 0")
 
     def index_of(self, value: str) -> int | None:
         for i, v in enumerate(self.values):

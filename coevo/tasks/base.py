@@ -41,7 +41,9 @@ if TYPE_CHECKING:
 __all__ = ["Task", "Evaluator", "Evaluation", "Partners", "Tick", "ChildRng"]
 
 #: What a GA setting left to the task (``None`` in :class:`GAConfig`) is when the task makes no choice of its own.
-TASK_CHOICE_OFF: dict[str, object] = {"keep_evaluated": False, "best_candidates": 0, "split_rate": 0.0}
+TASK_CHOICE_OFF: dict[str, object] = {"keep_evaluated": False, "best_candidates": 0, "split_rate": 0.0,
+                                      "symmetric_rules": False, "max_rules": 48}
+
 
 class Task(ABC):
     """A world with learning behaviours; see the module docstring."""
@@ -54,6 +56,9 @@ class Task(ABC):
     aliases: ClassVar[tuple[str, ...]] = ()
     #: Short names of its status measures for narrow displays (e.g. quality_tracking -> QT).
     measure_labels: ClassVar[dict[str, str]] = {}
+    #: The world is its own mirror image, so a rule's mirror image (Sensor.mirrored, Action.mirrored) is as
+    #: right on the other side as the rule on its own (GAConfig.symmetric_rules needs this).
+    mirror_symmetric: ClassVar[bool] = False
 
     def schema(self, behaviour: str) -> Schema:
         self.check_behaviour(behaviour)

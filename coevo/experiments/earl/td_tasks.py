@@ -726,12 +726,12 @@ def run_ga(spec: TDSpec, seed: int, *, progress: Progress = _quiet) -> Curve:
         ga.generation({})
         learn_seconds += time.perf_counter() - t0
         if g in spec.checkpoints:
-            trials = spec.measure_trials
-            got = measure_policy(spec.task, rules_policy([ga.best], trials, conflict=ga_cfg.conflict), groups=1,
+            trials, best = spec.measure_trials, ga.played(ga.best)
+            got = measure_policy(spec.task, rules_policy([best], trials, conflict=ga_cfg.conflict), groups=1,
                                  trials=trials, rng=measure_rng)
             curve.robot_steps.append(counter.robot_steps)
             curve.measure.append(float(got[0]))
-            curve.extra["rules"].append(len(ga.best))
+            curve.extra["rules"].append(len(best))
         progress(f"{spec.task}: GA seed {seed}", g, spec.generations)
     curve.seconds = learn_seconds
     return curve

@@ -41,17 +41,17 @@ def _range(name: str) -> Sensor:
 
 
 def _bearing(name: str) -> Sensor:
-    return Sensor(name, 5.0, 72, True, "degrees")
+    return Sensor(name, 5.0, 72, True, "degrees", mirrored=True)  # relative to the robot: its sign flips in a mirror
 
 
-TURN = Action("turn", tuple(range(-24, 25, 4)))  # deg/s, 13 values
+TURN = Action("turn", tuple(range(-24, 25, 4)), mirrored=True)  # deg/s, 13 values
 SPEED = Action("speed", tuple(range(-4, 17, 4)))  # inches/s, 6 values
 TASK = Action("task", ("track", "dock"))
 
 _REPORT_FIVE = (
     _range("range"),  # to the nearest object (wall, dock or Target)
     _bearing("bearing"),
-    Sensor("heading", 45.0, 8, True, "degrees"),  # Target's heading relative to its bearing
+    Sensor("heading", 45.0, 8, True, "degrees", mirrored=True),  # Target's heading relative to its bearing
     _range("target_range"),
     _bearing("target_bearing"),
 )

@@ -48,7 +48,7 @@ __all__ = ["FRAME_SENSORS", "FRAME_NAMES", "SENSOR_SETS", "DEFAULT_FILES", "obse
 
 FRAME_SENSORS = (
     Sensor("dock_axis", 5.0, 31, False, "inches"),  # 0..145 plus a last "150+" bin
-    Sensor("dock_offset", 5.0, 30, False, "inches", origin=-75.0),  # "< -70" .. "70+"
+    Sensor("dock_offset", 5.0, 30, False, "inches", origin=-75.0, mirrored=True),  # "< -70" .. "70+"
 )
 FRAME_NAMES = frozenset(s.name for s in FRAME_SENSORS)
 
