@@ -101,7 +101,7 @@ def test_a_symmetric_ga_evaluates_exactly_the_policy_it_publishes(rng) -> None:
 
 
 def test_symmetric_rules_need_a_mirror_world_and_room_for_the_images() -> None:
-    with pytest.raises(ConfigError, match="max_rules <= 32.*got 48"):
+    with pytest.raises(ConfigError, match="max_rules <= 32.*got max_rules=48"):
         GA(get_task("fuel"), "docking", world=WorldConfig(), ga=GAConfig(max_rules=48, symmetric_rules=True), seed=0)
     door = get_task("door")
     with pytest.raises(ConfigError, match="mirror image.*'door'"):

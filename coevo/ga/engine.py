@@ -88,8 +88,9 @@ class GA:
                 raise ConfigError(f"symmetric_rules needs a world that is its own mirror image; task "
                                   f"{getattr(task, 'name', task)!r}'s is not")
             if ga.max_rules > MAX_SYMMETRIC_RULES:
-                raise ConfigError(f"symmetric_rules needs max_rules <= {MAX_SYMMETRIC_RULES} (the mirror images take "
-                                  f"the rest of the matcher's 64), got {ga.max_rules}")
+                raise ConfigError(f"symmetric {self.behaviour} rules need max_rules <= {MAX_SYMMETRIC_RULES} (their mirror "
+                                  f"images take the rest of the matcher's 64), got max_rules={ga.max_rules}; "
+                                  f"symmetric_rules=false breeds up to 64")
             self.evaluator = MirroredEvaluator(self.evaluator)
         learnable = task.learnable_sensors(self.behaviour, ga)
         self._unusable = None if learnable is None or learnable.all() else ~learnable
