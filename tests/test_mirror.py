@@ -118,3 +118,13 @@ def test_docking_rules_are_symmetric_by_default_the_others_are_not() -> None:
     assert (told.symmetric_rules, told.max_rules) == (False, 48)
     tracker = GA(fuel, "tracking", world=WorldConfig(), ga=GAConfig(), seed=0)
     assert tracker.played(tracker.population[0]) is tracker.population[0]  # played as bred
+
+
+def test_a_checkpoint_of_longer_policies_than_the_ga_breeds_is_refused_by_name() -> None:
+    fuel, small = get_task("fuel"), dict(population=4, episodes=4, best_episodes=4, generations=2)
+    old = GA(fuel, "docking", world=WorldConfig(), ga=GAConfig(symmetric_rules=False, max_rules=48, **small), seed=1)
+    state = old.state_dict()
+    state["population"][0] = random_ruleset("docking", 40, np.random.default_rng(0)).to_dict()
+    new = GA(fuel, "docking", world=WorldConfig(), ga=GAConfig(**small), seed=1)
+    with pytest.raises(ConfigError, match="up to 40 rules.*max_rules=32"):
+        new.load_state(state)

@@ -148,6 +148,10 @@ class GA:
         if len(population) != self.cfg.population or any(p.behaviour != self.behaviour for p in population):
             raise ConfigError(f"checkpointed population ({len(population)} rule sets) does not fit a "
                               f"{self.behaviour} GA of population {self.cfg.population}")
+        longest = max(len(p) for p in population)
+        if longest > self.cfg.max_rules:  # e.g. a Docking run checkpointed before its rules became symmetric
+            raise ConfigError(f"checkpointed {self.behaviour} policies hold up to {longest} rules, more than this GA's "
+                              f"max_rules={self.cfg.max_rules}; resume it with the settings it was started with")
         self.population = population
         self.genes = np.asarray(state["genes"], dtype=np.uint8)
         self.rng.bit_generator.state = json.loads(state["rng"])
