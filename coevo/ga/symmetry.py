@@ -8,7 +8,7 @@ played is each one followed by its mirror images (:func:`with_mirror_images`, th
 - :class:`MirroredEvaluator` plays the policies as played and folds what the mirror images did back
   onto the rules they are images of (:func:`fold`), so strengths, crossover's clusters and every
   Lamarckian operator see one rule, in its own frame, wherever it fired.
-- The policy as played is what the GA publishes and writes (``GA.policy``): a plain rule set, read
+- The policy as played is what the GA publishes and writes (``GA.played``): a plain rule set, read
   by everyone else as any other, with nothing to know about symmetry.
 
 A rule set and its mirror images share the matcher's 64 rules, so a symmetric GA breeds at most 32.
