@@ -73,9 +73,8 @@ def test_an_images_decisions_are_folded_onto_its_rule_in_the_rules_own_frame(rng
     played = evaluator.evaluate([with_mirror_images(rs)], {}, np.random.default_rng(4))
     exp = played.experience[0]
     sch = rs.schema
-    mirrored, bins = np.array([s.mirrored for s in sch.sensors]), np.array([s.bins for s in sch.sensors])
     assert (exp.rule >= 12).any() and (exp.rule < 12).any(), "no decision by a rule or none by an image"
-    folded = fold(exp, 12, mirrored, bins)
+    folded = fold(exp, 12, sch)
     assert folded.rule.max() < 12 and (folded.fired >> np.uint64(12) == 0).all()
     assert ((folded.fired != 0) == (exp.fired != 0)).all()
     full = folded.full

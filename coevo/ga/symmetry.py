@@ -24,6 +24,7 @@ from coevo.errors import RuleSetError
 from coevo.ga.evaluator import ChildRng, Evaluation, Evaluator, Partners, Tick
 from coevo.ga.operators import Experience
 from coevo.policy.rules import MAX_RULES, RuleSet, mirror_image
+from coevo.policy.schema import Schema
 
 __all__ = ["MAX_SYMMETRIC_RULES", "with_mirror_images", "fold", "MirroredEvaluator"]
 
@@ -42,17 +43,18 @@ def with_mirror_images(rs: RuleSet) -> RuleSet:
     return RuleSet.concat(rs.behaviour, [rs, mirror_image(rs)])
 
 
-def fold(exp: Experience, n_rules: int, mirrored: np.ndarray, bins: np.ndarray) -> Experience:
+def fold(exp: Experience, n_rules: int, sch: Schema) -> Experience:
     """``exp`` of a policy as played (:func:`with_mirror_images`) as the experience of its ``n_rules`` rules:
     an image's firings count as its rule's, and the decisions an image took are seen in the rule's own frame
-    (on the ``mirrored`` (S,) bool sensors of ``bins`` (S,) bins each, bin ``k`` read as ``bins - 1 - k``, as
+    (each :attr:`~coevo.policy.schema.Sensor.mirrored` sensor's bin ``k`` read as ``bins - 1 - k``, as
     :func:`~coevo.policy.rules.mirror_image` reflects a condition)."""
     n, own = np.uint64(n_rules), np.uint64((1 << n_rules) - 1)
     fired = (exp.fired & own) | ((exp.fired >> n) & own)
     by_image = exp.rule >= n_rules
     seen = exp.bins.copy()
-    flip = by_image[:, None] & mirrored[None, :]
-    seen[flip] = (np.broadcast_to(bins - 1, seen.shape)[flip] - exp.bins[flip]).astype(seen.dtype)
+    for j, s in enumerate(sch.sensors):
+        if s.mirrored:
+            seen[by_image, j] = s.bins - 1 - exp.bins[by_image, j]
     return dataclasses.replace(exp, fired=fired, rule=np.where(by_image, exp.rule - n_rules, exp.rule), bins=seen)
 
 
@@ -66,13 +68,7 @@ class MirroredEvaluator(Evaluator):
     def evaluate(self, policies: list[RuleSet], partners: Partners, rng: np.random.Generator, *,
                  episodes: int | None = None, tick: Tick | None = None) -> Evaluation:
         ev = self.inner.evaluate([with_mirror_images(p) for p in policies], partners, rng, episodes=episodes, tick=tick)
-        if not policies:
-            return ev
-        sch = policies[0].schema
-        mirrored = np.array([s.mirrored for s in sch.sensors])
-        bins = np.array([s.bins for s in sch.sensors])
-        return dataclasses.replace(ev, experience=[fold(e, len(p), mirrored, bins)
-                                                   for e, p in zip(ev.experience, policies)])
+        return dataclasses.replace(ev, experience=[fold(e, len(p), p.schema) for e, p in zip(ev.experience, policies)])
 
     def measures(self, best: RuleSet, partners: Partners, check: Evaluation, child_rng: ChildRng) -> dict[str, float | None]:
         return self.inner.measures(with_mirror_images(best), partners, check, child_rng)

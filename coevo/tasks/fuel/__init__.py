@@ -102,7 +102,8 @@ class FuelTask(Task):
         return np.array([n not in DOCK_SENSORS or n in usable for n in schema(behaviour).sensor_names])
 
     def ga_choices(self, behaviour: str) -> dict[str, object]:
-        """Docking's own selection and split settings (:data:`DOCKING_CHOICES`); the others make no choice."""
+        """Docking's own settings (:data:`DOCKING_CHOICES`: selection, split, symmetric rules, their cap); the others
+        make no choice."""
         return dict(DOCKING_CHOICES) if Behaviour(behaviour) == Behaviour.DOCKING else {}
 
     def partners_needed(self, behaviour: str, regime: str) -> tuple[str, ...]:
