@@ -12,6 +12,7 @@ from coevo.ga import GA
 from coevo.ga.symmetry import MirroredEvaluator, fold, with_mirror_images
 from coevo.policy.rules import mirror_image, random_ruleset
 from coevo.policy.schema import Action, Sensor, schema
+from coevo.rundir.settings import RunSettings
 from coevo.tasks import get_task
 from coevo.tasks.fuel.settings import WorldConfig
 from coevo.tasks.fuel.world import BatchWorld
@@ -102,6 +103,8 @@ def test_a_symmetric_ga_evaluates_exactly_the_policy_it_publishes(rng) -> None:
 def test_symmetric_rules_need_a_mirror_world_and_room_for_the_images() -> None:
     with pytest.raises(ConfigError, match="max_rules <= 32.*got max_rules=48"):
         GA(get_task("fuel"), "docking", world=WorldConfig(), ga=GAConfig(max_rules=48, symmetric_rules=True), seed=0)
+    with pytest.raises(ConfigError, match="symmetric docking rules need max_rules <= 32"):  # before any run starts
+        RunSettings.make(run="r", regime="independent", ga=GAConfig(max_rules=64))
     door = get_task("door")
     with pytest.raises(ConfigError, match="mirror image.*'door'"):
         GA(door, "door", world=door.world_settings(), ga=GAConfig(symmetric_rules=True, max_rules=16), seed=0)

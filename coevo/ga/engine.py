@@ -33,7 +33,7 @@ from coevo.errors import ConfigError
 from coevo.ga.evaluator import Evaluation, Partners, Problem, Tick
 from coevo.ga.mutation import CONTROL_LEVELS, MutationModel, model_from_config
 from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise, split, trim
-from coevo.ga.symmetry import MAX_SYMMETRIC_RULES, MirroredEvaluator, with_mirror_images
+from coevo.ga.symmetry import MirroredEvaluator, with_mirror_images
 from coevo.policy.rules import RuleSet, random_ruleset
 from coevo.policy.schema import schema
 from coevo.policy.strength import update_strengths
@@ -84,13 +84,6 @@ class GA:
         self.mutation = mutation or model_from_config(ga)
         self.evaluator = task.evaluator(self.behaviour, world, ga)
         if ga.symmetric_rules:  # each rule also stands for its mirror image (coevo.ga.symmetry)
-            if not task.mirror_symmetric:
-                raise ConfigError(f"symmetric_rules needs a world that is its own mirror image; task "
-                                  f"{getattr(task, 'name', task)!r}'s is not")
-            if ga.max_rules > MAX_SYMMETRIC_RULES:
-                raise ConfigError(f"symmetric {self.behaviour} rules need max_rules <= {MAX_SYMMETRIC_RULES} (their mirror "
-                                  f"images take the rest of the matcher's 64), got max_rules={ga.max_rules}; "
-                                  f"symmetric_rules=false breeds up to 64")
             self.evaluator = MirroredEvaluator(self.evaluator)
         learnable = task.learnable_sensors(self.behaviour, ga)
         self._unusable = None if learnable is None or learnable.all() else ~learnable

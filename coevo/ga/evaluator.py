@@ -66,7 +66,8 @@ class Problem(Protocol):
     mirror_symmetric: bool
 
     def ga_settings(self, behaviour: str, ga: GAConfig) -> GAConfig:
-        """``ga`` with the settings it leaves to the task (None) filled in for ``behaviour``."""
+        """``ga`` with the settings it leaves to the task (None) filled in for ``behaviour``; a ConfigError if they
+        cannot go together in this task."""
 
     def initial_rules(self, behaviour: str, ga: GAConfig) -> RuleSet | None:
         """The rules a GA with settings ``ga`` starts from, or None where it starts random."""

@@ -31,6 +31,7 @@ from pydantic import BaseModel
 from coevo.config import GAConfig
 from coevo.errors import ConfigError
 from coevo.ga.evaluator import ChildRng, Evaluation, Evaluator, Partners, Tick
+from coevo.ga.symmetry import MAX_SYMMETRIC_RULES
 from coevo.policy.rules import RuleSet, random_ruleset
 from coevo.policy.schema import Schema, schema
 
@@ -93,9 +94,20 @@ class Task(ABC):
 
     def ga_settings(self, behaviour: str, ga: GAConfig) -> GAConfig:
         """``ga`` with every setting it leaves to the task (``None``) filled in: the task's choice for
-        ``behaviour`` (:meth:`ga_choices`), else off.  Settings given explicitly are kept."""
-        choices = {**TASK_CHOICE_OFF, **self.ga_choices(self.check_behaviour(behaviour))}
-        return ga.model_copy(update={k: v for k, v in choices.items() if getattr(ga, k) is None})
+        ``behaviour`` (:meth:`ga_choices`), else off.  Settings given explicitly are kept.  A ConfigError if the
+        filled-in settings cannot go together here (symmetric rules without a mirror world or room for them)."""
+        behaviour = self.check_behaviour(behaviour)
+        choices = {**TASK_CHOICE_OFF, **self.ga_choices(behaviour)}
+        filled = ga.model_copy(update={k: v for k, v in choices.items() if getattr(ga, k) is None})
+        if filled.symmetric_rules:  # each rule also stands for its mirror image (coevo.ga.symmetry)
+            if not self.mirror_symmetric:
+                raise ConfigError(f"symmetric_rules needs a world that is its own mirror image; task {self.name!r}'s "
+                                  f"is not")
+            if filled.max_rules > MAX_SYMMETRIC_RULES:
+                raise ConfigError(f"symmetric {behaviour} rules need max_rules <= {MAX_SYMMETRIC_RULES} (their mirror "
+                                  f"images take the rest of the matcher's 64), got max_rules={filled.max_rules}; "
+                                  f"symmetric_rules=false breeds up to 64")
+        return filled
 
     def initial_model(self, behaviour: str, ga: GAConfig, rng: np.random.Generator) -> RuleSet:
         """How a partner that has not published yet is modelled: its initial behaviour."""
