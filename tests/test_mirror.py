@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 
 from coevo.config import GAConfig
-from coevo.errors import RuleSetError
-from coevo.errors import ConfigError
+from coevo.errors import ConfigError, RuleSetError
+from coevo.experiments.compare.experiment import CompareSpec
 from coevo.ga import GA
 from coevo.ga.symmetry import MirroredEvaluator, fold, with_mirror_images
 from coevo.policy.rules import mirror_image, random_ruleset
@@ -105,6 +106,8 @@ def test_symmetric_rules_need_a_mirror_world_and_room_for_the_images() -> None:
         GA(get_task("fuel"), "docking", world=WorldConfig(), ga=GAConfig(max_rules=48, symmetric_rules=True), seed=0)
     with pytest.raises(ConfigError, match="symmetric docking rules need max_rules <= 32"):  # before any run starts
         RunSettings.make(run="r", regime="independent", ga=GAConfig(max_rules=64))
+    with pytest.raises(ValidationError, match="symmetric docking rules need max_rules <= 32"):  # before OUT is written
+        CompareSpec(ga=GAConfig(max_rules=64))
     door = get_task("door")
     with pytest.raises(ConfigError, match="mirror image.*'door'"):
         GA(door, "door", world=door.world_settings(), ga=GAConfig(symmetric_rules=True, max_rules=16), seed=0)

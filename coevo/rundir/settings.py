@@ -75,11 +75,10 @@ class RunSettings(Settings):
                              f"{self.ga.generations} generations")
         if self.cel is not None and self.roster is not None and self.cel.robot in self.roster.values():
             raise ValueError(f"the robot id {self.cel.robot!r} is also a worker id of the roster")
-        for b in task.behaviours:  # every worker's GA settings, filled in by the task, fit together: before a run starts
-            try:
-                task.ga_settings(b, self.ga)
-            except ConfigError as exc:
-                raise ValueError(str(exc)) from None
+        try:
+            task.check_ga(self.ga)  # every worker's GA settings as the task fills them in, before a run starts
+        except ConfigError as exc:
+            raise ValueError(str(exc)) from None
         full = build(task.world_settings, self.world).model_dump(mode="json")
         object.__setattr__(self, "world", full)  # stored in full: a later default change cannot alter the run
         return self

@@ -109,6 +109,13 @@ class Task(ABC):
                                   f"symmetric_rules=false breeds up to 64")
         return filled
 
+    def check_ga(self, ga: GAConfig) -> GAConfig:
+        """``ga`` if every behaviour's filled-in settings (:meth:`ga_settings`) fit this task, else the ConfigError:
+        for commands to call before they write or start anything."""
+        for b in self.behaviours:
+            self.ga_settings(b, ga)
+        return ga
+
     def initial_model(self, behaviour: str, ga: GAConfig, rng: np.random.Generator) -> RuleSet:
         """How a partner that has not published yet is modelled: its initial behaviour."""
         default = self.initial_rules(behaviour, ga) if ga.initial == "default" else None

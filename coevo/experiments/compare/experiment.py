@@ -47,6 +47,7 @@ from coevo.replicates.backends import Backend
 from coevo.replicates.replicate import Replicate as Job
 from coevo.replicates.runner import Progress, run_replicates
 from coevo.rundir.settings import RunSettings
+from coevo.tasks import get_task
 from coevo.tasks.fuel import FuelTask
 
 REGIMES = FuelTask.regimes
@@ -96,6 +97,14 @@ class CompareSpec(BaseModel):
             raise ValueError(f"{OFFLINE} learns on the Tracking and Docking histories of the independent runs: "
                              "add independent to the regimes")
         return v
+
+    @field_validator("ga")
+    @classmethod
+    def _ga(cls, v: GAConfig) -> GAConfig:
+        try:
+            return get_task("fuel").check_ga(v)  # before OUT is written to
+        except ConfigError as exc:
+            raise ValueError(str(exc)) from None
 
     @field_validator("rates")
     @classmethod

@@ -81,7 +81,7 @@ def _fuel_settings(args: argparse.Namespace) -> list[str]:
 
     world, ga = pairs(args.world, "world"), pairs(args.ga, "ga")
     build(get_task("fuel").world_settings, world)
-    build(GAConfig, {**ga, **({} if args.generations is None else {"generations": args.generations})})
+    get_task("fuel").check_ga(build(GAConfig, {**ga, **({} if args.generations is None else {"generations": args.generations})}))
     out = [] if args.generations is None else [f"--generations={args.generations}"]
     return out + [f"--world={k}={v}" for k, v in world.items()] + [f"--ga={k}={v}" for k, v in ga.items()]
 
