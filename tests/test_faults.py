@@ -396,13 +396,15 @@ def test_a_broker_flooded_beyond_its_inbox_drops_and_counts_and_still_stores(tmp
             poll(lambda: board.broker_up, 20, "the broker")
             junk = msgpack.packb({"pad": "x" * 400_000})
             for _ in range(100):
-                s.put(keys.policy("fl", "tracking"), junk)
+                # Blocking, as the bad-message test puts: under zenoh's default (drop when a link's queue is full) a
+                # busy machine (a full run of a fresh clone) let too few through to fill the broker's 1 MB inbox.
+                s.put(keys.policy("fl", "tracking"), junk, congestion_control=zenoh.CongestionControl.BLOCK)
             poll(lambda: board.broker_view()["dropped"] > 0, 30, "drops counted")
             s.put(keys.policy("fl", "tracking"), msgpack.packb(_policy(run="fl")))
             poll(lambda: board.broker_view()["stored"].get("tracking") == 1, 30, "a good policy stored after the flood")
             view = board.broker_view()
             assert view["rejected"]["flood"] == view["dropped"] > 0
-            # The rest were read and refused, or never arrived: zenoh's own congestion control drops puts under saturation.
+            # Each of the 100 was either dropped at the full inbox (counted as a flood) or read and refused.
             assert sum(view["rejected"].values()) <= 100
             board.close()
     finally:
