@@ -100,6 +100,15 @@ def test_bench_json_reports_both_figures_and_ratio() -> None:
     assert d["ratio"] == pytest.approx(d["batched_steps_per_s"] / d["baseline_steps_per_s"])
 
 
+def test_bench_times_at_least_one_baseline_episode_however_short_its_budget() -> None:
+    """A budget shorter than one clock tick (or a busy CI machine) once left the baseline empty: ratio 1/0."""
+    from coevo.tasks.fuel.bench import bench
+    from coevo.tasks.fuel.settings import WorldConfig
+
+    res = bench(world=WorldConfig(), lanes=1, repeats=1, rules=1, baseline_seconds=1e-12)
+    assert res.baseline_robot_steps > 0 and res.ratio == pytest.approx(res.batched_steps_per_s / res.baseline_steps_per_s)
+
+
 def test_bench_rejects_bad_sizes() -> None:
     r = coevo("bench", "--lanes", "0")
     assert r.returncode == 2 and "--lanes: invalid number 0" in r.stderr
