@@ -1,6 +1,6 @@
 """How learned Docking policies fail from random starts, and how they learned: the record of docs/docking-learning.md.
 
-    python benchmarks/dock_anatomy.py RUN_DIR [RUN_DIR ...] [--starts 1000] [--seed 7]
+    python benchmarks/dock_anatomy.py RUN_DIR [RUN_DIR ...] [--starts 1000] [--seed 7] [--target-range LO,HI]
 
 For each ``coevo learn --behaviour docking`` run directory (its ``best.rules``) it plays
 ``--starts`` fresh single episodes from random starts (as ``docking_from_random_starts``
@@ -11,6 +11,11 @@ where they happened in the dock's frame (median distance along the axis and |lat
 offset| one step before, median |angle off head-on|).  Then the run's learning curve:
 docking from random starts of each generation's best at generations 10, 20, 30, 40, 50
 (``curve.csv``).  The last line sums every run given.
+
+``--target-range 40,60`` places the Target that far from the robot, at a random bearing, instead of anywhere:
+where tracking leaves the robot when an Executive calls Docking (the tracking range), so that what Docking meets
+inside the combined robot can be told from what it meets from random starts.  A RUN_DIR may also be a
+``best.rules`` file of any run (a worker's ``workers/docking/best.rules``); it then has no curve.
 """
 
 from __future__ import annotations
@@ -31,7 +36,22 @@ from coevo.tasks.fuel.world import DOCK_HEADING, BatchWorld, signed_deg
 KINDS = ("docked", "dock-fast", "dock-angle", "dock-side", "wall", "target", "dry", "time-up")
 
 
-def play(rules_path: Path, world_cfg: WorldConfig, starts: int, seed: int) -> tuple[Counter[str], np.ndarray]:
+def target_near(w: BatchWorld, rng: np.random.Generator, lo: float, hi: float) -> None:
+    """Move each lane's Target to ``lo``-``hi`` in from its robot at a random bearing, inside the arena and clear of the
+    dock (a lane with no such place in 100 draws keeps its Target)."""
+    c = w.cfg
+    edge = c.spawn_margin + c.target_radius
+    for i in range(w.n):
+        for _ in range(100):
+            d, a = rng.uniform(lo, hi), rng.uniform(-np.pi, np.pi)
+            x, y = w.rx[i] + d * np.cos(a), w.ry[i] + d * np.sin(a)
+            if edge < x < c.arena - edge and edge + c.dock_depth + 2 * c.robot_radius < y < c.arena - edge:
+                w.set_state([i], target=(x, y))
+                break
+
+
+def play(rules_path: Path, world_cfg: WorldConfig, starts: int, seed: int,
+         target_range: tuple[float, float] | None = None) -> tuple[Counter[str], np.ndarray]:
     """End kinds of ``starts`` fresh episodes, and (axis, |offset|, |angle|) rows one step before each dock collision."""
     rs = parse_ruleset(rules_path.read_text(), Behaviour.DOCKING)
     comp = CompiledPolicies([rs])
@@ -39,6 +59,8 @@ def play(rules_path: Path, world_cfg: WorldConfig, starts: int, seed: int) -> tu
     rng = np.random.default_rng(seed)
     w = BatchWorld(world_cfg, starts)
     w.reset(np.arange(starts), rng)
+    if target_range is not None:
+        target_near(w, rng, *target_range)
     turn_v, speed_v = np.array(TURN.values, float), np.array(SPEED.values, float)
     active = np.ones(starts, bool)
     kind = np.full(starts, "time-up", dtype=object)
@@ -81,6 +103,8 @@ def play(rules_path: Path, world_cfg: WorldConfig, starts: int, seed: int) -> tu
 
 
 def curve(run: Path) -> list[str]:
+    if not (run / "curve.csv").is_file():
+        return ["-"] * 5
     rows = list(csv.DictReader((run / "curve.csv").open()))
     return [f"{float(rows[g - 1]['docking_from_random']):.0f}" if g <= len(rows) and rows[g - 1]["docking_from_random"] else "-"
             for g in (10, 20, 30, 40, 50)]
@@ -91,12 +115,22 @@ def main() -> None:
     ap.add_argument("runs", nargs="+", type=Path)
     ap.add_argument("--starts", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--target-range", metavar="LO,HI", help="the Target LO-HI in from the robot at the start (e.g. 40,60)")
     args = ap.parse_args()
-    missing = [str(r) for r in args.runs if not (r / "best.rules").is_file() or not (r / "curve.csv").is_file()]
+    missing = [str(r) for r in args.runs if not r.is_file() and not ((r / "best.rules").is_file() and (r / "curve.csv").is_file())]
     if missing:
-        ap.error(f"not a finished coevo learn run directory (no best.rules or curve.csv): {', '.join(missing)}")
+        ap.error(f"neither a rule file nor a finished coevo learn run directory (best.rules, curve.csv): {', '.join(missing)}")
     if args.starts < 1:
         ap.error(f"--starts must be at least 1, got {args.starts}")
+    near = None
+    if args.target_range is not None:
+        try:
+            lo, hi = (float(v) for v in args.target_range.split(","))
+        except ValueError:
+            ap.error(f"--target-range must be LO,HI in inches, got {args.target_range!r}")
+        if not 0 <= lo <= hi <= 150:  # also refuses nan
+            ap.error(f"--target-range needs 0 <= LO <= HI <= 150, got {args.target_range!r}")
+        near = (lo, hi)
     total: Counter[str] = Counter()
     spots = []
     print("| run | " + " | ".join(KINDS) + " | dock hits: axis, |offset|, |angle| | curve g10/20/30/40/50 |")
@@ -108,11 +142,12 @@ def main() -> None:
             import json
 
             cfg = WorldConfig(**json.loads(settings.read_text()).get("world", {}))
-        kinds, where = play(run / "best.rules", cfg, args.starts, args.seed)
+        rules = run if run.is_file() else run / "best.rules"
+        kinds, where = play(rules, cfg, args.starts, args.seed, near)
         total.update(kinds)
         spots.append(where)
         med = "–" if not len(where) else ", ".join(f"{v:.0f}" for v in np.median(where, axis=0))
-        print(f"| {run.name} | " + " | ".join(f"{100 * kinds[k] / args.starts:.1f}" for k in KINDS)
+        print(f"| {run.name if run.is_dir() else run} | " + " | ".join(f"{100 * kinds[k] / args.starts:.1f}" for k in KINDS)
               + f" | {med} | {' '.join(curve(run))} |")
     n = args.starts * len(args.runs)
     allw = np.concatenate(spots)
