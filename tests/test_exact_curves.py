@@ -143,11 +143,12 @@ def _lanes_checks() -> dict[str, object]:
 
 
 def compute() -> dict[str, object]:
-    # split_rate=0, symmetric_rules off and 48 rules: the curves were recorded before Docking split rules (Round 4)
-    # and before its rules were symmetric (Round 6, docs/docking-learning.md); this test is about the simulation
-    # and the GA staying exact, not about the operators chosen.
+    # split_rate=0, symmetric_rules off, 48 rules and the Target's sensors: the curves were recorded before Docking
+    # split rules (Round 4), before its rules were symmetric (Round 6) and before they left the Target's own sensors
+    # out (Round 7, docs/docking-learning.md); this test is about the simulation and the GA staying exact, not about
+    # the operators and sensors chosen.
     ga = GAConfig(generations=3, population=6, episodes=20, best_episodes=30, split_rate=0.0, symmetric_rules=False,
-                  max_rules=48)
+                  max_rules=48, docking_target_sensors=True)
     tr, dk = default_ruleset("tracking"), default_ruleset("docking")
     return {
         "tracking": _curve("tracking", ga, 0, {}),

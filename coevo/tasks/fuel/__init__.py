@@ -26,7 +26,7 @@ from coevo.config import GAConfig
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import parse_ruleset
 from coevo.tasks.base import Partners, Task
-from coevo.tasks.fuel.behaviours import Behaviour
+from coevo.tasks.fuel.behaviours import TARGET_SENSORS, Behaviour
 from coevo.tasks.fuel.dock_frame import DEFAULT_FILES, DOCK_SENSORS, SENSOR_SETS
 from coevo.tasks.fuel.evaluate import FuelEvaluator
 from coevo.tasks.fuel.settings import WorldConfig
@@ -93,13 +93,16 @@ class FuelTask(Task):
         return default_ruleset(self.check_behaviour(behaviour), ga.docking_sensors)
 
     def learnable_sensors(self, behaviour: str, ga: GAConfig) -> np.ndarray | None:
-        """Docking's rules condition on the report's five and its chosen set of dock sensors only."""
+        """Docking's rules condition on its chosen set of dock sensors (``ga.docking_sensors``), on range and bearing
+        to the nearest object, and on the Target's own sensors only if ``ga.docking_target_sensors``."""
         if Behaviour(self.check_behaviour(behaviour)) != Behaviour.DOCKING:
             return None
         from coevo.policy.schema import schema
 
-        usable = set(SENSOR_SETS[ga.docking_sensors])
-        return np.array([n not in DOCK_SENSORS or n in usable for n in schema(behaviour).sensor_names])
+        left_out = DOCK_SENSORS - set(SENSOR_SETS[ga.docking_sensors])
+        if not ga.docking_target_sensors:
+            left_out |= TARGET_SENSORS
+        return np.array([n not in left_out for n in schema(behaviour).sensor_names])
 
     def ga_choices(self, behaviour: str) -> dict[str, object]:
         """Docking's own settings (:data:`DOCKING_CHOICES`: selection, split, symmetric rules, their cap); the others

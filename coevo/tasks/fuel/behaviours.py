@@ -17,7 +17,7 @@ import enum
 from coevo.policy.schema import Action, Schema, Sensor, register
 from coevo.tasks.fuel.dock_frame import FRAME_SENSORS
 
-__all__ = ["Behaviour", "SCHEMAS", "TASK_TRACK", "TASK_DOCK", "TURN", "SPEED"]
+__all__ = ["Behaviour", "SCHEMAS", "TASK_TRACK", "TASK_DOCK", "TURN", "SPEED", "TARGET_SENSORS"]
 
 TASK_TRACK = 0
 TASK_DOCK = 1
@@ -55,6 +55,11 @@ _REPORT_FIVE = (
     _range("target_range"),
     _bearing("target_bearing"),
 )
+
+#: The Target's own sensors among the report's five (its heading, range and bearing).  Docking's rules leave them
+#: out by default (``GAConfig.docking_target_sensors``); ``range`` and ``bearing`` still see the Target when it is
+#: the nearest object.
+TARGET_SENSORS = frozenset({"heading", "target_range", "target_bearing"})
 
 SCHEMAS = {
     Behaviour.TRACKING: Schema(Behaviour.TRACKING, _REPORT_FIVE, (TURN, SPEED)),
