@@ -46,6 +46,16 @@ def test_a_run_json_from_before_settings_were_versioned_still_loads(tmp_path: Pa
     assert s.task == "fuel" and s.settings_version == 1
 
 
+def test_a_run_json_from_before_docking_left_the_target_sensors_out_keeps_them(tmp_path: Path) -> None:
+    """A run made before the setting resumes as it learned: its Docking conditioned on the Target's sensors."""
+    ga = GAConfig().model_dump()
+    del ga["docking_target_sensors"]
+    (tmp_path / "old.json").write_text(json.dumps({"run": "old", "regime": "independent", "ga": ga}))
+    RunSettings.make(run="new", regime="independent").save(tmp_path / "new.json")
+    assert RunSettings.load(tmp_path / "old.json").ga.docking_target_sensors is True
+    assert RunSettings.load(tmp_path / "new.json").ga.docking_target_sensors is False
+
+
 @pytest.mark.parametrize("text", ["{not json", "[1, 2]", json.dumps({"run": "x"})])
 def test_a_broken_run_json_is_a_run_dir_error_naming_the_file(tmp_path: Path, text: str) -> None:
     f = tmp_path / "run.json"

@@ -133,6 +133,8 @@ class RunSettings(Settings):
         """The settings in ``path`` (a run.json); anything wrong with it is a RunDirError naming it."""
         data = read_json(path, what="run directory (its run.json)")
         data.setdefault("settings_version", SETTINGS_VERSION)  # run.json of runs made before it was versioned
+        if isinstance(data.get("ga"), dict):  # runs made before the setting: Docking's rules used the Target's sensors
+            data["ga"].setdefault("docking_target_sensors", True)
         try:
             return build(cls, data)
         except ConfigError as exc:
