@@ -5,7 +5,8 @@ ranges in 5-inch bins from 0 to 150 (a last bin for "150 and beyond"), the Targe
 heading in 45° bins.  The Docking agent's dock sensors and the Executive's sensors
 are *(ours)*: the report does not list them.  Docking's come in two sets, polar and
 in the dock's frame (:mod:`.dock_frame`); ``GAConfig.docking_sensors`` picks the one
-it learns over.
+it learns over.  Docking's rules leave the Target's own sensors (:data:`TARGET_SENSORS`)
+out unless ``GAConfig.docking_target_sensors``.
 
 The schemas are registered by behaviour name (:mod:`coevo.policy.schema`).
 """
