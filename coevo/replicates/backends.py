@@ -216,8 +216,10 @@ def open_backend(*, jobs: int, cluster: str | None = None, cluster_config: Path 
     try:
         if kind == "local":
             n = n or max(1, (os.cpu_count() or 1) // 2)
+            # No dashboard; the scheduler's HTTP server (health routes) on a free loopback port, not on 8787 of
+            # every interface, where a second cluster or another program finds it taken.
             made = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                                silence_logs=logging.ERROR)
+                                scheduler_kwargs={"dashboard_address": "127.0.0.1:0"}, silence_logs=logging.ERROR)
             address, label = made, f"local:{n}"
         elif kind in ("slurm", "pbs"):
             made = _jobqueue(kind, cluster_config)
