@@ -34,7 +34,7 @@ from coevo.bus.trust import OPEN, Gate
 from coevo.errors import ConfigError, MessageError, ServiceError
 
 __all__ = ["fetch_latest", "DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
-           "drain", "drain_messages", "is_put", "make_config", "open_session", "query", "ring_subscriber", "sigterm_as_exit",
+           "drain", "drain_messages", "is_put", "make_config", "open_session", "put_control", "query", "ring_subscriber", "sigterm_as_exit",
            "GatedSession", "Ring", "query_messages"]
 
 log = logging.getLogger(__name__)
@@ -359,6 +359,14 @@ def drain_messages(subscriber: Any, limit: int,
             if reject is not None:
                 reject(err, key)
     return out
+
+
+def put_control(session: Any, key: str, payload: bytes) -> None:
+    """Put a one-off control message (a stop): blocking congestion control and a high priority, so a congested link
+    (a slow subscriber's, under load) delays it rather than drops it, as zenoh's default drops what a full queue
+    cannot take (ZENOH-NOTES).  Policies and statuses keep the default: a policy is put again until the broker's store
+    holds it, a status at the next beat; a stop is put once."""
+    session.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK, priority=zenoh.Priority.INTERACTIVE_HIGH)
 
 
 def is_put(sample: Any) -> bool:

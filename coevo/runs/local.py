@@ -45,7 +45,7 @@ from typing import Any
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.messages import Control, PolicyUpdate
-from coevo.bus.session import fetch_latest, make_config, open_session, sigterm_as_exit
+from coevo.bus.session import fetch_latest, make_config, open_session, put_control, sigterm_as_exit
 from coevo.bus.status import StatusBoard
 from coevo.bus.trust import Gate
 from coevo.errors import ConfigError, RunDirError, ServiceError
@@ -218,7 +218,7 @@ class LocalRun:
 
     def ask_stop(self, session: Any) -> None:
         key = keys.control(self.run)
-        session.put(key, self.gate().seal(Control(run=self.run, command="stop", sent_at=time.time()), key))
+        put_control(session, key, self.gate().seal(Control(run=self.run, command="stop", sent_at=time.time()), key))
 
     def unfinished(self) -> dict[str, int]:
         """Workers that stopped before their last generation: behaviour -> generations done (from done.json)."""
