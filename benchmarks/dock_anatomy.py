@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from coevo.errors import CoevoError
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.text import parse_ruleset
 from coevo.tasks.fuel.behaviours import SPEED, TURN, Behaviour
@@ -143,7 +144,10 @@ def main() -> None:
 
             cfg = WorldConfig(**json.loads(settings.read_text()).get("world", {}))
         rules = run if run.is_file() else run / "best.rules"
-        kinds, where = play(rules, cfg, args.starts, args.seed, near)
+        try:
+            kinds, where = play(rules, cfg, args.starts, args.seed, near)
+        except CoevoError as exc:  # not a Docking rule set
+            ap.error(f"{rules}: {exc}")
         total.update(kinds)
         spots.append(where)
         med = "–" if not len(where) else ", ".join(f"{v:.0f}" for v in np.median(where, axis=0))
