@@ -10,13 +10,15 @@ frozen pydantic models: invalid values fail at construction with a
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, ClassVar, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from coevo.errors import ConfigError
 
-__all__ = ["MAX_MAGNITUDE", "Settings", "GAConfig", "build", "MODELS", "DEFAULT_MAX_LEAD", "parse_max_lead"]
+__all__ = ["MAX_MAGNITUDE", "Settings", "GAConfig", "build", "MODELS", "DEFAULT_MAX_LEAD", "parse_max_lead", "SAVED_GA_BEFORE",
+           "saved_ga"]
 
 _M = TypeVar("_M", bound=BaseModel)
 
@@ -189,6 +191,19 @@ class GAConfig(Settings):
         if int(self.population * self.parents_fraction) < 1:
             raise ValueError(f"parents_fraction ({self.parents_fraction}) leaves no parent in a population of {self.population}")
         return self
+
+
+#: GA settings added after runs had been saved, each with what a saved run's settings (run.json, worker.json) mean
+#: by leaving it out: how that run learned.  Docking's rules became symmetric in Round 6 and left the Target's
+#: sensors out in Round 7 (docs/docking-learning.md); runs saved before either learned without.
+SAVED_GA_BEFORE: dict[str, Any] = {"symmetric_rules": False, "docking_target_sensors": True}
+
+
+def saved_ga(data: Mapping[str, Any]) -> dict[str, Any]:
+    """A saved run's GA settings (a dict read from its files) as the run learned with them: every setting added
+    since is filled in with its value from before (:data:`SAVED_GA_BEFORE`), so that such a run resumes and replays
+    as it was, rather than under today's defaults."""
+    return {**SAVED_GA_BEFORE, **data}
 
 
 def build(model: type[_M], values: dict[str, Any] | None = None, **overrides: Any) -> _M:

@@ -12,6 +12,7 @@ import pytest
 from coevo.config import GAConfig
 from coevo.errors import ConfigError, RunDirError
 from coevo.rundir.settings import RunSettings
+from coevo.tasks import get_task
 from coevo.tasks.fuel.settings import WorldConfig
 
 
@@ -46,14 +47,40 @@ def test_a_run_json_from_before_settings_were_versioned_still_loads(tmp_path: Pa
     assert s.task == "fuel" and s.settings_version == 1
 
 
-def test_a_run_json_from_before_docking_left_the_target_sensors_out_keeps_them(tmp_path: Path) -> None:
-    """A run made before the setting resumes as it learned: its Docking conditioned on the Target's sensors."""
-    ga = GAConfig().model_dump()
-    del ga["docking_target_sensors"]
-    (tmp_path / "old.json").write_text(json.dumps({"run": "old", "regime": "independent", "ga": ga}))
+def _saved_before_rounds_6_and_7() -> dict:
+    """A GAConfig as runs saved it before symmetric rules and docking_target_sensors existed."""
+    ga = GAConfig(max_rules=48).model_dump(mode="json")
+    del ga["symmetric_rules"], ga["docking_target_sensors"]
+    return ga
+
+
+def test_a_run_saved_before_a_ga_setting_existed_resumes_and_replays_as_it_learned(tmp_path: Path) -> None:
+    """run.json, worker.json and a resumed worker's check all read a saved GA as the run learned: Docking's rules
+    plain and on the Target's sensors; a run saved today keeps today's settings."""
+    from coevo.agents.checkpoint import prepare_dir
+    from coevo.config import SAVED_GA_BEFORE
+    from coevo.rundir.layout import WorkerPaths
+
+    old = _saved_before_rounds_6_and_7()
+    (tmp_path / "old.json").write_text(json.dumps({"run": "old", "regime": "independent", "ga": old}))
     RunSettings.make(run="new", regime="independent").save(tmp_path / "new.json")
-    assert RunSettings.load(tmp_path / "old.json").ga.docking_target_sensors is True
-    assert RunSettings.load(tmp_path / "new.json").ga.docking_target_sensors is False
+    then, now = RunSettings.load(tmp_path / "old.json").ga, RunSettings.load(tmp_path / "new.json").ga
+    assert (then.symmetric_rules, then.docking_target_sensors, then.max_rules) == (False, True, 48)
+    assert (now.symmetric_rules, now.docking_target_sensors) == (None, False)  # None: the task's choice
+    get_task("fuel").check_ga(then)  # plain 48-rule Docking, as it learned: no symmetric-rule refusal
+
+    w = WorkerPaths(tmp_path / "worker")
+    w.dir.mkdir()
+    meta = {"run": "old", "behaviour": "docking", "worker": "docking-1", "seed": 1, "task": "fuel",
+            "regime": "independent", "model": "best", "max_lead": 1, "world": {}, "ga": old}
+    (w.worker_json).write_text(json.dumps(meta))
+    assert w.meta()["ga"] == then.model_dump(mode="json")  # what coevo replay builds its GA from
+    resumed = {**meta, "ga": then.model_dump(mode="json")}
+    prepare_dir(w.dir, what="worker", meta_file=w.worker_json, meta=resumed, logs=[], checkpoint=w.checkpoint,
+                resume=True, saved_defaults={"ga": SAVED_GA_BEFORE})
+    with pytest.raises(ConfigError, match="ga was"):  # resumed under today's defaults: refused, as any other change
+        prepare_dir(w.dir, what="worker", meta_file=w.worker_json, meta={**meta, "ga": now.model_dump(mode="json")},
+                    logs=[], checkpoint=w.checkpoint, resume=True, saved_defaults={"ga": SAVED_GA_BEFORE})
 
 
 @pytest.mark.parametrize("text", ["{not json", "[1, 2]", json.dumps({"run": "x"})])

@@ -101,8 +101,8 @@ def prepare_dir(directory: Path, *, what: str, meta_file: Path, meta: dict[str, 
                 checkpoint: Path, resume: bool, saved_defaults: Mapping[str, Any] | None = None, hint: str = "") -> None:
     """Make a process's directory (a worker's, an execution module's: ``what``) with its settings file and empty
     logs; a directory that already holds a run is refused (``hint``: where else to go).  With ``resume``, check
-    instead that its settings file says ``meta`` (``saved_defaults`` fill fields older files lack; the ``coevo``
-    version may differ): any other setting is a ConfigError naming each difference.  The caller then loads the
+    instead that its settings file says ``meta`` (``saved_defaults`` fill fields older files lack, a dict the fields of
+    a section; the ``coevo`` version may differ): any other setting is a ConfigError naming each difference.  The caller then loads the
     checkpoint and cuts the logs back to it (:func:`cut_logs`)."""
     try:
         directory.mkdir(parents=True, exist_ok=True)
@@ -120,7 +120,10 @@ def prepare_dir(directory: Path, *, what: str, meta_file: Path, meta: dict[str, 
     if not meta_file.exists():
         write_json(meta_file, meta)
         return
-    saved = {**(saved_defaults or {}), **read_json(meta_file, what=f"{what} directory (its {meta_file.name})")}
+    saved = read_json(meta_file, what=f"{what} directory (its {meta_file.name})")
+    for k, default in (saved_defaults or {}).items():  # fields older files lack; inside a section, its fields
+        both = isinstance(default, Mapping) and isinstance(saved.get(k), Mapping)
+        saved[k] = {**default, **saved[k]} if both else saved.get(k, default)
     diff = [f"{k} was {saved.get(k)!r}, now {meta[k]!r}" for k in meta if k != "coevo" and saved.get(k) != meta[k]]
     if diff:
         raise ConfigError(f"--resume of {str(directory)!r} with other settings: {'; '.join(diff)}")

@@ -45,6 +45,7 @@ from coevo.bus.auth import RunKey
 from coevo.bus.messages import PolicyUpdate, Status
 from coevo.bus.rejections import Rejections
 from coevo.bus.session import open_session, sigterm_as_exit
+from coevo.config import SAVED_GA_BEFORE
 from coevo.errors import ConfigError, MessageError, ServiceError
 from coevo.ga import GA, GenerationReport
 from coevo.policy.rules import RuleSet
@@ -144,7 +145,8 @@ class Worker:
         p = self.paths
         logs = [p.dir / n for n in self.logs]
         prepare_dir(p.dir, what="worker", meta_file=p.worker_json, meta=self._meta(), logs=logs, checkpoint=p.checkpoint,
-                    resume=self.resume, saved_defaults={"task": DEFAULT_TASK},  # written before tasks were named
+                    resume=self.resume, saved_defaults={"task": DEFAULT_TASK,  # written before tasks were named
+                                                       "ga": SAVED_GA_BEFORE},  # or before some GA settings existed
                     hint=", or choose another --out")
         if not self.resume:
             return None

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
+from coevo.config import saved_ga
 from coevo.errors import RunDirError
 
 if TYPE_CHECKING:
@@ -113,7 +114,7 @@ class WorkerPaths:
         if missing or not isinstance(meta.get("ga"), dict) or not isinstance(meta.get("world"), dict):
             raise RunDirError(f"{str(self.worker_json)!r} is not a worker's settings: "
                               f"{'missing ' + ', '.join(missing) if missing else 'ga and world must be objects'}")
-        return meta
+        return {**meta, "ga": saved_ga(meta["ga"])}  # as the worker learned, if it was saved before a GA setting existed
 
 
 @dataclass(frozen=True)

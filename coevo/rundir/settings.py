@@ -21,7 +21,7 @@ from coevo.bus.auth import KEY_ENV, RunKey
 from coevo.bus.keys import check_id
 from coevo.bus.trust import Gate
 from coevo.cel.settings import CelSettings
-from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig, Settings, build
+from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig, Settings, build, saved_ga
 from coevo.errors import CoevoError, ConfigError, MessageError, RunDirError
 from coevo.rundir.layout import RunPaths, read_json, write_json
 from coevo.tasks import DEFAULT_TASK, Task, get_task
@@ -133,8 +133,8 @@ class RunSettings(Settings):
         """The settings in ``path`` (a run.json); anything wrong with it is a RunDirError naming it."""
         data = read_json(path, what="run directory (its run.json)")
         data.setdefault("settings_version", SETTINGS_VERSION)  # run.json of runs made before it was versioned
-        if isinstance(data.get("ga"), dict):  # runs made before the setting: Docking's rules used the Target's sensors
-            data["ga"].setdefault("docking_target_sensors", True)
+        if isinstance(data.get("ga"), dict):  # a run saved before some GA setting existed learned without it
+            data["ga"] = saved_ga(data["ga"])
         try:
             return build(cls, data)
         except ConfigError as exc:
