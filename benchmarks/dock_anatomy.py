@@ -42,13 +42,15 @@ def target_near(w: BatchWorld, rng: np.random.Generator, lo: float, hi: float) -
     dock (a lane with no such place in 100 draws keeps its Target)."""
     c = w.cfg
     edge = c.spawn_margin + c.target_radius
+    tx, ty = w.tx.copy(), w.ty.copy()
     for i in range(w.n):
         for _ in range(100):
             d, a = rng.uniform(lo, hi), rng.uniform(-np.pi, np.pi)
             x, y = w.rx[i] + d * np.cos(a), w.ry[i] + d * np.sin(a)
             if edge < x < c.arena - edge and edge + c.dock_depth + 2 * c.robot_radius < y < c.arena - edge:
-                w.set_state([i], target=(x, y))
+                tx[i], ty[i] = x, y
                 break
+    w.set_state(np.arange(w.n), target=(tx, ty))  # once: each call re-places every lane's bodies
 
 
 def play(rules_path: Path, world_cfg: WorldConfig, starts: int, seed: int,
