@@ -6,7 +6,13 @@ world, the runner, the evaluator and the matcher must reproduce it bit for bit. 
 recorded once more, with the same pre-speed code plus Docking's dock-frame sensors and
 selection (branch ``dock``, issue 25: an intended change of Docking's numbers and of the
 raw sensor values, which gained two sensors; Tracking's and the Executive's stayed the
-same), and the merged, faster code reproduces that recording too:
+same), and the merged, faster code reproduces that recording too.  And once more when the
+numbers were made the same on every machine (:mod:`coevo.exactmath`'s sine, cosine and
+arctangent instead of numpy's and libm's, and the strength update's sums without BLAS):
+every curve, fitness, outcome and measure stayed as recorded; only last bits of rule
+strengths, of recorded positions and of raw bearings changed.  ``tests/test_machines.py``
+replays this file under other BLAS kernels, without numpy's SIMD code and without libm's FMA
+code:
 
 * fixed-seed ``coevo learn`` curves (the GA engine in-process, 3 generations, population 6,
   20 episodes) of Tracking, Docking and the Executive (against the shipped Tracking and
@@ -209,10 +215,24 @@ def test_reused_world_runs_like_a_fresh_one() -> None:
         assert _outcome(a) == _outcome(b)
 
 
+def _with_paths(compiled: bool) -> dict[str, object]:
+    """:func:`compute` with the world's compiled loops forced on for every batch, or kept off for all."""
+    import coevo.tasks.fuel.world as world_mod
+
+    saved = world_mod.COMPILED_MIN_LANES, world_mod.COMPILED_WARM_MIN_LANES
+    world_mod.COMPILED_MIN_LANES = world_mod.COMPILED_WARM_MIN_LANES = 0 if compiled else 1 << 62
+    try:
+        return json.loads(json.dumps(compute()))
+    finally:
+        world_mod.COMPILED_MIN_LANES, world_mod.COMPILED_WARM_MIN_LANES = saved
+
+
 if __name__ == "__main__":
     if sys.argv[1:] == ["--write"]:
         DATA.parent.mkdir(exist_ok=True)
         DATA.write_text(json.dumps(compute(), indent=1, sort_keys=True) + "\n", encoding="utf-8")
         print(f"wrote {DATA}")
+    elif sys.argv[1:2] == ["--paths"]:  # tests/test_machines.py: {"numpy": ..., "compiled": ...} as JSON
+        print(json.dumps({p: _with_paths(p == "compiled") for p in sys.argv[2].split(",")}))
     else:
         print(json.dumps(compute(), indent=1, sort_keys=True))

@@ -27,7 +27,9 @@ def update_strengths(rs: RuleSet, fired: np.ndarray, payoff: np.ndarray, rate: f
         return rs
     f = fired_matrix(fired, len(rs))
     count = f.sum(axis=0)
-    total = payoff @ f
+    # Not ``payoff @ f``: a matrix product's order of sums is the BLAS kernel's, which the processor picks, so its
+    # last bits differ between machines.  numpy's reduction adds in an order fixed by the shapes alone.
+    total = np.add.reduce(np.where(f, payoff[:, None], 0.0), axis=0)
     seen = count > 0
     strength = rs.strength.copy()
     mean = np.divide(total, count, out=np.zeros_like(strength), where=seen)

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from coevo import exactmath
 from coevo.errors import ConfigError
 from coevo.tasks.door.settings import SONAR_ANGLES, SONARS, DoorConfig
 
@@ -85,7 +86,8 @@ class DoorWorld:
         k = np.arange(c.sonar_rays)
         rays = (k + 0.5) / c.sonar_rays * SONAR_CONE - SONAR_CONE / 2
         offsets = np.deg2rad((np.array(SONAR_ANGLES)[:, None] + rays[None, :]).reshape(-1))  # (7*R,)
-        self._ray_sin, self._ray_cos = np.sin(offsets)[None, :], np.cos(offsets)[None, :]
+        ray_sin, ray_cos = exactmath.sincos(offsets)  # sines and cosines the same on every machine
+        self._ray_sin, self._ray_cos = ray_sin[None, :], ray_cos[None, :]
         self.path: list[np.ndarray] | None = [self.pose()] if record else None
         if self._collides(self.x, self.y, self.a, self.b).any():
             i = int(np.flatnonzero(self._collides(self.x, self.y, self.a, self.b))[0])
@@ -106,7 +108,7 @@ class DoorWorld:
         # Each ray is the heading turned by a fixed offset: two sines and cosines per trial, not per ray
         # (sonars are ~45 % of a generation; this made them ~30 % faster, measured in docs/door.md).
         h = self.h[lanes, None]
-        sh, ch = np.sin(h), np.cos(h)
+        sh, ch = exactmath.sincos(h)
         dx = -(sh * self._ray_cos + ch * self._ray_sin)
         dy = ch * self._ray_cos - sh * self._ray_sin
         x, y = self.x[lanes, None], self.y[lanes, None]
@@ -160,9 +162,9 @@ class DoorWorld:
         ended = np.zeros(len(lanes))
         t0 = self.decisions * c.decision_seconds
         for k in range(c.substeps):
-            mid = h + 0.5 * w
-            x = np.where(run, x - step * np.sin(mid), x)
-            y = np.where(run, y + step * np.cos(mid), y)
+            sin_mid, cos_mid = exactmath.sincos(h + 0.5 * w)
+            x = np.where(run, x - step * sin_mid, x)
+            y = np.where(run, y + step * cos_mid, y)
             h = np.where(run, h + w, h)
             hit = run & self._collides(x, y, a, b)
             goal = run & ~hit & (y >= c.goal_line)

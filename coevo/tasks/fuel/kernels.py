@@ -1,14 +1,11 @@
 """The batched world's and the agent loop's inner loops, compiled with numba: the same numbers, faster.
 
 Each function stands for numpy code named in its docstring and computes every value with the same
-floating-point operations in the same order: ``cos``, ``sin``, ``sqrt``, ``floor``, ``degrees`` and
-``radians`` are the same libm/IEEE functions in numba as in numpy (checked on 2 M values each), numba
-does not contract ``a*b + c`` into FMA, and comparisons and integer bit operations are exact.  The
-exception is ``arctan2``: numpy computes it with its own SIMD code (7.7 % of values differ in the last
-bit from libm's), so every arctan2 stays numpy's, called by the Python code between two kernels (an
-element gets the same value wherever it sits in the array it is computed in: checked, so one call can
-serve several directions at once).  ``tests/test_exact_curves.py`` runs everything both ways against
-numbers recorded before any of this existed.
+floating-point operations in the same order: ``sqrt``, ``floor``, ``degrees`` and ``radians`` are the same
+IEEE operations in numba as in numpy, numba does not contract ``a*b + c`` into FMA, and comparisons and
+integer bit operations are exact.  Sine, cosine and arctangent are :mod:`coevo.exactmath`'s, compiled from
+its scalar forms (numpy's and libm's own differ between processors).  ``tests/test_exact_curves.py`` runs
+everything both ways against the same recorded numbers.
 
 What a kernel saves is mostly numpy's fixed cost per call (~1-10 µs, whatever the batch): a step of the
 agent loop was ~90 numpy calls, ~90 µs for a 12-lane batch.
@@ -22,11 +19,15 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["move", "assign_probes", "contact_codes", "events", "active_lanes", "decide_lanes", "tally",
+from coevo import exactmath
+
+__all__ = ["atan2_into", "move", "assign_probes", "contact_codes", "events", "active_lanes", "decide_lanes", "tally",
            "experiences"]
 
 _jit = numba.njit(cache=True, nogil=True)
 _inline = numba.njit(cache=True, nogil=True, inline="always")  # helpers: numba inlines them into their callers
+_sincos = _inline(exactmath.sincos_scalar)
+_atan2 = _inline(exactmath.atan2_scalar)
 _ONE = np.uint64(1)
 _ALL = np.uint64(0xFFFF_FFFF_FFFF_FFFF)
 _TWO_PI = 2 * np.pi
@@ -34,6 +35,13 @@ _INV_TWO_PI = 0.5 / np.pi
 
 # A sensor's code is the index of its name in world.SENSOR_NAMES (world.sensor_tables); the geometry (``geom``,
 # BatchWorld._geom): arena, dock x0, dock x1, dock depth, robot radius, Target radius, dock point x, y.
+
+
+@_jit
+def atan2_into(y, x, out):  # pragma: no cover - compiled by numba
+    """``out[:] = exactmath.atan2(y, x)``, without numpy's ~30 calls."""
+    for i in range(out.shape[0]):
+        out[i] = _atan2(y[i], x[i])
 
 
 # ----------------------------------------------------------------- sensing (BatchWorld._observe + Schema.discretise)
@@ -77,7 +85,7 @@ def _range_bearing(code, x, y, h, t_dist, t_dir, q_dir, arena, x0, x1, depth, r,
 @_inline
 def _sense_lane(sensors, x, y, rh, tx, ty, th, fuel, t_dir, q_dir, d_dir, geom, out):  # pragma: no cover
     """The bins of every sensor of one lane into ``out`` (S,): raw values as ``_observe`` computes them
-    (``t_dir``, ``q_dir``, ``d_dir``: numpy's arctan2 in degrees), binned as ``Sensor.discretise`` does."""
+    (``t_dir``, ``q_dir``, ``d_dir``: arctangents in degrees), binned as ``Sensor.discretise`` does."""
     codes, inv_width, nbins, circular, origin = sensors
     arena, x0, x1, depth, r, tr, dock_x, dock_y = geom[0], geom[1], geom[2], geom[3], geom[4], geom[5], geom[6], geom[7]
     h = np.degrees(rh)
@@ -149,9 +157,9 @@ def move(active, speed_in, turn_in, speed, turn, dt, state, walk, noise, idx, bl
         turn[i] = tu
         idx[m] = i
         m += 1
-        r = rh[i]
-        x = gx[i] + sp * np.cos(r) * dt
-        y = gy[i] + sp * np.sin(r) * dt
+        sin_h, cos_h = _sincos(rh[i])
+        x = gx[i] + sp * cos_h * dt
+        y = gy[i] + sp * sin_h * dt
         a = ga[i] + np.radians(tu) * dt
         gx[i] = x
         gy[i] = y
@@ -161,8 +169,7 @@ def move(active, speed_in, turn_in, speed, turn, dt, state, walk, noise, idx, bl
         rh[i] = a - _TWO_PI * np.floor((a + np.pi) * _INV_TWO_PI)
         t = th[i] + np.radians(noise[i])
         t = t - _TWO_PI * np.floor((t + np.pi) * _INV_TWO_PI)
-        c = np.cos(t)
-        s = np.sin(t)
+        s, c = _sincos(t)
         ax = tx[i] + avoid * c
         ay = ty[i] + avoid * s
         if ax < lo or ax > hi or ay < lo or ay > hi or (ay < dock_y and abs(ax - half) < dock_w):
@@ -259,7 +266,7 @@ def _docking_accepted(x, y, rh, speed, c):  # pragma: no cover - compiled by num
 
 @_jit
 def events(idx, blocked, bang, noise, wall, dock, state, speed, turn, fuel, c, out):  # pragma: no cover
-    """The rest of BatchWorld.step after pymunk's contacts: the blocked Targets turn (``bang``: numpy's
+    """The rest of BatchWorld.step after pymunk's contacts: the blocked Targets turn (``bang``: the
     arctan2 towards the centre), robots that touched a wall or the dock are parked (in pymunk's pose only),
     Robot-Target collisions, wall collisions, dockings, fuel, and who ran dry or tracked.
 
@@ -273,8 +280,9 @@ def events(idx, blocked, bang, noise, wall, dock, state, speed, turn, fuel, c, o
         i = blocked[b]
         t = bang[b] + np.radians(noise[i])
         t = t - _TWO_PI * np.floor((t + np.pi) * _INV_TWO_PI)
-        tx[i] = tx[i] + t_step * np.cos(t)
-        ty[i] = ty[i] + t_step * np.sin(t)
+        sin_t, cos_t = _sincos(t)
+        tx[i] = tx[i] + t_step * cos_t
+        ty[i] = ty[i] + t_step * sin_t
         th[i] = t
     for lanes in (wall, dock):
         for i in lanes:
@@ -308,7 +316,7 @@ def events(idx, blocked, bang, noise, wall, dock, state, speed, turn, fuel, c, o
 @_jit
 def active_lanes(active, group, n_groups, slots, rx, ry, tx, ty, geom, idx, bounds, dy, dx):  # pragma: no cover
     """The active lanes into ``idx``, those of group 0 first, then group 1, ... (``bounds``: where each
-    group starts), and the arguments of numpy's arctan2 for the directions their sensors need: Target
+    group starts), and the arguments of the arctangents of the directions their sensors need: Target
     (``slots[0]``), nearest point of the dock (``slots[1]``), middle of the dock's front (``slots[2]``),
     direction ``s`` of the ``j``-th lane at ``s * m + j`` (-1: not needed).  Returns m, the active lanes."""
     m = 0
@@ -385,7 +393,7 @@ def decide_lanes(lanes, a0, m, ang, slots, world, sensors, policy, turn, speed, 
     in :func:`active_lanes`' order): sense, match, set the commands, and if ``logged`` (the learner) write
     step ``t`` of episode ``k`` into its ``trace``: bins, rule, full (``runner.Trace``'s arrays) and fired.
 
-    ``ang``: numpy's arctan2 of the directions (radians, :func:`active_lanes`' layout); ``world``: rx, ry,
+    ``ang``: the arctangents (:func:`atan2_into`) of the directions (radians, :func:`active_lanes`' layout); ``world``: rx, ry,
     rh, tx, ty, th, fuel, geom; ``policy``: the flat bit table, its stride per policy and per sensor, valid
     rules, each lane's policy, turn and speed of every (policy, rank), rank -> rule.
     """

@@ -304,7 +304,7 @@ def _play_episode(s: _Lanes, c: _Controls, k: int, live: np.ndarray) -> None:
         active &= ~(ev.collided | ev.docked | ev.dry)
 
 
-_DIRECTIONS = (  # the directions kernels.active_lanes prepares numpy's arctan2 for, and the sensors that need them
+_DIRECTIONS = (  # the directions kernels.active_lanes prepares arctangents for, and the sensors that need them
     frozenset({"range", "bearing", "heading", "target_bearing"}),  # to the Target
     frozenset({"bearing"}),  # to the dock's nearest point
     frozenset({"dock_bearing"}),  # to the middle of the dock's front
@@ -338,7 +338,7 @@ def _play_compiled(s: _Lanes, c: _Controls, k: int, groups: list, active: np.nda
         if m == 0:
             break
         n = nd * m
-        np.arctan2(dy[:n], dx[:n], out=ang[:n])
+        kernels.atan2_into(dy[:n], dx[:n], ang[:n])
         for g, (sensors, policy, logged, trace) in enumerate(per_group):
             a0 = bounds[g]
             kernels.decide_lanes(idx[a0:bounds[g + 1]], a0, m, ang, slots, state, sensors, policy, turn, speed, logged,

@@ -31,6 +31,7 @@ import numpy as np
 import pymunk
 import pymunk.batch as pb
 
+from coevo import exactmath
 from coevo.policy.schema import Schema
 from coevo.tasks.fuel import dock_frame
 from coevo.tasks.fuel.settings import WorldConfig
@@ -240,7 +241,7 @@ class BatchWorld:
             k = todo.size
             robot[todo] = self._free_points(k, c.robot_radius, rng)
             target[todo] = self._free_points(k, c.target_radius, rng)
-            far = np.hypot(*(robot[todo] - target[todo]).T) >= c.spawn_separation + c.robot_radius + c.target_radius
+            far = _norm(*(robot[todo] - target[todo]).T) >= c.spawn_separation + c.robot_radius + c.target_radius
             todo = todo[~far]
         heading = rng.uniform(-np.pi, np.pi, (m, 2))
         return np.column_stack([robot, heading[:, 0], target, heading[:, 1]])
@@ -283,7 +284,7 @@ class BatchWorld:
         self.speed[lanes] = 0.0
         self.turn[lanes] = 0.0
         # A Target standing where the robot must be is moved aside.
-        clash = np.hypot(self.tx[lanes] - self.rx[lanes], self.ty[lanes] - self.ry[lanes]) < c.robot_radius + c.target_radius + 5
+        clash = _norm(self.tx[lanes] - self.rx[lanes], self.ty[lanes] - self.ry[lanes]) < c.robot_radius + c.target_radius + 5
         if clash.any():
             self.ty[lanes[clash]] += 3 * (c.robot_radius + c.target_radius)
         self._push_positions()
@@ -342,7 +343,7 @@ class BatchWorld:
         dx, dy = tx - rx, ty - ry
         t_dist = _norm(dx, dy)
         if want & {"heading", "target_bearing", "range", "bearing"}:
-            t_dir = np.degrees(np.arctan2(dy, dx))
+            t_dir = np.degrees(exactmath.atan2(dy, dx))
         if want & {"range", "bearing"}:
             x, y = rx, ry
             A = c.arena
@@ -360,7 +361,7 @@ class BatchWorld:
             obj_dir = t_dir.copy()
             at_dock = np.flatnonzero(gaps[4] == nearest)
             if at_dock.size:
-                obj_dir[at_dock] = np.degrees(np.arctan2(qy[at_dock] - y[at_dock], qx[at_dock] - x[at_dock]))
+                obj_dir[at_dock] = np.degrees(exactmath.atan2(qy[at_dock] - y[at_dock], qx[at_dock] - x[at_dock]))
             for k in (3, 2, 1, 0):
                 obj_dir[gaps[k] == nearest] = _WALL_DIR[k]
             out["bearing"] = wrap_deg(obj_dir - h)
@@ -374,7 +375,7 @@ class BatchWorld:
             ddx, ddy = self.dock_point[0] - rx, self.dock_point[1] - ry
             out["dock_range"] = _norm(ddx, ddy)
             if "dock_bearing" in want:
-                out["dock_bearing"] = wrap_deg(np.degrees(np.arctan2(ddy, ddx)) - h)
+                out["dock_bearing"] = wrap_deg(np.degrees(exactmath.atan2(ddy, ddx)) - h)
         if "dock_orientation" in want:
             out["dock_orientation"] = wrap_deg(h - DOCK_HEADING)
         if "fuel" in want:
@@ -398,8 +399,8 @@ class BatchWorld:
         c = self.cfg
         ddx = self.dock_point[0] - self.rx[lanes]
         ddy = self.dock_point[1] - self.ry[lanes]
-        dist = np.maximum(np.hypot(ddx, ddy) - c.robot_radius, 0.0)
-        face = np.abs(signed_deg(np.degrees(np.arctan2(ddy, ddx) - self.rh[lanes])))
+        dist = np.maximum(_norm(ddx, ddy) - c.robot_radius, 0.0)
+        face = np.abs(signed_deg(np.degrees(exactmath.atan2(ddy, ddx) - self.rh[lanes])))
         return 1 + np.ceil(face / (MAX_TURN * c.step_seconds)) + np.ceil(dist / (MAX_SPEED * c.step_seconds))
 
     # ----------------------------------------------------------------- stepping
@@ -426,8 +427,9 @@ class BatchWorld:
         # p += (v + v_bias) * dt, a += (w + w_bias) * dt, the biases zero.  A standing robot's velocity
         # is zero, which leaves its pose as it is.
         rh, sp, tu = self.rh[a], speed[a], turn[a]
-        gx = self._gx[a] + sp * np.cos(rh) * dt
-        gy = self._gy[a] + sp * np.sin(rh) * dt
+        sin_h, cos_h = exactmath.sincos(rh)
+        gx = self._gx[a] + sp * cos_h * dt
+        gy = self._gy[a] + sp * sin_h * dt
         ga = self._ga[a] + np.radians(tu) * dt
         self._gx[a], self._gy[a], self._ga[a] = gx, gy, ga
         self._sense_contacts(dt)
@@ -472,15 +474,15 @@ class BatchWorld:
         into ``events``: (4, n) bool, rows collided, docked, dry, tracking (as :class:`StepEvents`).
 
         :func:`.kernels.move`, pymunk's contacts, :func:`.kernels.events`: the same operations in the same
-        order as numpy's step, numpy's arctan2 for Targets turning away from a wall or the dock.
+        order as numpy's step (:mod:`coevo.exactmath`'s sine, cosine and arctangent in both).
         """
         dt = self.cfg.step_seconds
         m, nb, stepping, need, free = kernels.move(active, speed, turn, self.speed, self.turn, dt, self._moving,
                                                    self._walk, target_noise, self._idx, self._blocked, self._bdy,
                                                    self._bdx, self._reach, self._probing)
-        if nb:  # Targets turning away from a wall or the dock, towards the centre: numpy's arctan2
+        if nb:  # Targets turning away from a wall or the dock, towards the centre
             self._touching = set()  # as the compiled step always did (the numpy step does not: docs/performance.md)
-            np.arctan2(self._bdy[:nb], self._bdx[:nb], out=self._bang[:nb])
+            kernels.atan2_into(self._bdy[:nb], self._bdx[:nb], self._bang[:nb])
         self._contacts = {_WALL: [], _DOCK: []}
         if stepping:  # a robot is within reach of a wall or the dock, or a probe went back: pymunk tests
             if free < need:
@@ -610,7 +612,7 @@ class BatchWorld:
             a = slice(None) if active.all() else np.flatnonzero(active)
         tx, ty, noise = self.tx[a], self.ty[a], noise_deg[a]
         th = _signed_rad(self.th[a] + np.radians(noise))
-        cos, sin = np.cos(th), np.sin(th)
+        sin, cos = exactmath.sincos(th)
         ahead_x = tx + c.target_avoid * cos
         ahead_y = ty + c.target_avoid * sin
         lo = c.target_radius + 2.0
@@ -619,8 +621,8 @@ class BatchWorld:
         blocked = (ahead_x < lo) | (ahead_x > hi) | (ahead_y < lo) | (ahead_y > hi) | near_dock
         if blocked.any():
             k = np.flatnonzero(blocked)
-            th[k] = _signed_rad(np.arctan2(self._centre[1] - ty[k], self._centre[0] - tx[k]) + np.radians(noise[k]))
-            cos[k], sin[k] = np.cos(th[k]), np.sin(th[k])
+            th[k] = _signed_rad(exactmath.atan2(self._centre[1] - ty[k], self._centre[0] - tx[k]) + np.radians(noise[k]))
+            sin[k], cos[k] = exactmath.sincos(th[k])
         step = c.target_speed * c.step_seconds
         self.tx[a] = tx + step * cos
         self.ty[a] = ty + step * sin
@@ -633,8 +635,7 @@ _WALL_DIR = np.array([180.0, 0.0, -90.0, 90.0, 0.0])  # west, east, south, north
 
 # ----------------------------------------------------------------- compiled loops
 # BatchWorld's sensing and stepping, and the agent loop's steps (runner.py), have compiled versions in
-# kernels.py (numba): the same floating-point operations in the same order, numpy's arctan2 in between
-# (see that module).  tests/test_exact_curves.py checks both paths against numbers recorded before the
+# kernels.py (numba): the same floating-point operations in the same order (see that module).  tests/test_exact_curves.py checks both paths against numbers recorded before the
 # compiled ones existed.
 
 _SENSOR_CODE = {name: i for i, name in enumerate(SENSOR_NAMES)}
