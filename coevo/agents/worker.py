@@ -20,6 +20,7 @@ What a worker writes in its directory (``runs/RUN/workers/BEHAVIOUR/``,
 * ``published.jsonl``: every version it published, in full: its outbox, from which
   it republishes whatever the broker's store turns out not to hold;
 * ``checkpoint.msgpack``: see :mod:`coevo.agents.checkpoint`;
+* ``machines.jsonl``: the machine it ran on, one line per start (:mod:`coevo.rundir.machine`);
 * ``best.rules`` and, at the end, ``done.json``.
 """
 
@@ -50,7 +51,8 @@ from coevo.errors import ConfigError, MessageError, ServiceError
 from coevo.ga import GA, GenerationReport
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
-from coevo.rundir.layout import WorkerPaths, read_jsonl, write_json, write_text
+from coevo.rundir.layout import WorkerPaths, append_durably, read_jsonl, write_json, write_text
+from coevo.rundir.machine import machine
 from coevo.rundir.settings import RunSettings
 from coevo.tasks import DEFAULT_TASK
 
@@ -148,6 +150,8 @@ class Worker:
                     resume=self.resume, saved_defaults={"task": DEFAULT_TASK,  # written before tasks were named
                                                        "ga": SAVED_GA_BEFORE},  # or before some GA settings existed
                     hint=", or choose another --out")
+        with open(p.machines, "a", encoding="utf-8") as f:  # what decides the last bits here (coevo.rundir.machine)
+            append_durably(f, {"started": time.time(), **machine()})
         if not self.resume:
             return None
         state = resume_state(p, self._ident())

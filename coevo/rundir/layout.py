@@ -87,6 +87,11 @@ class WorkerPaths:
         return self.dir / "checkpoint.msgpack"
 
     @property
+    def machines(self) -> Path:
+        """The machine the worker ran on, one line per start (:mod:`coevo.rundir.machine`)."""
+        return self.dir / "machines.jsonl"
+
+    @property
     def changes(self) -> Path:
         """A CEL learner's capability changes: after how many generations it took which list, and its restart."""
         return self.dir / "changes.jsonl"
@@ -141,6 +146,11 @@ class ExecutionPaths:
     @property
     def checkpoint(self) -> Path:
         return self.dir / "checkpoint.msgpack"
+
+    @property
+    def machines(self) -> Path:
+        """The machine the worker ran on, one line per start (:mod:`coevo.rundir.machine`)."""
+        return self.dir / "machines.jsonl"
 
     @property
     def meta_json(self) -> Path:

@@ -15,7 +15,7 @@ from which trial; its world is its own seed's), in :mod:`coevo.cel_service.audit
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +27,7 @@ from coevo.errors import RunDirError
 from coevo.ga import GA
 from coevo.policy.rules import RuleSet
 from coevo.rundir.layout import RunPaths, WorkerPaths, by_generation, read_jsonl, read_store
+from coevo.rundir.machine import differences
 from coevo.runs.kinds import kind_of_worker, run_kinds
 from coevo.tasks import DEFAULT_TASK, Task, get_task
 
@@ -89,11 +90,24 @@ def _rows(w: WorkerPaths, task: Task, behaviour: str, meta: dict[str, Any], worl
         g += 1
 
 
+def _with_machine(r: WorkerReplay, w: WorkerPaths) -> WorkerReplay:
+    """A replay that differs, with what differs between the machines the worker ran on and this one."""
+    if r.reproduced:
+        return r
+    recorded = [m for m in read_jsonl(w.machines, missing_ok=True, problems=[]) if isinstance(m, dict)]
+    diffs = sorted({d for m in recorded for d in differences(m)})
+    note = ("; the run recorded no machine (it predates machines.jsonl)" if not recorded
+            else "; recorded on a machine that differs from this one in: " + "; ".join(diffs) + " (none of which should "
+            "change a number: docs/development.md, 'What is exact where')" if diffs
+            else "; recorded on a machine like this one (the same versions, BLAS kernel, SIMD code and processor)")
+    return replace(r, detail=r.detail + note)
+
+
 def replay(run_dir: Path) -> list[WorkerReplay]:
     run = RunPaths(Path(run_dir))
     workers = run.workers()
     store = _store(run)
-    out = [replay_worker(w.dir, store) for w in workers]
+    out = [_with_machine(replay_worker(w.dir, store), w) for w in workers]
     for kind in run_kinds(run):
         assert kind.replay_run is not None
         what, n, first, detail = kind.replay_run(run)
