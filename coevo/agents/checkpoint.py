@@ -7,8 +7,9 @@ generator state), its publication counter, rejection counts, timings, and the
 lengths of its append-only logs (``curve.jsonl``, ``adoptions.jsonl``,
 ``published.jsonl``) at that moment.  On ``--resume`` the logs are cut back to
 those lengths, so whatever a crash left after the checkpoint (a curve line, an
-adoption, a publication of a generation that is now done again) disappears and
-the logs agree with the restored state: a replay reproduces the whole run.
+adoption, a publication of a generation that is now done again) leaves the logs
+(kept beside each, in ``NAME.cut-N``) and the logs agree with the restored state:
+a replay reproduces the whole run.
 
 The file is written atomically (:func:`coevo.rundir.layout.write_bytes`) and carries a
 CRC-32 of its body, so a crash mid-write leaves the previous checkpoint intact and
@@ -24,6 +25,7 @@ keeps the logs instead.
 
 from __future__ import annotations
 
+import logging
 import zlib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -32,7 +34,9 @@ from typing import Any
 import msgpack
 
 from coevo.errors import ConfigError, RunDirError
-from coevo.rundir.layout import WorkerPaths, read_json, write_bytes, write_json
+from coevo.rundir.layout import WorkerPaths, cut_back, read_json, write_bytes, write_json
+
+log = logging.getLogger(__name__)
 
 __all__ = ["FORMAT", "save_checkpoint", "load_checkpoint", "resume_state", "truncate_log", "prepare_dir", "cut_logs"]
 
@@ -136,12 +140,14 @@ def cut_logs(logs: Sequence[Path], sizes: Mapping[str, int]) -> None:
 
 
 def truncate_log(path: Path, size: int) -> None:
-    """Cut an append-only log back to ``size`` bytes (what it held at the checkpoint)."""
+    """Cut an append-only log back to ``size`` bytes (what it held at the checkpoint); what is cut is kept beside
+    it (:func:`~coevo.rundir.layout.cut_back`)."""
     path = Path(path)
     have = path.stat().st_size if path.exists() else 0
     if have < size:
         raise RunDirError(f"{str(path)!r} holds {have} bytes but the checkpoint saw {size}: the worker directory was "
                           "changed behind the worker's back; it cannot be resumed")
     if have > size:
-        with open(path, "r+b") as f:
-            f.truncate(size)
+        kept = cut_back(path, size)
+        log.info("%s: cut back to the checkpoint's %d bytes; the %d bytes after it are kept in %s", path, size,
+                 have - size, kept)

@@ -264,7 +264,13 @@ class Broker:
         parts = keys.parse(str(query.key_expr))
         topic = parts.get("topic", "")
         cases = topic == "store/cases"
-        for run, beh in self.store.matching(parts.get("run", "*"), parts.get("behaviour", "*"), cases=cases):
+        run, beh = parts.get("run", "*"), parts.get("behaviour", "*")
+        pairs = self.store.matching(run, beh, cases=cases)
+        if topic == "store/versions" and not pairs and keys.valid_id(run) and keys.valid_id(beh):
+            # A behaviour it holds nothing of (its store file lost, or nothing arrived yet): answer "none", so that
+            # its worker republishes every version; silence would read as a store that did not answer.
+            pairs = [(run, beh)]
+        for run, beh in pairs:
             gate = self.keyring.gate(run)
             if gate is None:
                 continue  # a run this broker holds no key for (stored before its key went): it says nothing of it

@@ -47,7 +47,7 @@ from coevo.bus import keys
 from coevo.bus.messages import CaseUpdate, PolicyUpdate
 from coevo.bus.rejections import Rejections
 from coevo.errors import ConfigError, MessageError
-from coevo.rundir.layout import RunPaths, read_cases, read_store
+from coevo.rundir.layout import RunPaths, cut_back, read_cases, read_store
 
 Stored = PolicyUpdate | CaseUpdate
 _CASES = "cases/"  # the stream of a behaviour's cases is "cases/BEHAVIOUR"; a behaviour's policies, "BEHAVIOUR"
@@ -130,7 +130,7 @@ class PolicyStore:
                 _cut_torn_tail(f)
                 damaged: list[str] = []
                 msgs = reader(f, problems=damaged)  # damaged in the middle: keep the rest
-            except (OSError, UnicodeDecodeError) as exc:
+            except OSError as exc:
                 log.error("store: %s cannot be read (%s); skipped", f, exc)
                 continue
             for msg in msgs:
@@ -312,11 +312,12 @@ class PolicyStore:
 
 
 def _cut_torn_tail(f: Path) -> None:
-    """Cut a last line that a crash left without its newline (it was never fsynced as a whole)."""
-    data = f.read_bytes()
+    """Cut a last line that a crash left without its newline (it was never fsynced as a whole), keeping it beside
+    the file (``NAME.cut-N``): a file damaged otherwise loses nothing to the reload."""
+    with open(f, "rb") as fh:
+        data = fh.read()
     if data and not data.endswith(b"\n"):
         keep = data.rfind(b"\n") + 1
-        log.warning("store %s: cut a torn last line of %d bytes (a crash mid-write)", f, len(data) - keep)
-        with open(f, "r+b") as fh:
-            fh.truncate(keep)
-            os.fsync(fh.fileno())
+        kept = cut_back(f, keep)
+        log.warning("store %s: cut a torn last line of %d bytes (a crash mid-write, or damage); kept in %s", f,
+                    len(data) - keep, kept)

@@ -119,7 +119,7 @@ class Tail:
         self._offset = 0
         self._partial = b""
         self.reset = False
-        self.bad = 0  # lines that were not JSON objects
+        self.bad = 0  # lines that were not JSON objects (skipped, and said on the page)
         self.mtime = 0.0
 
     def read(self) -> list[dict[str, Any]]:
@@ -139,6 +139,8 @@ class Tail:
                 data = f.read()
         except OSError:
             return []
+        from coevo.rundir.layout import json_object
+
         self._offset += len(data)
         lines = (self._partial + data).split(b"\n")
         self._partial = lines.pop()  # an incomplete last line waits for its end
@@ -147,13 +149,8 @@ class Tail:
             if not line.strip():
                 continue
             try:
-                row = json.loads(line)
-            except (json.JSONDecodeError, UnicodeDecodeError):
-                self.bad += 1
-                continue
-            if isinstance(row, dict):
-                out.append(row)
-            else:
+                out.append(json_object(line))
+            except ValueError:
                 self.bad += 1
         return out
 
@@ -314,12 +311,12 @@ class RunFiles:
             v = w.view(now, self.stale)
             workers.append(v)
             curves[v["worker"]] = (v["behaviour"], w.curve)
-            if w.curve_tail.bad:
-                problems.append(f"{w.curve_tail.path}: {w.curve_tail.bad} lines that are not curve rows (skipped)")
         for f in self.paths.store_files():
             tail = self._store.setdefault(f.stem, Tail(f))
             n = len(tail.read())
             self._stored[f.stem] = n if tail.reset else self._stored.get(f.stem, 0) + n
+        tails = [t for w in self._workers.values() for t in (w.curve_tail, w.adoptions)] + list(self._store.values())
+        problems += [f"{t.path}: {t.bad} damaged lines skipped" for t in tails if t.bad]
         for row in self._performance.read():
             if isinstance(row.get("generation"), int) and isinstance(row.get("external"), (int, float)):
                 self._external.add(row["generation"], float(row["external"]))

@@ -40,7 +40,7 @@ if TYPE_CHECKING:
     from coevo.policy.rules import RuleSet
 
 
-__all__ = ["RunPaths", "WorkerPaths", "ExecutionPaths", "LearnPaths", "read_store", "read_cases", "append_durably", "staged_dir", "ensure_dir", "read_jsonl", "read_json", "write_bytes",
+__all__ = ["RunPaths", "WorkerPaths", "ExecutionPaths", "LearnPaths", "read_store", "read_cases", "append_durably", "cut_back", "staged_dir", "ensure_dir", "read_jsonl", "json_object", "read_json", "write_bytes",
            "write_json",
            "write_text", "write_csv"]
 
@@ -308,29 +308,12 @@ class RunPaths:
 
 
 def read_store(path: Path, *, problems: list[str] | None = None, model: type[BaseModel] | None = None) -> list[Any]:
-    """The policies of one store file (``model``: the messages of another kind, e.g. CaseUpdate), in order,
-    validated.
-
-    A line that is not a stored message is a RunDirError naming the file and line, or,
-    when ``problems`` is given, noted there and skipped (the broker reloading its
-    store, and ``coevo check``, keep the rest).
-    """
-    from pydantic import ValidationError
-
+    """The policies of one store file or publication log (``model``: the messages of another kind, e.g.
+    CaseUpdate), in order, validated; damaged lines as :func:`read_jsonl` says (the broker reloading its
+    store, and ``coevo check``, give ``problems`` and keep the rest)."""
     from coevo.bus.messages import PolicyUpdate
 
-    model = model or PolicyUpdate
-    what = "stored policy" if model is PolicyUpdate else f"stored {model.model_fields['kind'].default}"
-    out = []
-    for n, row in read_jsonl(path, problems=problems, numbered=True):
-        try:
-            out.append(model.model_validate(row))
-        except ValidationError as exc:
-            msg = f"{path} line {n} is not a {what}: {str(exc).splitlines()[0]}"
-            if problems is None:
-                raise RunDirError(msg) from None
-            problems.append(msg)
-    return out
+    return _read_lines(Path(path), model or PolicyUpdate, missing_ok=False, problems=problems, as_models=True)
 
 
 def read_cases(path: Path, *, problems: list[str] | None = None) -> list[Any]:
@@ -343,10 +326,10 @@ def read_cases(path: Path, *, problems: list[str] | None = None) -> list[Any]:
 def read_json(path: Path, *, what: str) -> dict[str, Any]:
     """A JSON object from ``path``; a missing, unreadable or non-object file is a RunDirError naming it."""
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
+        data = json.loads(Path(path).read_text(encoding="utf-8"), parse_constant=_non_finite)
     except FileNotFoundError:
         raise RunDirError(f"{str(path)!r} is missing: not a complete {what}") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (OSError, ValueError, RecursionError) as exc:  # not UTF-8, not JSON (NaN included), nested too deeply
         raise RunDirError(f"{str(path)!r} cannot be read ({what}): {exc}") from None
     if not isinstance(data, dict):
         raise RunDirError(f"{str(path)!r} is not a JSON object ({what})")
@@ -425,6 +408,24 @@ def write_json(path: Path, data: Any) -> None:
     write_text(path, json.dumps(data, indent=2, sort_keys=True) + "\n")
 
 
+def cut_back(path: Path, size: int) -> Path | None:
+    """Cut ``path`` back to its first ``size`` bytes, keeping what is cut: it is first written (atomically) to
+    the side file ``NAME.cut-N`` (the first N free).  That file, or None when nothing was past ``size``."""
+    path = Path(path)
+    with open(path, "r+b") as f:
+        f.seek(size)
+        cut = f.read()
+        if not cut:
+            return None
+        n = 1
+        while (kept := path.with_name(f"{path.name}.cut-{n}")).exists():
+            n += 1
+        write_bytes(kept, cut)
+        f.truncate(size)
+        os.fsync(f.fileno())
+    return kept
+
+
 def append_durably(log: IO[str], row: dict[str, Any]) -> None:
     """One JSON line on an append-only log, flushed and fsynced: it is on disk before anything of it leaves
     the process (a worker's publications, a CEL learner's cases)."""
@@ -446,34 +447,87 @@ def write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
     write_text(path, buf.getvalue())
 
 
-def read_jsonl(path: Path, *, missing_ok: bool = False, problems: list[str] | None = None,
-               numbered: bool = False) -> list[Any]:
-    """The rows of a JSON-lines log (blank lines skipped); with ``numbered``, ``(line number, row)`` pairs.
+def read_jsonl(path: Path, *, schema: type[BaseModel] | None = None, missing_ok: bool = False,
+               problems: list[str] | None = None) -> list[dict[str, Any]]:
+    """The rows of a JSON-lines log, each a JSON object valid under ``schema`` (its file kind's, from
+    :mod:`coevo.rundir.records`), in order; blank lines are skipped.
 
-    A missing file is ``[]`` with ``missing_ok``, else a RunDirError; a line that is
-    not JSON is a RunDirError naming the file and line, or, when ``problems`` is
-    given, noted there and skipped (``coevo check`` lists every one).
+    A missing file is ``[]`` with ``missing_ok``, else a RunDirError.  A damaged line (not
+    UTF-8, not JSON, NaN or Infinity, not an object, not of ``schema``, or a last line
+    without its newline: a write cut short) is a RunDirError naming the file and line, or,
+    when ``problems`` is given, noted there and skipped (``coevo check`` lists every one).
     """
-    path = Path(path)
-    if not path.exists():
-        if missing_ok:
-            return []
+    return _read_lines(Path(path), schema, missing_ok=missing_ok, problems=problems, as_models=False)
+
+
+def _read_lines(path: Path, schema: type[BaseModel] | None, *, missing_ok: bool, problems: list[str] | None,
+                as_models: bool) -> list[Any]:
+    """:func:`read_jsonl`'s rows, or with ``as_models`` the ``schema`` objects made of them."""
+
+    def damaged(msg: str) -> None:
         if problems is None:
-            raise RunDirError(f"{path} is missing: not a complete run directory")
-        problems.append(f"{path} is missing")
+            raise RunDirError(msg)
+        problems.append(msg)
+
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        if not missing_ok:
+            damaged(f"{path} is missing: not a complete run directory")
         return []
-    rows = []
-    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
-        if not line.strip():
+    except OSError as exc:
+        damaged(f"{path} cannot be read: {exc.strerror or exc}")
+        return []
+    lines = data.split(b"\n")
+    torn = lines.pop()  # b"" when the file ends with its last line's newline
+    out = []
+    for n, raw in enumerate(lines, start=1):
+        if not raw.strip():
             continue
         try:
-            row = json.loads(line)
-            rows.append((n, row) if numbered else row)
-        except json.JSONDecodeError as exc:
-            if problems is None:
-                raise RunDirError(f"{path} line {n} is not JSON: {exc}") from None
-            problems.append(f"{path} line {n} is not JSON")
-    return rows
+            row = json_object(raw)
+            model = schema.model_validate(row) if schema is not None else None
+        except ValueError as exc:  # pydantic's ValidationError is one
+            damaged(f"{path} line {n} {_what_is_wrong(exc, schema)}")
+            continue
+        out.append(model if as_models else row)
+    if torn:
+        damaged(f"{path} line {len(lines) + 1} is torn: {len(torn)} bytes and no newline at the end (a write cut short)")
+    return out
+
+
+def json_object(raw: bytes) -> dict[str, Any]:
+    """One line of a JSON-lines log as a JSON object; a ValueError saying what it is instead (not UTF-8, not
+    JSON, NaN or Infinity, another JSON value)."""
+    try:
+        row = json.loads(raw.decode("utf-8"), parse_constant=_non_finite)
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"is not UTF-8 text (byte {exc.object[exc.start]:#04x} at column {exc.start + 1})") from None
+    except RecursionError:
+        raise ValueError("is not JSON: nested too deeply") from None
+    except ValueError as exc:
+        raise ValueError(f"is not JSON: {exc}") from None
+    if not isinstance(row, dict):
+        raise ValueError(f"is not a JSON object (it is {_JSON_TYPES.get(type(row), 'a JSON value')})")
+    return row
+
+
+def _what_is_wrong(exc: ValueError, schema: type[BaseModel] | None) -> str:
+    """A damaged line's fault in a few words: :func:`json_object`'s, or the first field ``schema`` refused."""
+    from pydantic import ValidationError
+
+    if not isinstance(exc, ValidationError) or schema is None:
+        return str(exc)
+    err = exc.errors()[0]
+    return f"is not a {schema.__name__}: {'.'.join(map(str, err['loc'])) or 'the line'}: {err['msg']}"
+
+
+_JSON_TYPES = {list: "an array", str: "a string", int: "a number", float: "a number", bool: "true or false",
+               type(None): "null"}
+
+
+def _non_finite(name: str) -> Any:
+    raise ValueError(f"{name} (a non-finite number; JSON has none)")
 
 
 def by_generation(rows: list[dict[str, Any]]) -> dict[int, list[dict[str, Any]]]:

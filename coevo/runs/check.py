@@ -31,7 +31,9 @@ from typing import Any
 
 from coevo.agents.inbox import rules_digest
 from coevo.errors import CoevoError
+from coevo.bus.messages import PolicyUpdate
 from coevo.rundir.layout import RunPaths, read_json, read_jsonl, read_store, span_text
+from coevo.rundir.records import AdoptionLine, CurveLine
 from coevo.runs.kinds import run_kinds
 
 __all__ = ["RunCheck", "check_run"]
@@ -53,10 +55,10 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
     check = RunCheck(run.dir)
     wdirs = run.workers()
     roster = _roster(run, check)
-    stored: dict[tuple[str, str, int], dict[str, Any]] = {}
+    stored: dict[tuple[str, str, int], PolicyUpdate] = {}
     for f in run.store_files():
         for m in read_store(f, problems=check.problems):
-            stored[(m.behaviour, m.worker, m.version)] = m.model_dump(mode="json")
+            stored[(m.behaviour, m.worker, m.version)] = m
     if roster is not None:
         foreign = sorted({(b, w) for b, w, _ in stored if roster.get(b) != w})
         for b, w in foreign:
@@ -69,29 +71,29 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
         beh, worker, gens = meta["behaviour"], meta["worker"], int(meta["ga"].get("generations", 0))
         if roster is not None and roster.get(beh) != worker:
             check.problems.append(f"{beh}: worker {worker!r} is not the roster's {roster.get(beh)!r}")
-        curve = read_jsonl(w.curve, problems=check.problems)
-        got = [int(r["generation"]) for r in curve]
+        curve = read_jsonl(w.curve, schema=CurveLine, problems=check.problems)
+        got = [r["generation"] for r in curve]
         if got != list(range(1, gens + 1)):
             check.problems.append(f"{beh}: curve.jsonl has generations {span_text(got)}, expected 1..{gens}")
         done = read_json(w.done, what="worker directory (its done.json)") if w.done.exists() else {}
         if not done.get("finished"):
             check.problems.append(f"{beh}: done.json missing or not finished")
-        published = read_jsonl(w.published, problems=check.problems)
-        versions = [int(p["version"]) for p in published]
+        published = read_store(w.published, problems=check.problems)
+        versions = [p.version for p in published]
         if versions != list(range(1, len(versions) + 1)):
             check.problems.append(f"{beh}: published.jsonl versions {versions} are not 1..n in order")
         lost = []
         for p in published:
-            s = stored.get((beh, worker, int(p["version"])))
+            s = stored.get((beh, worker, p.version))
             if s is None:
-                lost.append(int(p["version"]))
-            elif s["rules"] != p["rules"] or s["fitness"] != p["fitness"]:
-                check.problems.append(f"{beh}: the store's v{p['version']} differs from what the worker published")
-            published_all[(beh, int(p["version"]))] = (worker, rules_digest(p["rules"]))
+                lost.append(p.version)
+            elif s.rules != p.rules or s.fitness != p.fitness:
+                check.problems.append(f"{beh}: the store's v{p.version} differs from what the worker published")
+            published_all[(beh, p.version)] = (worker, rules_digest(p.rules))
         if lost:
             check.problems.append(f"{beh}: versions {lost} were published but are not in the store")
         _check_latest(check, run, beh, worker, versions, stored)
-        adopted = read_jsonl(w.adoptions, problems=check.problems)
+        adopted = read_jsonl(w.adoptions, schema=AdoptionLine, problems=check.problems)
         adoptions.append((beh, meta["model"], adopted))
         check.facts[beh] = {"generations": len(curve), "published": len(published),
                             "republished": done.get("republished", 0), "rejected": done.get("rejected", {}),
@@ -115,7 +117,7 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
 
 
 def _check_latest(check: RunCheck, run: RunPaths, beh: str, worker: str, versions: list[int],
-                  stored: dict[tuple[str, str, int], dict[str, Any]]) -> None:
+                  stored: dict[tuple[str, str, int], PolicyUpdate]) -> None:
     """The store's latest (highest version of the worker) is its newest published; so is what the summary measured."""
     if not versions:
         return
@@ -149,14 +151,14 @@ def _roster(run: RunPaths, check: RunCheck) -> dict[str, str] | None:
 def _check_adoption(check: RunCheck, beh: str, model: str, a: dict[str, Any],
                     published: dict[tuple[str, int], tuple[str, str]]) -> None:
     """An adopted version must be one its partner published: same worker, same rules (by digest)."""
-    partner, version = a.get("partner"), int(a.get("version", 0))
+    partner, version = a["partner"], a["version"]
     what = f"{beh}: adopted {partner} v{version}"
-    digest = rules_digest(a["rules"]) if isinstance(a.get("rules"), dict) else None
+    digest = rules_digest(a["rules"]) if a.get("rules") is not None else None
     if a.get("rules_digest") is not None and a["rules_digest"] != digest:
         check.problems.append(f"{what}: its recorded rules_digest does not match the rules it recorded")
     if model == "current":
         return  # current policies are not logged by their publisher: nothing to compare with
-    pub = published.get((str(partner), version))
+    pub = published.get((partner, version))
     if pub is None:
         check.problems.append(f"{what}, which no worker published")
         return

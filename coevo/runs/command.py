@@ -116,6 +116,11 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"the run stopped early{' (' + early + ' generations)' if early else ''}; continue it with "
               f"coevo run --resume {lr.dir}", file=sys.stderr)
         return 130 if summary.get("stopped_here") else 1
+    if summary["unstored"]:
+        print(f"the broker's store lacks published versions {summary['unstored']} (they stay in the workers' "
+              f"published.jsonl; see {lr.paths.log('broker')}): the run is not complete; coevo check {lr.dir} "
+              "says what is wrong", file=sys.stderr)
+        return 1
     return 0
 
 

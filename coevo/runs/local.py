@@ -38,7 +38,7 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -230,6 +230,17 @@ class LocalRun:
                 out[b] = int(done.get("generations", len(read_jsonl(w.curve, missing_ok=True))))
         return out
 
+    def unstored(self, latest: Mapping[str, PolicyUpdate]) -> dict[str, Any]:
+        """Behaviours whose published versions the broker's store does not hold at the end (it lost or never took
+        them): behaviour -> the versions its worker could not deliver (done.json), or "none stored"."""
+        out: dict[str, Any] = {}
+        for b in self.task.behaviours:
+            w = self.paths.worker(b)
+            done = read_json(w.done, what="worker directory (its done.json)") if w.done.exists() else {}
+            if done.get("unconfirmed") or (b not in latest and done.get("versions_published")):
+                out[b] = done.get("unconfirmed") or "none stored"
+        return out
+
     def end_all(self) -> None:
         """Terminate whatever still runs (SIGTERM, then SIGKILL after 10 s)."""
         end_processes(self._all)
@@ -243,7 +254,8 @@ class LocalRun:
         summary: dict[str, Any] = {"run": self.run, "regime": self.settings.regime, "seconds": seconds, "interrupted": interrupted,
                                    "open": self.open,
                                    "versions": {b: m.version for b, m in latest.items()},
-                                   "best_fitness": {b: m.fitness for b, m in latest.items()}, **(extra or {})}
+                                   "best_fitness": {b: m.fitness for b, m in latest.items()},
+                                   "unstored": self.unstored(latest), **(extra or {})}
         m = self.task.run_measures({b: u.ruleset() for b, u in latest.items()}, world=self.settings.world_config(),
                                    epochs=measure_epochs, seed=self.settings.seed + 99)
         if m is not None:

@@ -28,6 +28,7 @@ from coevo.ga import GA
 from coevo.policy.rules import RuleSet
 from coevo.rundir.layout import RunPaths, WorkerPaths, by_generation, read_jsonl, read_store
 from coevo.rundir.machine import differences
+from coevo.rundir.records import AdoptionLine, CurveLine
 from coevo.runs.kinds import kind_of_worker, run_kinds
 from coevo.tasks import DEFAULT_TASK, Task, get_task
 
@@ -56,7 +57,7 @@ def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, unt
     behaviour = task.check_behaviour(meta["behaviour"])
     world = build(task.world_settings, meta["world"])
     ga_cfg = build(GAConfig, meta["ga"])
-    curve = read_jsonl(w.curve)
+    curve = read_jsonl(w.curve, schema=CurveLine)
     n = len(curve) if until is None else min(until, len(curve))
     kind = kind_of_worker(meta)
     rows = (kind.curve(w, meta, world, ga_cfg) if kind.curve is not None
@@ -74,18 +75,18 @@ def _rows(w: WorkerPaths, task: Task, behaviour: str, meta: dict[str, Any], worl
     """A co-evolution worker's curve, again: its GA fed the partner versions it adopted, when it adopted them."""
     models = PartnerModels(task, behaviour, meta["regime"], meta["seed"], kind=meta["model"], ga=ga_cfg)
     ga = GA(task, behaviour, world=world, ga=ga_cfg, seed=meta["seed"])
-    by_gen = by_generation(read_jsonl(w.adoptions))
+    by_gen = by_generation(read_jsonl(w.adoptions, schema=AdoptionLine))
     g = 0
     while True:
         for a in by_gen.get(g, []):
-            key = (a["partner"], a["from_worker"], int(a["version"]))
-            if "rules" in a:
+            key = (a["partner"], a["from_worker"], a["version"])
+            if a.get("rules") is not None:
                 rules = RuleSet.from_dict(a["rules"])
             elif key in store:
                 rules = store[key]
             else:
                 raise RunDirError(f"{w.dir.name}: adopted {key} is neither in the log nor in the store; the run directory is incomplete")
-            models.adopt(a["partner"], int(a["version"]), rules)
+            models.adopt(a["partner"], a["version"], rules)
         yield ga.generation(models.partners()).as_dict()
         g += 1
 

@@ -14,7 +14,6 @@ missing file.  Anything wrong with a directory is one :class:`~coevo.errors.RunD
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -27,7 +26,7 @@ from coevo.config import build
 from coevo.errors import ConfigError, RunDirError
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import read_rule_file
-from coevo.rundir.layout import LearnPaths, RunPaths
+from coevo.rundir.layout import LearnPaths, RunPaths, read_json
 from coevo.rundir.settings import SETTINGS_VERSION
 from coevo.tasks import DEFAULT_TASK, TASKS, Task, task_of
 
@@ -123,13 +122,7 @@ def from_path(path: Path, *, world_over: Mapping[str, Any], partners: Mapping[st
 
 
 def _meta(f: Path) -> dict[str, Any]:
-    try:
-        meta = json.loads(f.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise RunDirError(f"{str(f)!r} cannot be read: {type(exc).__name__}: {_short(str(exc))}") from None
-    if not isinstance(meta, dict):
-        raise RunDirError(f"{str(f)!r} is not a run's settings: expected a JSON object, got {type(meta).__name__}")
-    return meta
+    return read_json(f, what="a run's settings")
 
 
 def _named_task(meta: Mapping[str, Any], f: Path, default: str) -> Task:
