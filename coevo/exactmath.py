@@ -1,4 +1,4 @@
-"""Sine, cosine and arctangent that give the same bits on every machine.
+"""Sine, cosine, arctangent, exponential and logarithm that give the same bits on every machine.
 
 A run's numbers are promised exact: the same seed gives the same curves, and ``coevo replay`` re-plays a run bit
 for bit, on any machine (docs/development.md, "What is exact where").  Basic IEEE operations (``+ - * /``,
@@ -10,7 +10,9 @@ exactly only where it was recorded.
 
 So the world computes them here, from basic operations alone, in a fixed order: a Cody-Waite reduction by pi/2
 and Taylor polynomials for sine and cosine; for the arctangent, the ratio of the smaller to the larger coordinate
-reduced to within tan(pi/32) of one of five centres tan(k pi/16) and a Taylor polynomial there.  Accurate to
+reduced to within tan(pi/32) of one of five centres tan(k pi/16) and a Taylor polynomial there; for the
+exponential a reduction by ln 2 and a Taylor polynomial, for the logarithm the mantissa's atanh series
+(Appendix D's landscapes use those two).  Accurate to
 about 1 ulp (tests/test_exactmath.py measures it against libm), and the same bits wherever numpy and numba
 compile basic arithmetic without contracting ``a*b + c`` into an FMA (neither does).
 
@@ -21,9 +23,11 @@ the tests check on millions of values.  The scalar forms import nothing, so this
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-__all__ = ["sincos", "sin", "cos", "atan2", "sincos_scalar", "atan2_scalar"]
+__all__ = ["sincos", "sin", "cos", "atan2", "exp", "log", "sincos_scalar", "atan2_scalar"]
 
 # pi/2 split in three (Cody-Waite): the first two parts have 33 significant bits, so k * part is exact for
 # |k| < 2**20 (|x| up to ~1.6e6 rad); their sum is pi/2 to ~1e-37.  Derived from pi's decimal digits
@@ -32,6 +36,11 @@ _PIO2_1 = float.fromhex("0x1.921fb54400000p+0")
 _PIO2_2 = float.fromhex("0x1.0b4611a600000p-34")
 _PIO2_3 = float.fromhex("0x1.3198a2e037073p-69")
 _TWO_OVER_PI = float.fromhex("0x1.45f306dc9c883p-1")
+# ln 2 split the same way (33 bits, then the rest: their sum is ln 2 to ~1e-27), 1/ln 2, and sqrt(1/2).
+_LN2_1 = float.fromhex("0x1.62e42fef00000p-1")
+_LN2_2 = float.fromhex("0x1.473de6af278edp-34")
+_INV_LN2 = float.fromhex("0x1.71547652b82fep+0")
+_SQRT_HALF = float.fromhex("0x1.6a09e667f3bcdp-1")
 _PIO2 = float.fromhex("0x1.921fb54442d18p+0")
 _PI = float.fromhex("0x1.921fb54442d18p+1")
 
@@ -50,6 +59,10 @@ def _inverse_factorials(first: int, count: int) -> tuple[float, ...]:
 # left out is below 1e-19 of the result.
 _SIN = _inverse_factorials(3, 8)  # -1/3!, 1/5!, ..., 1/17!
 _COS = _inverse_factorials(2, 9)  # -1/2!, 1/4!, ..., 1/18!
+# e^r = 1 + r*(1 + r*(1/2! + r*(...1/14!))), |r| <= ln2/2: the first term left out is below 1e-17 of it.
+_EXP = tuple(1.0 / math.factorial(n) for n in range(1, 15))
+# ln(1+f) = 2s + 2s*z*(L0 + z*(L1 + ...)), s = f/(2+f), z = s*s, |s| <= 0.1716: 1/3, 1/5, ..., 1/23.
+_LOG = tuple(1.0 / (2 * i + 3) for i in range(11))
 # atan u = u + u*z*(A0 + z*(A1 + ...)), |u| <= tan(pi/32) ~ 0.0985: the first term left out is below 1e-19 of it.
 _ATAN = tuple((-1.0) ** (i + 1) / (2 * i + 3) for i in range(8))  # -1/3, 1/5, ..., 1/17
 # The arctangent's centres tan(k pi/16), k = 0..4, their angles k pi/16, and the midpoints tan((2k-1) pi/32),
@@ -116,6 +129,35 @@ def atan2(y: np.ndarray, x: np.ndarray) -> np.ndarray:
     a = np.where(ay > ax, _PIO2 - a, a)
     a = np.where(x < 0.0, _PI - a, a)
     return np.where(y < 0.0, -a, a)
+
+
+def exp(x: np.ndarray) -> np.ndarray:
+    """e**x of an array, float64 (0 below about -745, inf above about 709.8, as libm's)."""
+    x = np.asarray(x, dtype=np.float64)
+    with np.errstate(all="ignore"):  # NaN and +-inf handled below; overflow to inf and underflow to 0 are the answer
+        k = np.rint(x * _INV_LN2)
+        r = (x - k * _LN2_1) - k * _LN2_2
+        p = 1.0 + r * _horner(r, _EXP)
+        out = np.ldexp(p, np.clip(np.nan_to_num(k), -2000, 2000).astype(np.int64))
+    out = np.where(x == np.inf, np.inf, out)
+    return np.where(x == -np.inf, 0.0, np.where(np.isnan(x), x, out))
+
+
+def log(x: np.ndarray) -> np.ndarray:
+    """The natural logarithm of an array, float64 (-inf at 0, NaN below, as libm's)."""
+    x = np.asarray(x, dtype=np.float64)
+    with np.errstate(all="ignore"):  # 0, below 0, NaN and inf: handled at the end
+        m, e = np.frexp(x)  # x = m * 2**e, m in [0.5, 1): exact
+        low = m < _SQRT_HALF
+        m = np.where(low, 2.0 * m, m)  # now in [sqrt(1/2), sqrt(2))
+        e = np.where(low, e - 1, e).astype(np.float64)
+        f = m - 1.0  # exact (Sterbenz)
+        s = f / (2.0 + f)
+        z = s * s
+        two_s = 2.0 * s
+        out = (e * _LN2_2 + (two_s + two_s * z * _horner(z, _LOG))) + e * _LN2_1
+    out = np.where(x > 0.0, out, np.where(x == 0.0, -np.inf, np.nan))
+    return np.where(x == np.inf, np.inf, np.where(np.isnan(x), x, out))
 
 
 def sincos_scalar(x: float) -> tuple[float, float]:

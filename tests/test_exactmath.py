@@ -94,3 +94,21 @@ def test_scalar_forms_give_the_same_bits_compiled() -> None:
     ang = np.empty_like(x)
     atan2_into(y, x, ang)
     assert ang.tobytes() == em.atan2(y, x).tobytes()
+
+
+def test_exponential_and_logarithm_within_two_ulps_of_libm() -> None:
+    rng = np.random.default_rng(3)
+    x = np.concatenate([rng.uniform(-700, 700, 100_000), rng.uniform(-1, 1, 10_000), [0.0, -0.0, 1.0, -1.0]])
+    assert _ulps(em.exp(x), np.array([math.exp(v) for v in x.tolist()])) <= 2.0
+    y = np.concatenate([rng.uniform(0, 1e3, 100_000), em.exp(rng.uniform(-700, 700, 10_000)), [0.5, 1.0, 2.0]])
+    ref = np.array([math.log(v) for v in y.tolist()])
+    nonzero = ref != 0.0
+    assert _ulps(em.log(y)[nonzero], ref[nonzero]) <= 2.0 and em.log(np.array([1.0]))[0] == 0.0
+    with np.errstate(all="raise"):  # the edges give libm's answers, and no warning
+        assert em.exp(np.array([-np.inf, np.inf, 800.0, -800.0])).tolist() == [0.0, np.inf, np.inf, 0.0]
+        assert em.log(np.array([0.0, np.inf])).tolist() == [-np.inf, np.inf]
+        assert np.isnan(em.log(np.array([-1.0, np.nan]))).all() and np.isnan(em.exp(np.array([np.nan]))).all()
+    getcontext().prec = 70
+    ln2 = Decimal(2).ln()
+    assert abs(Decimal(em._LN2_1) + Decimal(em._LN2_2) - ln2) < Decimal("1e-26")
+    assert em._INV_LN2 == float(1 / ln2) and em._SQRT_HALF == float(Decimal("0.5").sqrt())

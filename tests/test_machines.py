@@ -4,7 +4,8 @@ What decides the last bits of a floating-point result, besides the code: the BLA
 processor (``OPENBLAS_CORETYPE`` forces one), numpy's SIMD code chosen at run time (``NPY_DISABLE_CPU_FEATURES``
 turns it off), libm's code paths for processors with and without FMA (``GLIBC_TUNABLES``).  Each variant runs
 ``tests/test_exact_curves.py --paths`` in a subprocess, with numpy's world and, where it matters, the compiled one,
-and must give ``tests/data/exact_curves.json`` exactly.  A core type this processor lacks (SkylakeX without
+and must give ``tests/data/exact_curves.json`` exactly; and Appendix D's landscapes must give the values they give
+in this process.  A core type this processor lacks (SkylakeX without
 AVX-512) would crash OpenBLAS, so only those it supports run; the others skip, saying why.  (Threads decide no
 order of sums: nothing exact calls the BLAS, and the compiled loops run on one thread.)
 """
@@ -68,11 +69,32 @@ def _variants() -> list[object]:
     return out
 
 
+def landscape_digest() -> str:
+    """Appendix D's landscapes, their exponentials, logarithms and products: a hash of fitness values of random
+    points, in float64 and float32, in the dense path and the cells'."""
+    import hashlib
+
+    from coevo.experiments.evolvability.landscape import CLASSES, DynamicLandscape
+
+    h = hashlib.sha256()
+    for name, spec in sorted(CLASSES.items()):
+        land = DynamicLandscape(spec, seed=3, generations=25)
+        x = np.random.default_rng(4).uniform(spec.low - 5, spec.high, (600, spec.dim))
+        for t in (0, 24):
+            for dtype in (np.float64, np.float32):
+                h.update(land.fitness(x, t, dtype=dtype).tobytes())
+    return h.hexdigest()
+
+
 @pytest.mark.service
 @pytest.mark.parametrize(("env", "paths"), _variants())
 def test_fixture_replays_under(env: dict[str, str], paths: str) -> None:
+    variant = {**os.environ, **env}
+    land = subprocess.run([sys.executable, __file__, "--landscape"], env=variant, capture_output=True, text=True,
+                          timeout=120)
+    assert land.returncode == 0 and land.stdout.strip() == landscape_digest(), land.stderr[-3000:]
     proc = subprocess.run([sys.executable, str(HERE / "test_exact_curves.py"), "--paths", paths],
-                          env={**os.environ, **env}, capture_output=True, text=True, timeout=300)
+                          env=variant, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
     got = json.loads(proc.stdout)
     expected = json.loads(FIXTURE.read_text(encoding="utf-8"))
@@ -113,3 +135,8 @@ def test_run_recorded_under_other_kernels_checks_exact_here(tmp_path: Path) -> N
     assert "DIFFERS at generation 2: population_mean" in line
     if simd:
         assert "env NPY_DISABLE_CPU_FEATURES" in line and "numpy_simd" in line
+
+
+if __name__ == "__main__":
+    if sys.argv[1:] == ["--landscape"]:
+        print(landscape_digest())

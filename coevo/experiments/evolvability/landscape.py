@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from coevo import exactmath
 from coevo.errors import ConfigError
 
 __all__ = ["LandscapeSpec", "DynamicLandscape", "CLASSES"]
@@ -68,6 +69,20 @@ CLASSES: dict[str, LandscapeSpec] = {
 }
 
 
+def _scores(aug: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """``aug @ w``, its sums in the order of ``aug``'s columns: a BLAS product adds in the order of the kernel the
+    processor picked, and the landscape's values would differ in their last bits between machines."""
+    acc = aug[:, :1] * w[0]
+    for j in range(1, aug.shape[1]):
+        acc += aug[:, j : j + 1] * w[j]
+    return acc
+
+
+def _exp(a: np.ndarray) -> np.ndarray:
+    """e**a in ``a``'s dtype from :func:`coevo.exactmath.exp` (numpy's own exp runs SIMD code on some processors)."""
+    return exactmath.exp(a).astype(a.dtype, copy=False)
+
+
 def _reflect(pos: np.ndarray, heading: np.ndarray, low: float, high: float) -> tuple[np.ndarray, np.ndarray]:
     """Fold positions back into [low, high] as if bouncing off the walls; mirror the heading per bounce."""
     span = high - low
@@ -105,15 +120,15 @@ class DynamicLandscape:
         self.centres = centres  # (generations, n_peaks, dim): positions seen during generation t
         inv = 1.0 / (2.0 * self.width**2)
         self._inv = inv
-        # f = exp(max_i [y, |y|^2, 1] @ W_i) with y = x - mid: the exponent expanded so that one matmul
-        # scores all peaks; centring on the box keeps the terms small (float32 is then accurate to ~1e-5)
+        # f = exp(max_i [y, |y|^2, 1] . W_i) with y = x - mid: the exponent expanded so that one product
+        # scores all peaks (_scores); centring on the box keeps the terms small (float32 is then accurate to ~1e-5)
         self._mid = (spec.low + spec.high) / 2.0
         cy = centres - self._mid
         self._weights = np.concatenate(
             [
                 2.0 * inv[None, :, None] * cy,
                 np.broadcast_to(-inv, (generations, P))[..., None],
-                (np.log(self.amplitude) - inv * (cy**2).sum(axis=2))[..., None],
+                (exactmath.log(self.amplitude) - inv * (cy**2).sum(axis=2))[..., None],
             ],
             axis=2,
         ).transpose(0, 2, 1).copy()  # (generations, dim + 2, n_peaks)
@@ -158,8 +173,8 @@ class DynamicLandscape:
         aug = aug[order]
         for c in np.flatnonzero(np.diff(bounds)):
             s, e = bounds[c], bounds[c + 1]
-            out[order[s:e]] = (aug[s:e] @ w[:, cand[c]]).max(axis=1)
-        return np.exp(out).reshape(x.shape[:-1])
+            out[order[s:e]] = _scores(aug[s:e], w[:, cand[c]]).max(axis=1)
+        return _exp(out).reshape(x.shape[:-1])
 
     def _cells(self, flat: np.ndarray, t: int) -> tuple[np.ndarray, list[np.ndarray]]:
         """Cell index of every point, and each cell's candidate peaks (cached per generation)."""
@@ -175,7 +190,7 @@ class DynamicLandscape:
             c = self.centres[t]  # (P, dim)
             near = np.clip(c[None], lo[:, None], hi[:, None]) - c[None]
             far = np.maximum(np.abs(c[None] - lo[:, None]), np.abs(hi[:, None] - c[None]))
-            log_a = np.log(self.amplitude)
+            log_a = exactmath.log(self.amplitude)
             upper = log_a - self._inv * (near**2).sum(axis=2)  # (cells, P): the peak's best over the cell
             lower = (log_a - self._inv * (far**2).sum(axis=2)).max(axis=1, keepdims=True)  # someone's worst
             keep = upper >= lower - 1e-9
@@ -184,15 +199,15 @@ class DynamicLandscape:
         return cell, self._cand
 
     def fitness_dense(self, x: np.ndarray, t: int, *, dtype: type = np.float64, chunk: int = 2048) -> np.ndarray:
-        """f(x) scoring every peak (one matmul per chunk of points)."""
+        """f(x) scoring every peak (one product per chunk of points)."""
         x = np.asarray(x)
         y = x.reshape(-1, self.spec.dim).astype(dtype) - dtype(self._mid)
         aug = np.concatenate([y, (y**2).sum(axis=1, keepdims=True), np.ones((len(y), 1), dtype)], axis=1)
         w = self._weights32[t] if dtype == np.float32 else self._weights[t].astype(dtype, copy=False)
         out = np.empty(len(y), dtype)
         for s in range(0, len(y), chunk):
-            out[s : s + chunk] = (aug[s : s + chunk] @ w).max(axis=1)
-        return np.exp(out).reshape(x.shape[:-1])
+            out[s : s + chunk] = _scores(aug[s : s + chunk], w).max(axis=1)
+        return _exp(out).reshape(x.shape[:-1])
 
     def fitness_direct(self, x: np.ndarray, t: int) -> np.ndarray:
         """The defining formula, peak by peak (slow; for checking :meth:`fitness`)."""
