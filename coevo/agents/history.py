@@ -39,11 +39,6 @@ class HistoryFeed:
                 raise RunDirError(f"{f} holds no policies")
             self.updates[b] = sorted(rows, key=lambda m: (m.generation, m.version))
 
-    @property
-    def last_generation(self) -> int:
-        """The latest partner generation in the history."""
-        return max(rows[-1].generation for rows in self.updates.values())
-
     def due(self, generation: int) -> list[PolicyUpdate]:
         """The newest update per partner published by partner generation ``generation * rate``."""
         limit = generation * self.rate

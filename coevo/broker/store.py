@@ -155,10 +155,6 @@ class PolicyStore:
         with self._lock:
             return next(iter(self._failing.values()), "")
 
-    def degraded_for(self, run: str) -> str:
-        with self._lock:
-            return next((e for (r, _), e in self._failing.items() if r == run), "")
-
     def add(self, msg: Stored) -> bool:
         """Persist and then keep an update (a policy or a case); False if it was a duplicate or could not be written.
 

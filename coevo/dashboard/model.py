@@ -188,7 +188,6 @@ def _task_of(behaviours: list[str]) -> str:
 
 def classify_dir(path: Path) -> str:
     """``run``, ``comparison`` or ``runs`` (a directory of runs), else a RunDirError saying what it is not."""
-    from coevo.rundir.layout import RunPaths
 
     p = Path(path)
     if not p.is_dir():

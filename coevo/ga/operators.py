@@ -127,11 +127,6 @@ def crossover(
     return children[0], children[1]
 
 
-def _states_of(exp: Experience, rule: int, episodes: np.ndarray) -> np.ndarray:
-    sel = (exp.rule == rule) & np.isin(exp.episode, episodes)
-    return exp.bins[sel]
-
-
 def specialise(
     rs: RuleSet,
     exp: Experience,

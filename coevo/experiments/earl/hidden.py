@@ -117,8 +117,3 @@ class HiddenWorld:
         self._s = np.where(on, self._next[here, a], -1)
         done = self._s < 0
         return _SENSED[np.where(done, 0, self._s)], reward, done
-
-    @property
-    def world_states(self) -> np.ndarray:
-        """The true state of each lane (0 red, 1 green, 2 upper blue, 3 lower blue, -1 done); for tests and reports."""
-        return self._s.copy()

@@ -36,7 +36,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
@@ -249,21 +249,6 @@ class HashedQ:
 
 
 # ----------------------------------------------------------------------------- environments
-
-class TDEnv(Protocol):
-    """``n`` robots; the ``active`` ones act each step. After a step, a robot whose episode ended
-    (``done``) already shows its next episode's first observation, or is retired (no longer active)."""
-
-    n: int
-    n_actions: int
-    active: np.ndarray
-
-    def bins(self) -> np.ndarray: ...
-
-    def step(self, actions: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]: ...
-
-    def episodes(self) -> dict[str, np.ndarray]: ...
-
 
 class FuelEnv:
     """Tracking or Docking with the trivial Executive that always picks it, on ``n`` robots of a BatchWorld.

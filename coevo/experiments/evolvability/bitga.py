@@ -31,7 +31,6 @@ __all__ = ["COORD_BITS", "GENOME_BITS", "RunParams", "Trace", "decode", "gene_of
 COORD_BITS = 20
 GENOME_BITS = 2 * COORD_BITS + CONTROL_BITS  # 43
 _COORD_MASK = np.uint64((1 << COORD_BITS) - 1)
-_GENOME_MASK = np.uint64((1 << GENOME_BITS) - 1)
 
 
 @dataclass(frozen=True)
