@@ -1,4 +1,4 @@
-"""Typed, validated settings: the GA's (SPEC §1, "GA parameters"), shared by every task.
+"""Typed, validated settings: the GA's (docs/spec.md §1, "GA parameters"), shared by every task.
 
 Each task's world settings live with the task (the fuel task's: :mod:`coevo.tasks.fuel.settings`).
 

@@ -12,7 +12,8 @@ Branches are chosen by how a caller reacts::
     └── MessageError            a bus message rejected on receipt (logged and counted, never fatal)
 
 Errors of the libraries underneath are translated at the boundary, with ``raise ... from``:
-zenoh's in :mod:`coevo.bus.session` (and nowhere else), files' in :mod:`coevo.rundir.layout`.
+zenoh's in :mod:`coevo.bus.session` (and nowhere else: it names the one zenoh error others log and pass,
+``SessionGone``, a session closing under a declaration or a put), files' in :mod:`coevo.rundir.layout`.
 
 Every message names the bad value and, where there is one, the fix.
 """

@@ -1,9 +1,7 @@
 """The code's shape, checked: one-way layers, small functions, a command line that starts light.
 
-The layers are the contract in ``.importlinter`` (docs/architecture.md): lowest first ``errors``,
-``config``, the core (``policy``, ``ga``), ``tasks``, the CEL core, ``bus``, ``rundir``, ``console``,
-the processes (``agents``, ``broker``, ``cel_service``), ``runs``, then ``experiments`` and ``show``,
-then ``cli``.  Nothing imports upward: a new upward import fails here with the chain that makes it.
+The layers are the contract in ``.importlinter`` (listed there, highest first, and drawn in
+docs/architecture.md).  Nothing imports upward: a new upward import fails here with the chain that makes it.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The TD baseline on our own tasks (issue 19, item 3): encoders, the hashed table, the environments,
+"""The TD baseline on our own tasks (docs/ea-vs-td.md): encoders, the hashed table, the environments,
 determinism, learning on a tiny budget and the checks on input (fast: seconds)."""
 
 from __future__ import annotations

@@ -40,13 +40,12 @@ from pathlib import Path
 from typing import Any
 
 import msgpack
-import zenoh
 
 from coevo.broker.store import PolicyStore, Quota
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.messages import MAX_BYTES, BrokerStatus, CaseUpdate, PolicyUpdate
-from coevo.bus.session import config_from_args, open_session, sigterm_as_exit
+from coevo.bus.session import SessionGone, config_from_args, open_session, sigterm_as_exit
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import CoevoError, MessageError
 from coevo.rundir.layout import RunPaths
@@ -165,7 +164,7 @@ class Broker:
                 token = self.session.liveliness().declare_token(want)
                 if self._token is not None:
                     self._token.undeclare()
-            except zenoh.ZError as exc:  # the session is closing
+            except SessionGone as exc:  # the session is closing
                 log.debug("broker token not changed: %s", exc)
                 return
             before, self._token, self._token_key = self._token_key, token, want
@@ -187,7 +186,7 @@ class Broker:
         for d in self._decls:
             try:
                 d.undeclare()
-            except zenoh.ZError as exc:  # already gone with the session
+            except SessionGone as exc:  # already gone with the session
                 log.debug("undeclare after the session went: %s", exc)
         self._decls.clear()
         self._stop.set()
@@ -256,7 +255,7 @@ class Broker:
                     self.session.put(keys.broker_status(run), gate.seal(BrokerStatus(
                         run=run, stored=stored, rejected=rejected, dropped=dropped, open=gate.open, degraded=degraded[:500],
                         sent_at=time.time()), keys.broker_status(run)))
-                except zenoh.ZError as exc:  # the session is closing
+                except SessionGone as exc:  # the session is closing
                     log.debug("broker status not sent: %s", exc)
                     return
 

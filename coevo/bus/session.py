@@ -3,7 +3,7 @@
 Flags follow the zenoh examples: ``--mode``, ``--connect``, ``--listen``,
 ``--config``, ``--no-multicast-scouting``.  Sessions are context managers: a
 process that exits without closing a session that has callback subscribers hangs
-(see ZENOH-NOTES), so every process closes its sessions in ``finally``.
+(see docs/zenoh-notes.md), so every process closes its sessions in ``finally``.
 
 Members only: :class:`Security` turns ``--tls-ca/--tls-cert/--tls-key`` (mutual
 TLS on ``tls/`` endpoints) and ``--user/--password/--auth-file`` (Zenoh's
@@ -33,12 +33,17 @@ from coevo.bus.messages import Message, PolicyUpdate
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import ConfigError, MessageError, ServiceError
 
-__all__ = ["fetch_latest", "DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
+__all__ = ["SessionGone", "fetch_latest", "DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
            "drain", "drain_messages", "is_put", "make_config", "open_session", "put_control", "query", "ring_subscriber", "sigterm_as_exit",
            "GatedSession", "Ring", "query_messages"]
 
 log = logging.getLogger(__name__)
 
+
+
+#: What zenoh raises when a declaration or a put meets a session that is closing (or closed): the one zenoh error
+#: other modules handle (they log it and go on), named here so that nothing else imports zenoh.
+SessionGone = zenoh.ZError
 
 
 def _readable(what: str, path: str | Path) -> str:
@@ -329,7 +334,7 @@ def ring_subscriber(session: Any, key: str, capacity: int) -> Ring:
 
     Nothing runs in Python per arriving sample: a flood on the key costs the
     receiving process no GIL time and cannot stall its connection (a callback that
-    falls behind does, see ZENOH-NOTES); beyond ``capacity`` the oldest are dropped.
+    falls behind does, see docs/zenoh-notes.md); beyond ``capacity`` the oldest are dropped.
     """
     return Ring(session.declare_subscriber(key, zenoh.handlers.RingChannel(capacity)), getattr(session, "gate", OPEN))
 
@@ -364,7 +369,7 @@ def drain_messages(subscriber: Any, limit: int,
 def put_control(session: Any, key: str, payload: bytes) -> None:
     """Put a one-off control message (a stop): blocking congestion control and a high priority, so a congested link
     (a slow subscriber's, under load) delays it rather than drops it, as zenoh's default drops what a full queue
-    cannot take (ZENOH-NOTES).  Policies and statuses keep the default: a policy is put again until the broker's store
+    cannot take (docs/zenoh-notes.md).  Policies and statuses keep the default: a policy is put again until the broker's store
     holds it, a status at the next beat; a stop is put once."""
     session.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK, priority=zenoh.Priority.INTERACTIVE_HIGH)
 

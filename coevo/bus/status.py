@@ -31,11 +31,9 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-import zenoh
-
 from coevo.bus import keys
 from coevo.bus.messages import BrokerStatus, ExecutionStatus, Status
-from coevo.bus.session import drain_messages, is_put, ring_subscriber
+from coevo.bus.session import SessionGone, drain_messages, is_put, ring_subscriber
 from coevo.errors import MessageError
 
 __all__ = ["DEFAULT_STALL", "WorkerView", "RobotView", "StatusBoard", "status_table", "PlainStatus", "StatusDisplay", "follow"]
@@ -153,7 +151,7 @@ class StatusBoard:
         for d in self._decls + self._rings:
             try:
                 d.undeclare()
-            except zenoh.ZError as exc:  # the session was closed first: its declarations went with it
+            except SessionGone as exc:  # the session was closed first: its declarations went with it
                 log.debug("undeclare after the session closed: %s", exc)
 
     def _view(self, behaviour: str, worker: str) -> WorkerView:

@@ -1,4 +1,4 @@
-"""Continuous and Embedded Learning (report Appendix B; SPEC §5; issue 17), the in-process core.
+"""Continuous and Embedded Learning (report Appendix B; docs/spec.md §5), the in-process core.
 
 An execution module (:mod:`.execution`) runs the robot in its own world, where sonars
 fail on a schedule unknown to the learner, always with the newest rules it has; its

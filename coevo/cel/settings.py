@@ -1,4 +1,4 @@
-"""A live CEL run's own settings (``run.json``'s ``cel`` block; SPEC §5, issue 17).
+"""A live CEL run's own settings (``run.json``'s ``cel`` block; docs/spec.md §5).
 
 A CEL run is a door-task run (:class:`~coevo.rundir.settings.RunSettings` with ``task =
 "door"``) plus these: the failure schedule of the execution module's world, the

@@ -1,4 +1,4 @@
-"""``coevo cel``: one live Continuous and Embedded Learning run on this machine (report Appendix B; issue 17).
+"""``coevo cel``: one live Continuous and Embedded Learning run on this machine (report Appendix B).
 
 A :class:`CelRun` is a :class:`~coevo.runs.local.LocalRun` of the door task with a
 ``cel`` block in its ``run.json``: it starts ``coevo broker``, the learning module

@@ -4,8 +4,8 @@ A behaviour learns in its task's ``independent`` regime: against fixed rule sets
 of the partners that regime gives it (the fuel task's Executive against Tracking
 and Docking), or, where it needs none, alone (Tracking and Docking with the
 trivial Executive that always picks them).  The run directory
-gets the learning curve (CSV and JSON), the best rule set as text, and the SPEC
-measures of that best policy.
+gets the learning curve (CSV and JSON), the best rule set as text, and the
+measures of that best policy (docs/spec.md §1).
 """
 
 from __future__ import annotations

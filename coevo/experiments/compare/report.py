@@ -53,7 +53,7 @@ from coevo.tasks.fuel.robot import docking_from_random_starts
 
 __all__ = ["collect", "write_report", "MEASURES"]
 
-# The combined robot's measures shown per run (SPEC §2 "Measures").
+# The combined robot's measures shown per run (docs/spec.md §2 "Measures").
 MEASURES = ("quality_tracking", "successful_docking", "docking_success_rate", "average_epoch_length", "dock_choice",
             "executive_payoff")
 CURVE_COLUMNS = ("best_fitness", "best_so_far", "quality_tracking", "successful_docking", "dock_choice",
@@ -381,7 +381,7 @@ def _markdown(spec: CompareSpec, records: list[dict[str, Any]], table: dict[str,
               f"({DOCKING_PROBE_EPISODES} single episodes); it separates a starved Docking agent from one that "
               "never learned to dock.", ""]
     lines += ["Classes: Good Docking ≥ 20 % of the episodes in which the Executive picked Docking end docked "
-              "(SPEC §2's reading of the report's 20 %: with the fuel as the report states it an ideal robot docks in "
+              "(docs/spec.md §2's reading of the report's 20 %: with the fuel as the report states it an ideal robot docks in "
               "only ~10 % of all its episodes), Poor Docking < 20 %, No Docking = Docking picked in < 5 % of episodes; "
               "Hi tracking > 60 % quality tracking, Med > 30 %, Lo otherwise. The runs table shows both numbers.", ""]
     if tests:

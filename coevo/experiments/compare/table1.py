@@ -1,6 +1,6 @@
 """The report's Table 1: nine classes of a finished run, and the report's own counts.
 
-A run is classed by its combined robot's measures (SPEC §2, report Appendix A §7):
+A run is classed by its combined robot's measures (docs/spec.md §2, report Appendix A §7):
 
 - Docking: *No Docking* when the Executive picks Docking in under 5 % of episodes
   (starvation); otherwise *Good Docking* when at least 20 % of the episodes in
@@ -8,7 +8,7 @@ A run is classed by its combined robot's measures (SPEC §2, report Appendix A �
   says "≥ 20 % episodes with successful docking"; with the fuel as it states it one
   docking per epoch keeps the robot going, so an ideal robot docks in only ~10 % of
   all its episodes, and a threshold on all episodes would class it Poor Docking and
-  contradict the report's 10 of 10 Good Docking Independent runs.  SPEC §2
+  contradict the report's 10 of 10 Good Docking Independent runs.  docs/spec.md §2
   ("Measures") therefore reads the 20 % on the picked episodes; reports show both
   numbers (``docking_success_rate`` and ``successful_docking``).
 - Tracking: *Hi* over 60 % quality tracking, *Med* over 30 %, else *Lo*.

@@ -161,7 +161,7 @@ def _rng(s: dict[str, float]) -> str:
 
 
 def _markdown(results: dict[str, dict[str, Any]], cl: list[dict[str, str]]) -> str:
-    lines = ["# TD baseline on our own tasks (issue 19, item 3)", "",
+    lines = ["# TD baseline on our own tasks", "",
              "Q-learning (epsilon-greedy, one hashed table per run over the tasks' discretised sensors and joint "
              "turn x speed actions) against the GA (`coevo learn`'s settings) at equal simulated experience "
              "(robot-steps), both measured on fresh trials at the same checkpoints. Mean [min, max] over the seeds; "

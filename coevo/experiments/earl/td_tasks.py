@@ -1,4 +1,4 @@
-"""A TD baseline on our own tasks (issue 19, item 3): Q-learning on Tracking, Docking and the door task.
+"""A TD baseline on our own tasks (docs/ea-vs-td.md): Q-learning on Tracking, Docking and the door task.
 
 The learner sees what the GA's rules see: the task's discretised sensors (its rule schema's bins) and
 its joint actions (turn x speed: 13 x 6 = 78 on the fuel task, 7 x 8 = 56 on the door). It is paid what

@@ -1,8 +1,7 @@
 """Tracking and Docking learned offline (``coevo learn``) at the report's parameters over seeds, against the
 learning targets (``coevo seeds``, ``--task fuel``):
 
-- Docking from random starts, median >= 75 % (issue 25, "Docking learns the approach"; the first target,
-  of "The report's Table 1, reproduced", was 60 %);
+- Docking from random starts, median >= 75 % (docs/docking-learning.md; the first target was 60 %);
 - Quality Tracking with the always-Track Executive, median > 60 %;
 - every run under a minute on one core (meaningful with ``--jobs 1`` on an idle machine).
 

@@ -1,4 +1,4 @@
-"""The door traversal task (report Appendix B; SPEC §5): cross a room through an opening in a wall.
+"""The door traversal task (report Appendix B; docs/spec.md §5): cross a room through an opening in a wall.
 
 A robot starts on a line 4 ft in front of the back wall facing a random way and
 must pass through a 6 ft opening, at a random place in a wall across the room, to

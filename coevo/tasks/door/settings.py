@@ -1,4 +1,4 @@
-"""The door traversal task's settings (report Appendix B §4, §5, §7; SPEC §5).
+"""The door traversal task's settings (report Appendix B §4, §5, §7; docs/spec.md §5).
 
 Every number the report gives is a default; every choice it leaves open is marked
 *(ours)* in its field's description, with the reason.  The sonar failures are part of

@@ -6,7 +6,7 @@ episode.  The world is batched on numpy arrays and pymunk (:mod:`.world`), the a
 loop plays many lanes at once (:mod:`.runner`), the report's measures are in
 :mod:`.measures` and the evaluator the GA calls in :mod:`.evaluate`.
 
-Regimes (SPEC §2): ``independent``: Tracking and Docking learn with the trivial
+Regimes (docs/spec.md §2): ``independent``: Tracking and Docking learn with the trivial
 Executive that always picks them and need no partner; the Executive learns against
 Tracking's and Docking's best so far.  ``mutual``: every agent learns against the
 other two's best so far.
@@ -62,7 +62,7 @@ def default_ruleset(behaviour: Behaviour | str, sensors: str = "polar") -> RuleS
     SAMUEL starts learning from a default rule set rather than from nothing (report
     Appendix B: default rules "for moving toward the goal line ... say nothing about
     obstacles or the walls").  Tracking's and Docking's give the direction to the
-    tracking ring and to the dock and nothing else (SPEC §1, "Initial behaviours").  Docking's
+    tracking ring and to the dock and nothing else (docs/spec.md §1, "Initial behaviours").  Docking's
     is written in the terms of its dock sensor set ``sensors`` (:mod:`.dock_frame`).
     """
     behaviour = Behaviour(behaviour)
@@ -79,7 +79,7 @@ class FuelTask(Task):
     regimes = ("mutual", "independent")
     world_settings = WorldConfig
     aliases = ("tracking-fuel",)  # coevo show --task's name for it before tasks owned their pictures
-    # The dock is at the middle of the south wall (SPEC's choice) of a square arena, and the Target's walk and the
+    # The dock is at the middle of the south wall (docs/spec.md's choice) of a square arena, and the Target's walk and the
     # random placements know no left or right: the world is its own mirror image about the dock's axis.
     mirror_symmetric = True
     measure_labels = {"quality_tracking": "QT", "docking_from_random": "docks", "dock_choice": "picks-D",
@@ -120,7 +120,7 @@ class FuelTask(Task):
         return FuelEvaluator(self.check_behaviour(behaviour), world, ga)
 
     def status_measures(self, behaviour: str, measures: Mapping[str, float | None]) -> dict[str, float]:
-        """Docking's fitness alone misleads (SPEC §1, "Where Docking learns"), so Docking shows the
+        """Docking's fitness alone misleads (docs/spec.md §1, "Where Docking learns"), so Docking shows the
         share of fresh random starts it docks from; the Executive how often it picks Docking and how
         often that docks; Tracking its Quality Tracking."""
         b = Behaviour(behaviour)

@@ -112,7 +112,7 @@ class FuelEvaluator(Evaluator):
         return Evaluation(fitness, count, exps, out)
 
     def measures(self, best: RuleSet, partners: Partners, check: Evaluation, child_rng: ChildRng) -> dict[str, float | None]:
-        """The report's measures of the best's re-evaluation, and Docking's own (SPEC §1, "Where Docking
+        """The report's measures of the best's re-evaluation, and Docking's own (docs/spec.md §1, "Where Docking
         learns"): % of fresh random starts it docks from (None for the other behaviours).
 
         Where the re-evaluation already played fresh starts (the trivial Executive) that is

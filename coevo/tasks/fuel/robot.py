@@ -78,7 +78,7 @@ def measure_behaviour(
     epochs: int = 100,
     seed: int = 0,
 ) -> dict[str, float | int]:
-    """The SPEC measures of one learned behaviour, as the ``learn`` command reports them."""
+    """The measures (docs/spec.md §1) of one learned behaviour, as the ``learn`` command reports them."""
     if behaviour == Behaviour.TRACKING:
         m = measure_robot(world, executive=None, tracking=best, docking=None, epochs=epochs, seed=seed)
         return m.as_dict()

@@ -1,4 +1,4 @@
-"""The tracking-under-fuel world's settings (report Appendix A §4, §6; SPEC §1).
+"""The tracking-under-fuel world's settings (report Appendix A §4, §6; docs/spec.md §1).
 
 Every number the report gives is a default here; every choice the report leaves
 open is marked *(ours)* in its description and can be overridden.
@@ -36,7 +36,7 @@ class WorldConfig(Settings):
     fuel_idle: float = Field(
         1 / 960, gt=0,
         description="tank fraction used per step standing still; the report: 'if it were to remain motionless it "
-        "could survive approximately eight episodes', read of the 50 % an epoch starts with (SPEC §1, Fuel): "
+        "could survive approximately eight episodes', read of the 50 % an epoch starts with (docs/spec.md §1, Fuel): "
         "0.5 / (1/960) = 480 steps = 8 episodes",
     )
     fuel_per_ips: float = Field(
