@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from coevo.experiments.compare.stats import compare_groups, compare_samples, magnitude
+from coevo.experiments.compare.stats import compare_groups, compare_samples, magnitude, mean_interval
 from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
 
 TINY = ["--runs", "2", "--generations", "3", "--population", "6", "--episodes", "10", "--ga", "best_episodes=10",
@@ -67,6 +67,18 @@ class TestTinyComparison:
             for beh, final in x["final_best_so_far"].items():
                 rows = (tiny / "runs" / x["run"] / "workers" / beh / "curve.jsonl").read_text().splitlines()
                 assert len(rows) == 3 and final == pytest.approx(json.loads(rows[-1])["best_so_far"])
+
+        # The Executive curve's end and its steadier reading are means of the runs' curves.
+        for regime in ("mutual", "independent"):
+            ec = res["executive_curve"][regime]
+            curves = [[json.loads(r)["best_fitness"] for r in (tiny / "runs" / x["run"] / "workers" / "executive" /
+                                                                 "curve.jsonl").read_text().splitlines()]
+                      for x in res["runs"] if x["regime"] == regime]
+            assert ec["end"]["n"] == len(curves) == 2
+            assert ec["end"]["mean"] == pytest.approx(np.mean([c[-1] for c in curves]))
+            assert ec["last_generations"]["mean"] == pytest.approx(np.mean([np.mean(c[-10:]) for c in curves]))
+            assert ec["end"]["low"] <= ec["end"]["mean"] <= ec["end"]["high"]
+        assert "## The Executive's curve" in (tiny / "report.md").read_text()
 
         # Table 1 counts are the classes of the runs, nine columns per regime, beside the report's own.
         for regime in ("mutual", "independent"):
@@ -215,6 +227,21 @@ def test_rank_comparison_effect_size_and_p_value() -> None:
         compare_samples("x", "a", [float("nan")], "b", [1.0])
     with pytest.raises(ValueError, match="at least one run"):
         compare_samples("x", "a", [], "b", [1.0])
+
+
+def test_mean_interval_bootstrap() -> None:
+    rng = np.random.default_rng(5)
+    x = rng.normal(0.6, 0.05, 40)
+    m = mean_interval(x)
+    assert m.n == 40 and m.mean == pytest.approx(x.mean()) and m.low < m.mean < m.high
+    half = 1.96 * x.std(ddof=1) / np.sqrt(x.size)  # the normal approximation's interval, for a sample this size
+    assert m.high - m.low == pytest.approx(2 * half, rel=0.2)
+    assert mean_interval(x) == m  # a fixed seed: the same report when written again
+    same = mean_interval([0.5, 0.5, 0.5])  # all equal: the interval is the value, not a failure
+    assert (same.low, same.mean, same.high) == (0.5, 0.5, 0.5)
+    one = mean_interval([0.7, float("nan")])
+    assert one.n == 1 and one.mean == 0.7 and np.isnan(one.low) and "n = 1" in one.text()
+    assert mean_interval([]).n == 0 and mean_interval([]).text() == "–"
 
 
 def test_kruskal_wallis_across_groups_and_its_effect_size() -> None:

@@ -32,6 +32,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from coevo.config import build
     from coevo.experiments.compare.experiment import CompareSpec, prepare, run_all
     from coevo.experiments.compare.report import write_report
+    from coevo.experiments.compare.stats import MeanInterval
     from coevo.experiments.compare.experiment import default_jobs, replicates
     from coevo.replicates.backends import ClusterLost
     from coevo.tasks.fuel.settings import WorldConfig
@@ -73,6 +74,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
     print(f"report: {out / 'report.md'}")
     for r, counts in results["table1"].items():
         print(f"  {r}: " + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
+    for r, c in results["executive_curve"].items():
+        print(f"  {r}: Executive curve at the last generation {MeanInterval(**c['end']).text()}, over the last "
+              f"{c['tail_generations']} {MeanInterval(**c['last_generations']).text()}")
     print(results["verdict"])
     return 1 if results["runs_finished"] < results["runs_expected"] and not args.report_only else 0
 
