@@ -45,6 +45,7 @@ class ComparisonFiles:
                               f"{str(exc).splitlines()[0]}") from None
         self.replicates = replicates(self.spec)
         self._classes: dict[str, str] = {}  # a finished replicate's Table 1 class: it no longer changes
+        self._curves: dict[str, list[float]] = {}  # ... and its Executive curve (best per generation)
 
     def run_dirs(self) -> list[Path]:
         """The live replicates' run directories that exist so far (their curves go on the page)."""
@@ -94,23 +95,40 @@ class ComparisonFiles:
                 return None
         return self._classes[rep.run_id]
 
+    def _executive_curve(self, rep: Any) -> list[float]:
+        """A finished live replicate's Executive curve, the best of each generation (damaged lines left out)."""
+        from coevo.experiments.compare.experiment import run_dir
+        from coevo.rundir.layout import RunPaths, read_jsonl
+
+        if rep.run_id not in self._curves:
+            rows = read_jsonl(RunPaths(run_dir(self.out, rep)).worker("executive").curve, missing_ok=True, problems=[])
+            self._curves[rep.run_id] = [float(r["best_fitness"]) for r in rows
+                                        if isinstance(r.get("best_fitness"), (int, float))]
+        return self._curves[rep.run_id]
+
     def read(self) -> dict[str, Any]:
-        """Replicates by state and the Table 1 so far: ``{"dir", "replicates": [...], "counts", "table1"}``."""
+        """Replicates by state, the Table 1 so far and the Executive curve of the finished live runs:
+        ``{"dir", "replicates": [...], "counts", "table1", "executive_curve"}``."""
         from coevo.experiments.compare.experiment import generations_done, generations_of, groups
+        from coevo.experiments.compare.report import executive_curve
         from coevo.experiments.compare.table1 import CLASSES, count
 
         now = time.time()
         rows = []
         classes: dict[str, list[str]] = {g: [] for g in groups(self.spec)}
+        curves: dict[str, list[list[float]]] = {g: [] for g in groups(self.spec)}
         for rep in self.replicates:
             state, why = self._state(rep, now)
             cls = self._class(rep) if state == "done" else None
             if cls is not None:
                 classes.setdefault(rep.group, []).append(cls)
+                if not rep.offline:
+                    curves.setdefault(rep.group, []).append(self._executive_curve(rep))
             total = generations_of(self.spec, rep)
             done = total if state == "done" else min(total, generations_done(self.out, rep))
             rows.append({"run": rep.run_id, "group": rep.group, "state": state, "why": why, "class": cls or "",
                          "generations": done, "of": total})
         counts = {s: sum(1 for r in rows if r["state"] == s) for s in ("done", "running", "failed", "waiting")}
         return {"dir": str(self.out), "replicates": rows, "counts": counts, "classes": list(CLASSES),
-                "table1": {g: count(c) for g, c in classes.items()}}
+                "table1": {g: count(c) for g, c in classes.items()},
+                "executive_curve": {g: executive_curve(c) for g, c in curves.items() if c}}

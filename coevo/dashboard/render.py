@@ -119,8 +119,23 @@ def comparison_html(view: View) -> str:
     t1.append(["<i>runs finished</i>"] + [str(done[g]) for g in groups])
     return (f"<h3 class='coevo'>Comparison {_e(c['dir'])}: {counts}</h3>"
             + _table("table1", ["Table 1 so far"] + groups, t1, numeric=set(range(1, len(groups) + 1)))
+            + _executive_curve_html(c.get("executive_curve", {}))
             + _table("replicates", ["replicate", "group", "state", "worker generations", "class", "why"], reps,
                      numeric={3}))
+
+
+def _executive_curve_html(curves: dict[str, dict]) -> str:
+    """The Executive curve of each regime's finished runs: its last generation's best and the mean over the last
+    generations, means over the runs with 95 % intervals (coevo compare's report)."""
+    from coevo.experiments.compare.stats import MeanInterval
+
+    if not curves:
+        return ""
+    tail = next(iter(curves.values()))["tail_generations"]
+    rows = [[_e(g), _e(MeanInterval(**c["end"]).text()), _e(MeanInterval(**c["last_generations"]).text())]
+            for g, c in curves.items()]
+    return _table("executive-curve", ["Executive curve (finished runs)", "best at the last generation",
+                                      f"mean best over the last {tail} generations"], rows)
 
 
 def behaviours(view: View) -> list[str]:

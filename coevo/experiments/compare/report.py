@@ -155,14 +155,19 @@ def _live(spec: CompareSpec) -> list[str]:
 TAIL_GENERATIONS = 10
 
 
-def executive_curve(records: list[dict[str, Any]], group: str) -> dict[str, Any]:
-    """The Executive curve of a group's runs: the mean of its last generation's best (the report's measure), and
-    the mean of each run's last TAIL_GENERATIONS, each with a 95 % bootstrap interval over the runs."""
-    curves = [c for x in records if x["group"] == group
-              if (c := x["curves"].get(Behaviour.EXECUTIVE.value, {}).get("best_fitness"))]
+def executive_curve(curves: list[list[float]]) -> dict[str, Any]:
+    """The Executive curve of a group's runs (each run's best per generation): the mean of its last generation's
+    best (the report's measure), and the mean of each run's last TAIL_GENERATIONS, each with a 95 % bootstrap
+    interval over the runs."""
+    curves = [c for c in curves if c]
     return {"end": mean_interval([float(c[-1]) for c in curves]).as_dict(),
             "last_generations": mean_interval([statistics.fmean(c[-TAIL_GENERATIONS:]) for c in curves]).as_dict(),
             "tail_generations": TAIL_GENERATIONS}
+
+
+def _executive_curves(records: list[dict[str, Any]], group: str) -> list[list[float]]:
+    return [x["curves"].get(Behaviour.EXECUTIVE.value, {}).get("best_fitness", []) for x in records
+            if x["group"] == group]
 
 
 RATE_MEASURES = ("final_executive_fitness", "successful_docking", "docking_success_rate")
@@ -306,7 +311,7 @@ def write_report(out: Path, spec: CompareSpec, *, elapsed: float | None = None) 
     results = {
         "spec": json.loads(spec.model_dump_json()), "runs_expected": expected, "runs_finished": len(records),
         "elapsed_seconds": elapsed, "table1": table, "table1_report": REPORT_COUNTS,
-        "executive_curve": {g: executive_curve(records, g) for g in groups(spec)},
+        "executive_curve": {g: executive_curve(_executive_curves(records, g)) for g in groups(spec)},
         "tests": [t.as_dict() for t in tests], "rate_tests": [t.as_dict() for t in rate_tests],
         "rate_tests_paced": [t.as_dict() for t in paced_tests],
         "verdict": verdict, "figures": figures, "robots": robots,
