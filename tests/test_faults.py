@@ -602,3 +602,34 @@ def test_run_resume_refuses_a_damaged_checkpoint_or_store_file_before_starting_a
     store = run_dir / "store" / "docking.jsonl"
     store.write_bytes(b"\xff\xfe not a policy\n" + store.read_bytes())
     refused(store)
+
+
+def test_ctrl_c_to_the_whole_process_group_stops_in_order_and_the_run_resumes_exact(tmp_path: Path) -> None:
+    """A terminal's Ctrl-C reaches coevo run and every child: only coevo run takes it, so the workers stop at a
+    generation's end and write their done.json, the broker stays up for the final measures, and the stop message
+    quotes this run's generations; --resume then completes the run exactly."""
+    out = tmp_path / "run.out"
+    with open(out, "wb") as f:
+        p = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--run", "ci", "--root", str(tmp_path), *SMALL,
+                              "--generations", "12", "--measure-epochs", "2", "--quiet"], stdout=f, stderr=subprocess.STDOUT,
+                             start_new_session=True)
+    run_dir = tmp_path / "ci"
+    try:
+        poll(lambda: _lines(run_dir / "workers" / "tracking" / "curve.jsonl") >= 3, 120, "three tracking generations")
+        os.killpg(p.pid, signal.SIGINT)
+        assert p.wait(timeout=60) == 130, out.read_text()[-3000:]
+    finally:
+        stop(p)
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["interrupted"] and summary["stopped_here"] and "measures" in summary, summary
+    counts = {b: _lines(run_dir / "workers" / b / "curve.jsonl") for b in ("tracking", "docking", "executive")}
+    for b, n in counts.items():
+        done = json.loads((run_dir / "workers" / b / "done.json").read_text())
+        assert done["finished"] == (n == 12) and done["generations"] == n
+    assert summary["stopped_early"] == {b: n for b, n in counts.items() if n < 12}
+    assert all(f"{b} after {n}" in out.read_text() for b, n in summary["stopped_early"].items())
+    r = subprocess.run([sys.executable, "-m", "coevo", "run", "--resume", str(run_dir), "--quiet"], capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    check = check_run(run_dir)
+    assert check.ok, check.problems

@@ -44,9 +44,11 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -181,7 +183,7 @@ class LocalRun:
     def _spawn(self, name: str, args: list[str], env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
         self.paths.logs_dir.mkdir(parents=True, exist_ok=True)
         self.starts[name] = self.starts.get(name, 0) + 1
-        with open(self.paths.log(name), "ab") as f:  # appended: a restarted process keeps its predecessor's log
+        with open(self.paths.log(name), "ab") as f, _sigint_ignored():  # appended: a restart keeps its predecessor's log
             f.write(f"--- start {self.starts[name]} at {time.strftime('%H:%M:%S')}\n".encode())
             f.flush()
             p = subprocess.Popen([sys.executable, "-m", "coevo", "--log-level", self.log_level, *args], stdout=f,
@@ -386,6 +388,23 @@ def run_local(
     return lr.finish(latest, seconds=time.time() - t0, interrupted=interrupted or bool(stopped_early),
                      measure_epochs=measure_epochs,
                      extra={"resumed": resume, "stopped_early": stopped_early, "stopped_here": interrupted})
+
+
+@contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while a child starts: it keeps that across exec (and Python then makes no KeyboardInterrupt of
+    it).  A terminal's Ctrl-C reaches the whole process group; this way only ``coevo run`` takes it and stops its
+    children in order (a stop message: each worker ends its generation and writes its done.json; then the final
+    measures from the broker, still up; then SIGTERM), as after a Ctrl-C to it alone.  Only the main thread can
+    change a signal's handler; started from another, a child takes SIGINT as usual."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def last_words(log_file: Path) -> str:
