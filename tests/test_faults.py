@@ -1,9 +1,11 @@
 """Faults for real: processes killed, hung and restarted, brokers lost, bad and flooding messages.
 
 Every test here runs real processes with real signals over real Zenoh sessions on
-loopback, bounded in time; the last one runs ``coevo chaos``.  Kills and bad
+loopback, bounded in time; one runs ``coevo chaos``.  Kills and bad
 messages tried (the README's fault table counts these): worker SIGKILL 2 (one
-directly, one as part of a whole ``coevo run`` group), broker SIGKILL 2 (one
+directly, one as part of a whole ``coevo run`` group), worker SIGKILL inside
+``coevo run`` 8 (one restarted, one whose checkpoint was zeroed first, six in a row
+for the restart bound), a Ctrl-C to a whole ``coevo run`` group, broker SIGKILL 2 (one
 directly, one with the group), a hung worker 1, and one message of each of 12
 malformed kinds plus a flood of 3,000 on the worker's keys and a 40 MB flood on
 a broker with a 1 MB inbox.
