@@ -1,9 +1,11 @@
 """Faults for real: processes killed, hung and restarted, brokers lost, bad and flooding messages.
 
 Every test here runs real processes with real signals over real Zenoh sessions on
-loopback, bounded in time; the last one runs ``coevo chaos``.  Kills and bad
+loopback, bounded in time; one runs ``coevo chaos``.  Kills and bad
 messages tried (the README's fault table counts these): worker SIGKILL 2 (one
-directly, one as part of a whole ``coevo run`` group), broker SIGKILL 2 (one
+directly, one as part of a whole ``coevo run`` group), worker SIGKILL inside
+``coevo run`` 8 (one restarted, one whose checkpoint was zeroed first, six in a row
+for the restart bound), a Ctrl-C to a whole ``coevo run`` group, broker SIGKILL 2 (one
 directly, one with the group), a hung worker 1, and one message of each of 12
 malformed kinds plus a flood of 3,000 on the worker's keys and a 40 MB flood on
 a broker with a 1 MB inbox.
@@ -481,3 +483,155 @@ def test_coevo_run_whose_broker_is_killed_twice_restarts_it_completes_and_checks
 
 def _curve_len_dir(run_dir: Path) -> int:
     return min((len(f.read_text().splitlines()) for f in run_dir.glob("workers/*/curve.jsonl")), default=0)
+
+
+# ---------------------------------------------------------------------------- coevo run supervises its workers
+def _worker_of(pid: int, behaviour: str) -> int | None:
+    """The pid of the ``behaviour`` worker a ``coevo run`` process started."""
+    for c in _children(pid):
+        try:
+            if f"\0--behaviour\0{behaviour}\0".encode() in Path(f"/proc/{c}/cmdline").read_bytes():
+                return c
+        except OSError:
+            continue
+    return None
+
+
+def _lines(f: Path) -> int:
+    return len(f.read_text().splitlines()) if f.exists() else 0
+
+
+def _coevo_run(tmp_path: Path, run: str, *args: str) -> tuple[subprocess.Popen, Path]:
+    """``coevo run`` of ``run`` under ``tmp_path`` (plain status lines, then its last words, in run.out)."""
+    with open(tmp_path / "run.out", "wb") as f:
+        p = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--run", run, "--root", str(tmp_path), *SMALL,
+                              "--measure-epochs", "2", *args], stdout=f, stderr=subprocess.STDOUT)
+    return p, tmp_path / "run.out"
+
+
+def _kill_worker(p: subprocess.Popen, behaviour: str, *, before: int | None = None) -> int:
+    """SIGKILL ``p``'s ``behaviour`` worker (one other than the process ``before``); its pid."""
+    pid = poll(lambda: (w := _worker_of(p.pid, behaviour)) != before and w, 30, f"the {behaviour} worker process")
+    os.kill(pid, signal.SIGKILL)
+    return pid
+
+
+def test_a_worker_killed_inside_coevo_run_is_restarted_and_the_run_completes_exact(tmp_path: Path) -> None:
+    """Issue 39: the run supervises its workers as its broker: a worker SIGKILLed mid-run is started again from its
+    checkpoint, the table says so, the run ends 0 and its replay is exact."""
+    p, out = _coevo_run(tmp_path, "wk", "--generations", "12")
+    curve = tmp_path / "wk" / "workers" / "docking" / "curve.jsonl"
+    try:
+        poll(lambda: _lines(curve) >= 3, 120, "three docking generations")
+        _kill_worker(p, "docking")
+        assert p.wait(timeout=300) == 0, out.read_text()[-3000:]
+    finally:
+        stop(p)
+    text = out.read_text()
+    assert "the docking worker was killed by SIGKILL; starting it again (restart 1 of at most 5)" in text
+    assert "alive, restarted 1x" in text and "Traceback" not in text
+    assert not json.loads((tmp_path / "wk" / "summary.json").read_text())["interrupted"]
+    check = check_run(tmp_path / "wk")
+    assert check.ok and check.facts["docking"]["generations"] == 12, check.problems
+
+
+def test_a_worker_that_cannot_start_stops_the_run_at_once_with_its_reason(tmp_path: Path) -> None:
+    """A worker whose checkpoint went bad under it dies, is started again, refuses its checkpoint twice: the run
+    stops then, in one line with the worker's own reason, not after the others evolved to their end."""
+    p, out = _coevo_run(tmp_path, "ns", "--generations", "40")
+    w = tmp_path / "ns" / "workers" / "docking"
+    try:
+        poll(lambda: _lines(w / "curve.jsonl") >= 3, 120, "three docking generations")
+        pid = poll(lambda: _worker_of(p.pid, "docking"), 30, "the docking worker process")
+        os.kill(pid, signal.SIGSTOP)  # no checkpoint written between the damage and the kill
+        (w / CHECKPOINT).write_bytes(b"\x00" * 64)
+        os.kill(pid, signal.SIGKILL)
+        t0 = time.monotonic()
+        assert p.wait(timeout=120) == 2, out.read_text()[-3000:]
+        took = time.monotonic() - t0
+    finally:
+        stop(p)
+    last = out.read_text().strip().splitlines()[-1]
+    assert last.startswith("RunDirError: the docking worker cannot start: RunDirError: checkpoint ") and "cannot be read" in last
+    assert "twice before a generation" in last and "worker-docking.log" in last
+    assert took < 30 and _lines(tmp_path / "ns" / "workers" / "tracking" / "curve.jsonl") < 40
+    assert "Traceback" not in out.read_text()
+
+
+def test_a_worker_that_keeps_dying_ends_the_run_after_its_restarts_in_one_line(tmp_path: Path) -> None:
+    """Bounded restarts: the sixth death of the same worker (each after a generation of its own) ends the run."""
+    p, out = _coevo_run(tmp_path, "bd", "--generations", "200", "--max-lead", "off")
+    curve = tmp_path / "bd" / "workers" / "docking" / "curve.jsonl"
+    try:
+        pid = None
+        for n in range(6):
+            done = max(_lines(curve), 1)
+            poll(lambda: _lines(curve) > done or p.poll() is not None, 60, f"a docking generation after start {n + 1}")
+            pid = _kill_worker(p, "docking", before=pid)
+        assert p.wait(timeout=60) == 2, out.read_text()[-3000:]
+    finally:
+        stop(p)
+    last = out.read_text().strip().splitlines()[-1]
+    assert last.startswith("RunDirError: the docking worker was killed by SIGKILL after 5 restarts; see "), last
+    assert "worker-docking.log" in last and "coevo run --resume" in last and "Traceback" not in out.read_text()
+
+
+def test_run_resume_refuses_a_damaged_checkpoint_or_store_file_before_starting_anything(tmp_path: Path) -> None:
+    """``coevo run --resume`` reads every checkpoint and store file first: damage is one line naming the file, and
+    the run directory is left as it was (no process started, nothing written)."""
+    r = subprocess.run([sys.executable, "-m", "coevo", "run", "--run", "dm", "--root", str(tmp_path), *SMALL,
+                        "--generations", "2", "--measure-epochs", "2", "--quiet"], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stdout + r.stderr
+    run_dir = tmp_path / "dm"
+
+    def files() -> dict[str, bytes]:
+        return {str(f): f.read_bytes() for f in sorted(run_dir.rglob("*")) if f.is_file()}
+
+    def refused(damaged: Path) -> None:
+        before = files()
+        r = subprocess.run([sys.executable, "-m", "coevo", "run", "--resume", str(run_dir), "--quiet"],
+                           capture_output=True, text=True, timeout=60)
+        assert r.returncode == 2 and not r.stdout and len(r.stderr.strip().splitlines()) == 1, r.stdout + r.stderr
+        assert r.stderr.startswith(f"RunDirError: cannot resume {run_dir}: ") and str(damaged) in r.stderr, r.stderr
+        assert files() == before  # run.json, logs, summary: untouched
+
+    ck = run_dir / "workers" / "tracking" / CHECKPOINT
+    good = ck.read_bytes()
+    ck.write_bytes(good[:40] + bytes(b ^ 0xFF for b in good[40:80]) + good[80:])  # garbled in the middle
+    refused(ck)
+    ck.write_bytes(good)
+    store = run_dir / "store" / "docking.jsonl"
+    store.write_bytes(b"\xff\xfe not a policy\n" + store.read_bytes())
+    refused(store)
+
+
+def test_ctrl_c_to_the_whole_process_group_stops_in_order_and_the_run_resumes_exact(tmp_path: Path) -> None:
+    """A terminal's Ctrl-C reaches coevo run and every child: only coevo run takes it, so the workers stop at a
+    generation's end and write their done.json, the broker stays up for the final measures, and the stop message
+    quotes this run's generations; --resume then completes the run exactly."""
+    out = tmp_path / "run.out"
+    with open(out, "wb") as f:
+        p = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--run", "ci", "--root", str(tmp_path), *SMALL,
+                              "--generations", "12", "--measure-epochs", "2", "--quiet"], stdout=f, stderr=subprocess.STDOUT,
+                             start_new_session=True)
+    run_dir = tmp_path / "ci"
+    try:
+        poll(lambda: _lines(run_dir / "workers" / "tracking" / "curve.jsonl") >= 3, 120, "three tracking generations")
+        os.killpg(p.pid, signal.SIGINT)
+        assert p.wait(timeout=60) == 130, out.read_text()[-3000:]
+    finally:
+        stop(p)
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["interrupted"] and summary["stopped_here"] and "measures" in summary, summary
+    counts = {b: _lines(run_dir / "workers" / b / "curve.jsonl") for b in ("tracking", "docking", "executive")}
+    for b, n in counts.items():
+        done = json.loads((run_dir / "workers" / b / "done.json").read_text())
+        assert done["finished"] == (n == 12) and done["generations"] == n
+    assert summary["stopped_early"] == {b: n for b, n in counts.items() if n < 12}
+    assert all(f"{b} after {n}" in out.read_text() for b, n in summary["stopped_early"].items())
+    r = subprocess.run([sys.executable, "-m", "coevo", "run", "--resume", str(run_dir), "--quiet"], capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    check = check_run(run_dir)
+    assert check.ok, check.problems

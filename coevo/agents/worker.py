@@ -227,6 +227,7 @@ class Worker:
     # ------------------------------------------------------------ the generation loop
     def run(self) -> list[GenerationReport]:
         state = self._prepare()
+        self.paths.done.unlink(missing_ok=True)  # written at the end of this start; a predecessor's tells of its own
         ga = self._make_ga()
         paced = self._restore(ga, state)
         if state is None:  # generation 0: from now on, logs without a checkpoint mean it was removed

@@ -28,6 +28,7 @@ import logging
 import sys
 import threading
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -134,6 +135,8 @@ class StatusBoard:
         self.broker_degraded = False  # its degraded token is up: the store cannot write
         self.broker: BrokerStatus | None = None
         self.changed = threading.Event()
+        # Times the run's supervisor (coevo run) started a process again, by behaviour and "broker"; shown by its state.
+        self.restarts: Mapping[str, int] = {}
         gate = getattr(session, "gate", None)
         self.open = gate is None or gate.open  # unverified: anyone on the bus can show up here
         self._roster = None if gate is None else gate.roster
@@ -245,7 +248,8 @@ class StatusBoard:
         self.poll()
         now = time.time()
         with self._lock:
-            return [self.workers[k].as_dict(now, self.stall) for k in sorted(self.workers)]
+            return [{**v.as_dict(now, self.stall), "restarts": self.restarts.get(v.behaviour, 0)}
+                    for v in (self.workers[k] for k in sorted(self.workers))]
 
     def robots_view(self) -> list[dict[str, Any]]:
         self.poll()
@@ -260,7 +264,8 @@ class StatusBoard:
             state = "up" if self.broker_up else "degraded" if self.broker_degraded else "down"
             return {"state": state, "open": b.open if b else False,
                     "stored": dict(b.stored) if b else {}, "rejected": dict(b.rejected) if b else {},
-                    "dropped": b.dropped if b else 0, "degraded": b.degraded if b and state != "up" else ""}
+                    "dropped": b.dropped if b else 0, "degraded": b.degraded if b and state != "up" else "",
+                    "restarts": self.restarts.get("broker", 0)}
 
     def json_line(self) -> str:
         workers = self.snapshot()
@@ -286,6 +291,12 @@ def _own(measures: dict[str, float]) -> str:
     return " ".join(f"{labels.get(k, k)}={v:.0f}%" for k, v in measures.items()) or "-"
 
 
+def _state(view: dict[str, Any]) -> str:
+    """A process's state, with the times the run's supervisor restarted it: 'alive', 'alive, restarted 2x'."""
+    n = view.get("restarts", 0)
+    return f"{view['state']}, restarted {n}x" if n else view["state"]
+
+
 def _status_rows(board: Any) -> list[tuple[str, ...]]:
     """(who, gen, best, own, partners, unconfirmed, rejected, state) per worker, then the broker's row."""
     rows = []
@@ -293,7 +304,7 @@ def _status_rows(board: Any) -> list[tuple[str, ...]]:
         who = w["worker"] if w["worker"].startswith(w["behaviour"]) else f"{w['worker']} ({w['behaviour']})"
         partners = " ".join(f"{k[0].upper()}v{v}" for k, v in sorted(w["partner_versions"].items())) or "-"
         rows.append((who, f"{w['generation']}/{w['generations']}", f"{w['best_fitness']:.3f}", _own(w.get("measures", {})),
-                     partners, str(w["buffered"]), _reasons(w["rejected_by_reason"]), w["state"]))
+                     partners, str(w["buffered"]), _reasons(w["rejected_by_reason"]), _state(w)))
     for r in board.robots_view():  # a CEL run's execution module, short (coevo cel has its own table)
         rows.append((r["robot"], f"{r['generation']}", "", f"ext={r['performance']:.0f}%",
                      f"rules v{r['rules_version']}, {len(r['capabilities'])} sensors, {r['changes']} changes", "",
@@ -301,7 +312,7 @@ def _status_rows(board: Any) -> list[tuple[str, ...]]:
     b = board.broker_view()
     stored = " ".join(f"{k[0].upper()}:{v}" for k, v in sorted(b["stored"].items())) or "-"
     why = f" ({b['degraded']})" if b.get("degraded") else ""  # a degraded store says why: the file and the error
-    rows.append(("broker", "", "", "", f"stored {stored}{why}", "", _reasons(b["rejected"]), b["state"]))
+    rows.append(("broker", "", "", "", f"stored {stored}{why}", "", _reasons(b["rejected"]), _state(b)))
     return rows
 
 
@@ -340,7 +351,7 @@ class _StatusView:
         for h, w in zip(_STATUS_HEADERS, widths, strict=True):
             t.add_column(h, width=w, overflow="fold", justify="right" if h in ("gen", "best", "unc") else "left")
         for row in self.rows:
-            t.add_row(*row, style=_STATE_STYLE.get(row[-1]))
+            t.add_row(*row, style=_STATE_STYLE.get(row[-1].split(",")[0]))
         yield t
 
 

@@ -102,6 +102,12 @@ class RunSettings(Settings):
     def worker_seed(self, behaviour: str) -> int:
         return self.seed + self.the_task.behaviours.index(behaviour)
 
+    def worker_ident(self, behaviour: str) -> dict[str, Any]:
+        """Who the run's worker of ``behaviour`` is (run, behaviour, roster worker id, seed): what its checkpoint
+        names (:func:`coevo.agents.checkpoint.load_checkpoint` refuses another's)."""
+        roster = self.roster or self.default_roster()
+        return {"run": self.run, "behaviour": behaviour, "worker": roster[behaviour], "seed": self.worker_seed(behaviour)}
+
     def default_roster(self) -> dict[str, str]:
         """Each behaviour's worker named as workers name themselves: BEHAVIOUR-SEED."""
         return {b: f"{b}-{self.worker_seed(b)}" for b in self.the_task.behaviours}

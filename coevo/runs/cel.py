@@ -21,7 +21,6 @@ run's store before its broker starts, as the learner's own (renumbered, their ru
 from __future__ import annotations
 
 import statistics
-import subprocess
 import time
 from pathlib import Path
 from typing import Any
@@ -51,15 +50,18 @@ class CelRun(LocalRun):
     def execution_paths(self) -> ExecutionPaths:
         return self.paths.execution
 
-    def start_worker(self, b: str, *, resume: bool, env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
+    def log_name(self, b: str) -> str:
+        return EXECUTION if b == EXECUTION else super().log_name(b)
+
+    def worker_args(self, b: str) -> list[str]:
         if b != EXECUTION:
-            return super().start_worker(b, resume=resume, env=env)
-        args = ["execution", "--settings", str(self.paths.run_json), "--connect", self.endpoint, "--connect-timeout", "-1",
+            return super().worker_args(b)
+        return ["execution", "--settings", str(self.paths.run_json), "--connect", self.endpoint, "--connect-timeout", "-1",
                 "--out", str(self.execution_paths.dir)]
-        if resume:
-            args.append("--resume")
-        self.workers[b] = self._spawn(EXECUTION, args, {**self.worker_env, **(env or {})})
-        return self.workers[b]
+
+    def progress_log(self, b: str) -> Path:
+        # the execution module's line per generation is that generation's trials
+        return self.execution_paths.performance if b == EXECUTION else super().progress_log(b)
 
     def start(self, *, resume: bool) -> None:
         super().start(resume=resume)

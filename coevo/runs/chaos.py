@@ -9,7 +9,9 @@ One fault at a time, at random (seeded) moments while the workers evolve:
   it missed);
 * ``pause-worker``: SIGSTOP a worker for a moment, then SIGCONT (a frozen process);
 * ``broker-dies``: SIGKILL the broker and leave it to the run's supervisor
-  (:meth:`~coevo.runs.local.LocalRun.supervise_broker`, what ``coevo run`` does) to start it again.
+  (:meth:`~coevo.runs.local.LocalRun.supervise`, what ``coevo run`` does) to start it again.
+
+A process that dies on its own (not by chaos) is started again by that supervisor too, and reported.
 
 For every worker kill it measures how long the status board took to show the
 worker dead.  A CEL run (``settings.cel``: ``coevo chaos --cel``) has a third kind of
@@ -97,7 +99,6 @@ def run_chaos(settings: RunSettings, *, root: Path, plan: ChaosPlan, measure_epo
     chaos = ChaosLog()
     say = on_event or (lambda text: None)
     t0 = time.time()
-    restarts: Counter[str] = Counter()
     previous = sigterm_as_exit()
     try:
         lr.start(resume=False)
@@ -108,8 +109,8 @@ def run_chaos(settings: RunSettings, *, root: Path, plan: ChaosPlan, measure_epo
                        120, "every worker's first generation")
             next_fault = time.monotonic() + rng.uniform(*plan.gap)
             while lr.workers_running():
-                lr.supervise_broker()
-                _revive_crashed(lr, restarts, chaos, say)
+                for who in lr.supervise():
+                    say(f"{who} died on its own; the run's supervisor started it again")
                 if chaos.counts.total() < plan.faults and time.monotonic() >= next_fault:
                     _inject(lr, board, rng, plan, chaos, say)
                     next_fault = time.monotonic() + rng.uniform(*plan.gap)
@@ -126,7 +127,7 @@ def run_chaos(settings: RunSettings, *, root: Path, plan: ChaosPlan, measure_epo
     check = check_run(lr.dir)
     report = {
         "run": run, "regime": settings.regime, "seconds": seconds, "faults": dict(chaos.counts), "events": chaos.events,
-        "unplanned_restarts": dict(restarts), "starts": dict(lr.starts), "complete": check.ok, "problems": check.problems,
+        "unplanned_restarts": dict(lr.restarts), "starts": dict(lr.starts), "complete": check.ok, "problems": check.problems,
         "facts": check.facts,
     }
     lr.finish(latest, seconds=seconds, interrupted=False, measure_epochs=measure_epochs, extra={"chaos": dict(chaos.counts)})
@@ -145,18 +146,6 @@ def _running_workers(lr: LocalRun) -> list[str]:
     return [b for b, p in lr.workers.items() if p.poll() is None]
 
 
-def _revive_crashed(lr: LocalRun, restarts: Counter[str], chaos: ChaosLog, say: Callable[[str], None]) -> None:
-    """A worker that died on its own (not by chaos) is restarted too, at most 3 times, and reported."""
-    for b, p in list(lr.workers.items()):
-        if p.poll() is not None and p.returncode != 0:
-            if restarts[b] >= 3:
-                raise RunDirError(f"chaos: the {b} worker keeps failing (exit {p.returncode}); see "
-                                  f"{lr.paths.log(f'worker-{b}')}")
-            restarts[b] += 1
-            say(f"{b} worker exited with {p.returncode} on its own; restarting it")
-            lr.start_worker(b, resume=True)
-
-
 def _inject(lr: LocalRun, board: StatusBoard, rng: np.random.Generator, plan: ChaosPlan, chaos: ChaosLog,
             say: Callable[[str], None]) -> None:
     kind = str(rng.choice(plan.kinds))
@@ -171,7 +160,7 @@ def _inject(lr: LocalRun, board: StatusBoard, rng: np.random.Generator, plan: Ch
         lr.broker.send_signal(signal.SIGKILL)
         lr.broker.wait()
         t_kill = time.monotonic()
-        lr.supervise_broker()  # what coevo run's loop does when it sees it gone
+        lr.supervise()  # what coevo run's loop does when it sees it gone
         wait_until(lambda: board.broker_up, 60, "the broker the supervisor restarted")
         say(f"the broker died; the run's supervisor restarted it ({time.monotonic() - t_kill:.1f} s to up)")
         chaos.add(kind, up_after=round(time.monotonic() - t_kill, 2))

@@ -10,11 +10,17 @@ workers to stop, then ends every child; nothing is left running.  ``coevo run
 disk; run.json records where it now listens) and every worker with ``--resume``
 (each continues from its last checkpoint).
 
-**The broker is supervised**: the workers and the store are built to outlive a broker
-(workers keep their versions and republish what the store lacks; the store reloads
-from disk), so a broker that dies is started again on the same endpoint and data
-directory, at most :data:`MAX_BROKER_RESTARTS` times in a run (a broker that keeps
-dying has a cause to look at: its log, ``RUN/logs/broker.log``), and the run goes on.
+**Its processes are supervised** (:meth:`LocalRun.supervise`): the workers and the store
+are built to outlive a broker (workers keep their versions and republish what the store
+lacks; the store reloads from disk), and a worker to outlive itself (its checkpoint, written
+before anything of a generation leaves it, and its logs cut back to it).  So a broker that
+dies is started again on the same endpoint and data directory, and a worker that dies (any
+exit but a stop: 0, or SIGINT/SIGTERM) again with ``--resume``, each at most
+:data:`MAX_RESTARTS` times in a run (one that keeps dying has a cause to look at: its log,
+``RUN/logs/NAME.log``), and the run goes on.  A worker that cannot start (it died before a
+generation twice in a row with the same last words, e.g. a checkpoint it refuses) ends the
+run at once with those words.  Before a resumed run starts anything, every checkpoint and
+store file of the run is read as its worker and broker would (:meth:`LocalRun.verify`).
 
 Trust: ``coevo run`` makes the run's secret key (``RUN/secret.key``, mode 0600;
 :class:`~coevo.bus.auth.RunKey`) and a roster (each behaviour's worker id) before
@@ -33,15 +39,20 @@ from __future__ import annotations
 
 import logging
 import os
+import re
 import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
-from collections.abc import Callable, Mapping
+from collections import Counter
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from coevo.agents.checkpoint import resume_state
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.messages import Control, PolicyUpdate
@@ -49,15 +60,20 @@ from coevo.bus.session import fetch_latest, make_config, open_session, put_contr
 from coevo.bus.status import StatusBoard
 from coevo.bus.trust import Gate
 from coevo.errors import ConfigError, RunDirError, ServiceError
-from coevo.rundir.layout import RunPaths, read_json, read_jsonl, write_csv, write_json
+from coevo.rundir.layout import RunPaths, read_cases, read_json, read_jsonl, read_store, write_csv, write_json
 from coevo.rundir.settings import RunSettings
 
-__all__ = ["MAX_BROKER_RESTARTS", "default_run_id", "free_port", "wait_until", "end_processes", "LocalRun", "run_local", "fetch_latest"]
+__all__ = ["MAX_RESTARTS", "STOP_EXITS", "default_run_id", "free_port", "wait_until", "end_processes", "LocalRun", "run_local", "fetch_latest"]
 
 log = logging.getLogger(__name__)
 
-#: Times ``coevo run`` starts a broker that died again, in one run (then it ends the run and says why).
-MAX_BROKER_RESTARTS = 5
+#: Times ``coevo run`` starts one of its processes (the broker, a worker) again after it died, in one run (then it
+#: ends the run and says why).
+MAX_RESTARTS = 5
+
+#: A worker's exit statuses that are a stop, not a death: done or asked to stop (0), stopped by SIGINT/SIGTERM (130,
+#: or killed by one before it could handle it).  Never restarted.
+STOP_EXITS = (0, 130, -signal.SIGINT, -signal.SIGTERM)
 
 
 def default_run_id(prefix: str) -> str:
@@ -104,6 +120,9 @@ class LocalRun:
         self.workers: dict[str, subprocess.Popen[bytes]] = {}
         self._all: list[subprocess.Popen[bytes]] = []
         self.starts: dict[str, int] = {}  # process name -> times started
+        self.restarts: Counter[str] = Counter()  # "broker" or behaviour -> times the supervisor started it again
+        self._no_start: dict[str, str] = {}  # behaviour -> last words of its last start, if that did no generation
+        self._progress_at_start: dict[str, int] = {}  # behaviour -> its progress when it was last started
 
     @property
     def run(self) -> str:
@@ -134,6 +153,7 @@ class LocalRun:
                 raise RunDirError(f"cannot resume {str(paths.dir)!r}: {exc}") from None
         else:
             log.warning("run %s is OPEN (its run.json names no key): its messages are not authenticated", settings.run)
+        lr.verify()  # before anything is written or started
         lr.settings.save(paths.run_json)  # where its broker listens now: a stale endpoint would mislead status
         paths.summary.unlink(missing_ok=True)  # written again at the end
         return lr
@@ -163,7 +183,7 @@ class LocalRun:
     def _spawn(self, name: str, args: list[str], env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
         self.paths.logs_dir.mkdir(parents=True, exist_ok=True)
         self.starts[name] = self.starts.get(name, 0) + 1
-        with open(self.paths.log(name), "ab") as f:  # appended: a restarted process keeps its predecessor's log
+        with open(self.paths.log(name), "ab") as f, _sigint_ignored():  # appended: a restart keeps its predecessor's log
             f.write(f"--- start {self.starts[name]} at {time.strftime('%H:%M:%S')}\n".encode())
             f.flush()
             p = subprocess.Popen([sys.executable, "-m", "coevo", "--log-level", self.log_level, *args], stdout=f,
@@ -182,30 +202,92 @@ class LocalRun:
                                              *(["--open"] if self.open else [])])
         return self.broker
 
-    def supervise_broker(self) -> bool:
-        """Start the broker again if it died (same endpoint, same data directory); True if it was restarted.
-        Beyond :data:`MAX_BROKER_RESTARTS` restarts a RunDirError ends the run."""
-        b = self.broker
-        if b is None or b.poll() is None:
-            return False
-        restarts = self.starts.get("broker", 1) - 1
-        if restarts >= MAX_BROKER_RESTARTS:
-            raise RunDirError(f"the broker exited with status {b.returncode} after {restarts} restarts; "
-                              f"see {self.paths.log('broker')} (continue with {self.COMMAND} --resume {self.dir})")
-        log.warning("run %s: the broker exited with status %s; starting it again on %s (restart %d of at most %d)",
-                    self.run, b.returncode, self.endpoint, restarts + 1, MAX_BROKER_RESTARTS)
-        self.start_broker()
-        return True
+    def supervise(self) -> list[str]:
+        """Start again each process of the run that died: the broker on any exit (same endpoint, same data
+        directory), a worker on any exit but a stop (:data:`STOP_EXITS`), with ``--resume``.  Who was started
+        again ("broker", behaviours).  A RunDirError ends the run: a process that died after :data:`MAX_RESTARTS`
+        restarts, or a worker that cannot start."""
+        again = []
+        if self.broker is not None and self.broker.poll() is not None:
+            self._may_restart("broker", self.broker.returncode)
+            self.start_broker()
+            again.append("broker")
+        for b, p in list(self.workers.items()):
+            if p.poll() is not None and p.returncode not in STOP_EXITS:
+                self._may_restart(b, p.returncode)
+                self.start_worker(b, resume=True)
+                again.append(b)
+        return again
+
+    def _may_restart(self, who: str, status: int) -> None:
+        """Count a restart of ``who`` (exited with ``status``), or raise the RunDirError that ends the run: it used
+        up its restarts, or (a worker) it died before a generation twice in a row with the same last words."""
+        name = self.log_name(who)
+        what = "the broker" if who == "broker" else f"the {who} worker"
+        words, exit_ = last_words(self.paths.log(name)), exit_text(status)
+        if who != "broker":
+            before = self._no_start.pop(who, None)
+            if self._progress(who) <= self._progress_at_start.get(who, 0):  # it did no generation
+                if before == words:
+                    raise RunDirError(f"{what} cannot start: {words or exit_} (it {exit_} twice before a generation; "
+                                      f"see {self.paths.log(name)})")
+                self._no_start[who] = words
+        if self.restarts[who] >= MAX_RESTARTS:
+            raise RunDirError(f"{what} {exit_} after {self.restarts[who]} restarts{': ' + words if words else ''}; "
+                              f"see {self.paths.log(name)} (continue with {self.COMMAND} --resume {self.dir})")
+        self.restarts[who] += 1
+        log.warning("run %s: %s %s; starting it again (restart %d of at most %d)", self.run, what, exit_,
+                    self.restarts[who], MAX_RESTARTS)
+
+    def verify(self) -> None:
+        """Read every worker's checkpoint and every store file of the run as the worker and the broker will, before
+        a resume starts or writes anything: a RunDirError names the first that is damaged, foreign or missing.  A
+        store file's torn last line (a crash mid-write, cut by the broker) is not damage."""
+        for b in self.task.behaviours:
+            try:
+                resume_state(self.paths.worker(b), self.settings.worker_ident(b))
+            except RunDirError as exc:
+                raise RunDirError(f"cannot resume {self.dir}: {exc}") from None
+        for f, reader in [*((f, read_store) for f in self.paths.store_files()),
+                          *((f, read_cases) for f in self.paths.case_files())]:
+            problems: list[str] = []
+            try:
+                data = f.read_bytes()
+                reader(f, problems=problems)
+            except (OSError, UnicodeDecodeError) as exc:
+                problems.append(f"{f} cannot be read ({exc})")
+            else:
+                if not data.endswith(b"\n") and data[data.rfind(b"\n") + 1:].startswith(b"{"):
+                    last = data.count(b"\n") + 1
+                    problems = [p for p in problems if not p.startswith(f"{f} line {last} ")]
+            if problems:
+                raise RunDirError(f"cannot resume {self.dir}: {problems[0]}; nothing was started or changed")
 
     def worker_dir(self, b: str) -> Path:
         return self.paths.worker(b).dir
 
-    def start_worker(self, b: str, *, resume: bool, env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
-        args = ["worker", "--settings", str(self.paths.run_json), "--behaviour", b, "--connect", self.endpoint,
+    def log_name(self, b: str) -> str:
+        """The name of a process of the run (the broker, or a behaviour's worker): its log is ``logs/NAME.log``."""
+        return "broker" if b == "broker" else f"worker-{b}"
+
+    def worker_args(self, b: str) -> list[str]:
+        """The command line (after ``coevo``) of behaviour ``b``'s worker."""
+        return ["worker", "--settings", str(self.paths.run_json), "--behaviour", b, "--connect", self.endpoint,
                 "--connect-timeout", "-1", "--out", str(self.worker_dir(b))]
-        if resume:
-            args.append("--resume")
-        self.workers[b] = self._spawn(f"worker-{b}", args, {**self.worker_env, **(env or {})})
+
+    def progress_log(self, b: str) -> Path:
+        """The log a process of the run writes a line to per generation done (a worker's ``curve.jsonl``)."""
+        return self.paths.worker(b).curve
+
+    def _progress(self, b: str) -> int:
+        """How far ``b``'s :meth:`progress_log` has grown (bytes): a start that did not grow it did no generation."""
+        f = self.progress_log(b)
+        return f.stat().st_size if f.exists() else 0
+
+    def start_worker(self, b: str, *, resume: bool, env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
+        self._progress_at_start[b] = self._progress(b)
+        args = [*self.worker_args(b), *(["--resume"] if resume else [])]
+        self.workers[b] = self._spawn(self.log_name(b), args, {**self.worker_env, **(env or {})})
         return self.workers[b]
 
     def start(self, *, resume: bool) -> None:
@@ -286,13 +368,16 @@ def run_local(
         lr.start(resume=resume)
         with open_session(lr.client_config(), what="status session", gate=lr.gate()) as s:
             board = StatusBoard(s, run)
+            board.restarts = lr.restarts  # shown beside each process's state
             try:
-                while lr.workers_running():
+                while True:
                     board.changed.wait(0.5)
                     board.changed.clear()
                     if on_status:
                         on_status(board)
-                    lr.supervise_broker()
+                    lr.supervise()  # before asking who still runs: a worker that died last is started again
+                    if not lr.workers_running():
+                        break
             except KeyboardInterrupt:
                 interrupted = True
                 lr.ask_stop(s)
@@ -315,6 +400,44 @@ def run_local(
     return lr.finish(latest, seconds=time.time() - t0, interrupted=interrupted or bool(stopped_early),
                      measure_epochs=measure_epochs,
                      extra={"resumed": resume, "stopped_early": stopped_early, "stopped_here": interrupted})
+
+
+@contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while a child starts: it keeps that across exec (and Python then makes no KeyboardInterrupt of
+    it).  A terminal's Ctrl-C reaches the whole process group; this way only ``coevo run`` takes it and stops its
+    children in order (a stop message: each worker ends its generation and writes its done.json; then the final
+    measures from the broker, still up; then SIGTERM), as after a Ctrl-C to it alone.  Only the main thread can
+    change a signal's handler; started from another, a child takes SIGINT as usual."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def last_words(log_file: Path) -> str:
+    """The error a process's latest start ended with: the last line of its log after the last ``--- start`` mark,
+    when it names an error (``RunDirError: ...``, a traceback's last line); else ''."""
+    try:
+        text = log_file.read_bytes().decode("utf-8", "replace")
+    except OSError:
+        return ""
+    lines = [x.strip() for x in text.rsplit("--- start ", 1)[-1].splitlines()[1:] if x.strip()]
+    return lines[-1] if lines and re.match(r"[\w.]*(Error|Exception)\b", lines[-1]) else ""
+
+
+def exit_text(status: int) -> str:
+    """A process's exit as words: 'exited with status 2', 'was killed by SIGKILL'."""
+    if status >= 0:
+        return f"exited with status {status}"
+    try:
+        return f"was killed by {signal.Signals(-status).name}"
+    except ValueError:
+        return f"was killed by signal {-status}"
 
 
 def end_processes(procs: list[subprocess.Popen[bytes]], timeout: float = 10.0) -> None:
