@@ -244,6 +244,9 @@ class RunPaths:
     def case_file(self, behaviour: str) -> Path:
         return self.store_dir / "cases" / f"{behaviour}.jsonl"
 
+    def case_files(self) -> list[Path]:
+        return sorted((self.store_dir / "cases").glob("*.jsonl"))
+
     @property
     def execution(self) -> ExecutionPaths:
         return ExecutionPaths(self.dir / "execution")
