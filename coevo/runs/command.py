@@ -176,10 +176,38 @@ def cmd_worker(args: argparse.Namespace) -> int:
                                     model=args.model or "best", max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
                                     world=world_settings(args, task), ga=ga_settings(args))
     kind = kind_of_settings(settings).worker()  # a CEL run's learner (coevo cel) plugs into the worker's seam
-    return run_worker(settings, kind=kind, behaviour=args.behaviour, seed=args.seed, worker_id=args.worker_id,
-                      out=Path(args.out) if args.out else (RunPaths(base).worker(args.behaviour).dir if base else None),
-                      conf=config_from_args(args), resume=args.resume,
-                      final_sync=args.final_sync, run_key=find_run_key(args.key_file, settings, base))
+    out = Path(args.out) if args.out else (RunPaths(base).worker(args.behaviour).dir if base else None)
+    conf = config_from_args(args)
+    run_key = find_run_key(args.key_file, settings, base)
+    if base is None:
+        _record_hand_run(settings, out, args)
+    return run_worker(settings, kind=kind, behaviour=args.behaviour, seed=args.seed, worker_id=args.worker_id, out=out,
+                      conf=conf, resume=args.resume, final_sync=args.final_sync, run_key=run_key)
+
+
+def _record_hand_run(settings: Any, out: Path | None, args: argparse.Namespace) -> None:
+    """A worker started by hand (no --settings) leaves the run.json coevo run would have written, when its directory
+    is a run's (``RUN/workers/BEHAVIOUR``, the default ``runs/RUN/workers/BEHAVIOUR``) and none is there yet: the
+    task, regime and GA settings for coevo show, check and the dashboard, and the broker's endpoint and the key's
+    path for coevo status.  The first worker of the run writes it; its ``seed`` is that worker's."""
+    import logging
+    import os
+
+    from coevo.bus.auth import KEY_ENV
+    from coevo.bus.flags import DEFAULT_ENDPOINT
+    from coevo.rundir.layout import RunPaths
+
+    run_dir = (out.parent.parent if out.parent.name == "workers" else None) if out else Path("runs") / settings.run
+    if run_dir is None or RunPaths(run_dir).run_json.exists():
+        return
+    endpoint = (args.connect or [None if args.config else DEFAULT_ENDPOINT])[0]
+    key_file = args.key_file or os.environ.get(KEY_ENV)
+    key = os.path.relpath(key_file, run_dir) if key_file else None
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        settings.model_copy(update={"endpoint": endpoint, "key_file": key}).save(RunPaths(run_dir).run_json)
+    except OSError as exc:  # the worker's own directory says what is wrong, if anything is
+        logging.getLogger(__name__).warning("cannot write %s: %s", RunPaths(run_dir).run_json, exc.strerror or exc)
 
 
 def configure_chaos(p: argparse.ArgumentParser) -> None:
@@ -278,8 +306,8 @@ def cmd_status(args: argparse.Namespace) -> int:
         gate = None if key_file is None else Gate(key=RunKey.load(key_file, run=run))
     else:
         found = _status_of_local_runs(args)
-        if found is None:
-            return 0
+        if found is None:  # nothing to follow: said in a line each; a run asked for by name and unreachable fails
+            return 1 if args.run is not None and _gone(Path(args.runs_dir or "runs") / args.run) else 0
         from coevo.runs.discover import ended, find_run, follow_settings
 
         run, (conf, gate) = found.run, follow_settings(found, key_file=key_file)
@@ -291,6 +319,12 @@ def cmd_status(args: argparse.Namespace) -> int:
     if until is not None and until():
         _say(find_run(found.dir.parent, found.dir.name), args.json)  # how it ended, from its files
     return 0
+
+
+def _gone(run_dir: Path) -> bool:
+    from coevo.runs.discover import ended
+
+    return not ended(run_dir)
 
 
 def _say(found: Any, json_lines: bool) -> None:

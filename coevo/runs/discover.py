@@ -51,7 +51,7 @@ class FoundRun:
             return f"run {self.run}: {self.ended}{gens}, from its files in {self.dir}"
         if self.state == UNREACHABLE:
             where = f"its broker at {self.endpoint} does not answer" if self.endpoint else "its run.json names no broker"
-            return f"run {self.run}: unreachable, {where} and its files show no end{gens} (coevo run --resume {self.dir})"
+            return f"run {self.run}: unreachable, {where} and its files show no end{gens}"
         return f"run {self.run}: live, its broker at {self.endpoint}{gens} (coevo status --run {self.run})"
 
     def as_dict(self) -> dict[str, Any]:
