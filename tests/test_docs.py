@@ -8,6 +8,7 @@ checked the same way too, so a broken link is named by this test even when mkdoc
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import re
@@ -15,6 +16,7 @@ import subprocess
 import sys
 from pathlib import Path
 from string import Template
+from typing import Any
 
 import pytest
 from markdown.extensions.toc import slugify
@@ -183,3 +185,63 @@ def test_the_hand_started_recipe_of_running_md_runs_as_written_and_passes_check(
     assert "Traceback" not in out["check.log"] and "complete" in out["check.log"].lower(), out["check.log"]
     settings = json.loads((tmp_path / "runs" / "r1" / "run.json").read_text())
     assert settings["regime"] == "mutual" and settings["key_file"] == "secret.key", settings
+
+
+# ----------------------------------------------------------------- the command synopses, against the parsers
+def _flags(parser: argparse.ArgumentParser) -> set[str]:
+    """A parser's flags (each by its first long name) and positional arguments (by their metavar)."""
+    out = set()
+    for a in parser._actions:
+        if isinstance(a, (argparse._HelpAction, argparse._SubParsersAction)):
+            continue
+        longs = [o for o in a.option_strings if o.startswith("--")]
+        out.add(longs[0] if longs else str(a.metavar or a.dest).upper())
+    return out
+
+
+def _group(add: Any, **kw: Any) -> set[str]:
+    p = argparse.ArgumentParser()
+    add(p, **kw)
+    return _flags(p)
+
+
+def test_docs_commands_md_has_every_command_and_every_flag_of_the_parsers() -> None:
+    """docs/commands.md's synopses are checked against coevo.cli's parsers: every command has one, and every flag of
+    a command is in one of its synopses, or in a shared group (``[connection flags]``, ``[GA settings]``, ``[cluster
+    flags]``) that its synopsis names and that the page spells out in full."""
+    from coevo.bus.flags import add_connection_args
+    from coevo.cli import build_parser
+    from coevo.console import add_settings
+    from coevo.replicates.flags import add_backend_flags
+
+    text = (DOCS / "commands.md").read_text(encoding="utf-8")
+    block = re.search(r"^```\n(.*?)^```", text, re.M | re.S).group(1)
+    synopses: dict[str, str] = {}
+    name = None
+    for line in block.splitlines():
+        m = re.match(r"coevo ([a-z-]+)", line)
+        if m:
+            name = m.group(1)
+        if name is not None:
+            synopses[name] = synopses.get(name, "") + " " + line.split(" #")[0]
+    groups = {"connection flags": _group(add_connection_args, default_mode="router"), "GA settings": _group(add_settings),
+              "cluster flags": _group(add_backend_flags, jobs_help="")}
+    for group, flags in groups.items():
+        spelled = re.search(rf"^\[{group}\]:(.*(?:\n[ \t]+.*)*)", block, re.M)  # its line and the indented ones
+        assert spelled is not None, f"docs/commands.md does not spell out [{group}]"
+        assert {f for f in flags if not re.search(rf"{re.escape(f)}\b", spelled.group(1))} == set(), group
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    missing = {}
+    for command, parser in sub.choices.items():
+        flags = _flags(parser)
+        synopsis = synopses.get(command)
+        if synopsis is None:
+            missing[command] = "no synopsis"
+            continue
+        for group, members in groups.items():
+            if f"[{group}]" in synopsis:
+                flags -= members
+        absent = sorted(f for f in flags if not re.search(rf"(?<![\w-]){re.escape(f)}(?![\w-])", synopsis))
+        if absent:
+            missing[command] = absent
+    assert missing == {}, f"docs/commands.md lacks: {missing}"
