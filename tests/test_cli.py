@@ -302,3 +302,19 @@ def test_a_loading_worker_is_starting_and_a_broker_already_up_is_never_first_sho
             token.undeclare()
             board.close()
         broker_token.undeclare()
+
+
+def test_run_listen_on_a_port_in_use_is_one_line_before_anything_starts(tmp_path: Path,
+                                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    import socket
+
+    from coevo.cli import main
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        code = main(["run", "--listen", f"tcp/127.0.0.1:{port}", "--root", str(tmp_path / "runs")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].startswith(f"ConfigError: --listen tcp/127.0.0.1:{port}: cannot listen"), err
+    assert not (tmp_path / "runs").exists()

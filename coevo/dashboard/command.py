@@ -54,6 +54,7 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
         raise RunDirError(f"--runs-dir {str(runs_dir)!r} is not a directory")
     if args.key_file and not args.run:
         raise ConfigError("--key-file is one run's key: give that run with --run")
+    gate = _gate(args)  # a bad key file is said before anything is tried
     local = target is None and not args.connect and not args.config  # the runs under --runs-dir (default runs/)
     if local:
         runs_dir = _local_root(runs_dir, args.run)
@@ -93,7 +94,21 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
         serve(Dashboard(target=target, runs_dir=runs_dir, stale=args.stale, title=title, robot=robot), host=args.host,
               port=args.port, every=args.every, on_ready=ready)
         return 0
-    return _on_bus(args, target, runs_dir, title, ready, robot)
+    return _on_bus(args, target, runs_dir, title, ready, robot, gate)
+
+
+def _gate(args: argparse.Namespace) -> object:
+    """With --key-file, the gate that shows only --run's authenticated heartbeats; else None."""
+    from coevo.bus import keys
+
+    if args.run:
+        keys.check_id("run id", args.run)
+    if not args.key_file:
+        return None
+    from coevo.bus.auth import RunKey
+    from coevo.bus.trust import Gate
+
+    return Gate(key=RunKey.load(Path(args.key_file), run=args.run))
 
 
 def _answers(connect: list[str] | None) -> bool:
@@ -147,21 +162,12 @@ def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Pa
 
 
 def _on_bus(args: argparse.Namespace, target: Path | None, runs_dir: Path | None, title: str, ready: object,
-            robot: object) -> int:
-    from coevo.bus import keys
+            robot: object, gate: object) -> int:
     from coevo.bus.session import config_from_args, open_session, sigterm_as_exit
     from coevo.dashboard.model import BusSource, Dashboard
     from coevo.dashboard.server import serve
 
-    gate = None
-    if args.run:
-        keys.check_id("run id", args.run)
-    if args.key_file:
-        from coevo.bus.auth import RunKey
-        from coevo.bus.trust import Gate
-
-        gate = Gate(key=RunKey.load(Path(args.key_file), run=args.run))
-    elif args.run:
+    if args.run and gate is None:
         title += " (unverified: no --key-file)"
     conf = config_from_args(args)
     sigterm_as_exit()
