@@ -55,7 +55,9 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     if args.key_file and not args.run:
         raise ConfigError("--key-file is one run's key: give that run with --run")
     gate = _gate(args)  # a bad key file is said before anything is tried
-    local = target is None and not args.connect and not args.config  # the runs under --runs-dir (default runs/)
+    from coevo.bus.flags import connection_given
+
+    local = target is None and not connection_given(args)  # the runs under --runs-dir (default runs/)
     if local:
         runs_dir = _local_root(runs_dir, args.run)
     elif target is None and args.connect and args.connect_timeout is None and not _answers(args.connect):

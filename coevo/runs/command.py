@@ -289,6 +289,7 @@ def configure_status(p: argparse.ArgumentParser) -> None:
 def cmd_status(args: argparse.Namespace) -> int:
     from coevo.bus import keys
     from coevo.bus.auth import RunKey
+    from coevo.bus.flags import connection_given
     from coevo.bus.session import config_from_args
     from coevo.bus.status import StatusDisplay, follow
     from coevo.bus.trust import Gate
@@ -297,11 +298,11 @@ def cmd_status(args: argparse.Namespace) -> int:
         keys.check_id("run id", args.run)
     key_file = Path(args.key_file) if args.key_file else None
     until = None
-    if args.connect or args.config:
+    if connection_given(args):
         if args.runs_dir:
-            raise ConfigError("--runs-dir finds runs without --connect; give one or the other")
+            raise ConfigError("--runs-dir finds runs and their brokers itself: drop it, or the connection flags")
         if args.run is None:
-            raise ConfigError("--connect follows one run: give it with --run")
+            raise ConfigError("connection flags (--connect ...) follow one run: give it with --run")
         run, conf = args.run, config_from_args(args)
         gate = None if key_file is None else Gate(key=RunKey.load(key_file, run=run))
     else:
