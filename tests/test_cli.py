@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import json
 import subprocess
 import sys
@@ -206,7 +208,7 @@ def test_status_as_plain_lines_one_per_worker_when_it_changes() -> None:
     first = plain.lines(_Board())
     assert len(first) == 4 and [line.split()[1] for line in first] == ["executive-7", "tracking-7", "docking-7", "broker"]
     assert not any(ch in "".join(first) for ch in "│┃─━┏┗")
-    assert "gen 420/500 best 0.412 picks-D=23% docked=40% QT=61% partners Dv123 Tv123" in first[0]
+    assert "gen 420/500 best 0.412 picks-D=23% docked=40% QT=61% with Dv123 Tv123" in first[0]
     assert plain.lines(_Board()) == []  # nothing changed, nothing printed
     assert len(plain.lines(_Board(generation=421))) == 3  # the workers moved on, the broker did not
 
@@ -245,13 +247,15 @@ def test_a_worker_that_finishes_is_shown_done_never_dead_in_the_table_the_lines_
         for beh, gen in (("tracking", 50), ("docking", 20)):  # tracking finishes; docking dies at 20 of 50
             wid = f"{beh}-1"
             token = worker.liveliness().declare_token(keys.alive("fin", beh, wid))
-            wait_until(lambda: any(w["worker"] == wid and w["state"] == "alive" for w in board.snapshot()), 10, "alive")
+            wait_until(lambda: any(w["worker"] == wid and w["state"] == "starting" for w in board.snapshot()), 10,
+                       "starting (no generation done yet)")
             worker.put(keys.status("fin", beh, wid), encode(Status(run="fin", behaviour=beh, worker=wid, regime="mutual",
                                                                    generation=gen, generations=50, best_fitness=0.5,
                                                                    sent_at=_time.time())))
             wait_until(lambda: any(w["worker"] == wid and w["generation"] == gen for w in board.snapshot()), 10, "gen")
             token.undeclare()  # its done heartbeat not (yet) here
-            wait_until(lambda: any(w["worker"] == wid and w["state"] != "alive" for w in board.snapshot()), 10, "gone")
+            wait_until(lambda: any(w["worker"] == wid and w["state"] not in ("alive", "starting") for w in board.snapshot()),
+                       10, "gone")
         states = {w["worker"]: w["state"] for w in board.snapshot()}
         assert states == {"tracking-1": "done", "docking-1": "dead"}
         lines = plain.lines(board)
@@ -263,3 +267,54 @@ def test_a_worker_that_finishes_is_shown_done_never_dead_in_the_table_the_lines_
         row = next(x for x in console.export_text().splitlines() if "tracking-1" in x)
         assert row.rstrip().endswith("done"), row
         board.close()
+
+
+def test_a_loading_worker_is_starting_and_a_broker_already_up_is_never_first_shown_down() -> None:
+    """Piped, coevo status printed "gen 0/0 ... alive" and "broker down" then "broker up" in its first second, and a
+    worker that was loading showed "stalled"; each state now reads true from the first line."""
+    from coevo.bus import keys
+    from coevo.bus.messages import Status, encode
+    from coevo.bus.session import make_config, open_session
+    from coevo.bus.status import PlainStatus, StatusBoard
+    from coevo.runs.local import free_port, wait_until
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    with open_session(make_config(mode="router", listen=[endpoint])) as router, \
+            open_session(make_config(mode="client", connect=[endpoint], connect_timeout=10)) as worker:
+        broker_token = router.liveliness().declare_token(keys.BROKER)
+        with open_session(make_config(mode="client", connect=[endpoint], connect_timeout=10)) as follower:
+            board = StatusBoard(follower, "st", stall=0.5)
+            first = PlainStatus().lines(board)
+            assert any(line.endswith("broker up stored -") for line in first), first  # up from the first line
+            token = worker.liveliness().declare_token(keys.alive("st", "tracking", "tracking-0"))
+            worker.put(keys.status("st", "tracking", "tracking-0"),
+                       encode(Status(run="st", behaviour="tracking", worker="tracking-0", regime="mutual", generation=0,
+                                     generations=50, best_fitness=0.0, sent_at=time.time())))
+            wait_until(lambda: board.snapshot() and board.snapshot()[0]["generations"] == 50, 10, "the heartbeat")
+            time.sleep(1.0)  # longer than --stall without a heartbeat: still loading, not stalled
+            assert board.snapshot()[0]["state"] == "starting"
+            lines = PlainStatus().lines(board)
+            assert any(line.endswith("tracking-0 starting") for line in lines), lines
+            board.workers["tracking-0"].generation = 1  # a generation done: its line in full, without rejections
+            full = PlainStatus().lines(board)
+            assert any("tracking-0 gen 1/50 best 0.000 stalled" in line for line in full), full
+            assert all(len(line) <= 100 for line in full)
+            token.undeclare()
+            board.close()
+        broker_token.undeclare()
+
+
+def test_run_listen_on_a_port_in_use_is_one_line_before_anything_starts(tmp_path: Path,
+                                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    import socket
+
+    from coevo.cli import main
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        code = main(["run", "--listen", f"tcp/127.0.0.1:{port}", "--root", str(tmp_path / "runs")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].startswith(f"ConfigError: --listen tcp/127.0.0.1:{port}: cannot listen"), err
+    assert not (tmp_path / "runs").exists()

@@ -99,6 +99,9 @@ class TestTinyComparison:
         for t in tests.values():
             assert 0.0 <= t["p_value"] <= 1.0 and 0.0 <= t["a12"] <= 1.0
         assert res["verdict"]
+        # A verdict at settings far below the report's says so first, printed and in the report.
+        assert res["verdict"].startswith("These settings are below the report's: generations 3 (the report's 50)")
+        assert "runs a regime 2 (the report's 10)" in res["verdict"]
 
         # The CSVs say what results.json says.
         rows = {r["run"]: r for r in _csv(tiny / "runs.csv")}

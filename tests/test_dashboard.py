@@ -9,6 +9,7 @@ import os
 import re
 import shutil
 import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -432,3 +433,60 @@ def test_the_robot_is_drawn_from_the_newest_policies_once_every_agent_published_
     assert not panel.update(now=30.0)  # nothing newer: not drawn again
     _publish(d, "tracking", 2, task.default_rules("tracking"))
     assert panel.update(now=31.0) and panel.picture.versions["tracking"] == 2
+
+
+# ---------------------------------------------------------------- zero-config following
+@pytest.mark.service
+def test_a_run_is_followed_with_no_flags_and_a_gone_broker_is_said_at_once(tmp_path: Path) -> None:
+    """`coevo run` says where it listens and how to follow it; the dashboard's model with no flags (the runs under
+    runs/) follows it on its bus, then shows it done from its files, with no problem line; afterwards `coevo status`
+    says it is done in one line, and a dashboard pointed at its gone broker says so at once."""
+    from coevo.dashboard.model import LocalRuns
+    from coevo.runs.local import free_port, wait_until
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    small = ["--generations", "4", "--population", "6", "--episodes", "10", "--ga", "best_episodes=10",
+             "--ga", "initial_rules=8"]
+    run = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--regime", "mutual", "--run", "r1", "--listen",
+                            endpoint, "--quiet", *small], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                           text=True)
+    source = LocalRuns(tmp_path / "runs")
+    dash = Dashboard(bus=source)
+    seen: set[tuple[str, str]] = set()
+    try:
+        first = [run.stdout.readline(), run.stdout.readline()]
+        assert first == [f"run r1: its broker listens on {endpoint}, its files are in runs/r1\n",
+                         "follow it with: coevo status --run r1  or  coevo dashboard\n"], first
+
+        def look() -> set[tuple[str, str]]:
+            dash.refresh()
+            for r in dash.current()[1].runs:
+                assert not r.problems, r.problems  # no "no broker" while it starts, nor after its normal end
+                seen.add((r.source, r.state))
+            return seen
+
+        wait_until(lambda: ("bus+files", "running") in look(), 60, lambda: f"the run followed on its bus ({seen})")
+        assert run.wait(120) == 0, run.stdout.read()
+        wait_until(lambda: ("files", "done") in look(), 20, lambda: f"the run done from its files ({seen})")
+    finally:
+        source.close()
+        if run.poll() is None:
+            run.kill()
+    t0 = time.monotonic()
+    status = subprocess.run([sys.executable, "-m", "coevo", "status"], cwd=tmp_path, capture_output=True, text=True,
+                            timeout=60)
+    assert status.returncode == 0 and status.stdout == \
+        "run r1: done (docking 4/4, executive 4/4, tracking 4/4), from its files in runs/r1\n", status
+    gone = subprocess.run([sys.executable, "-m", "coevo", "dashboard", "--connect", endpoint], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=60)
+    assert gone.returncode == 2 and gone.stderr.startswith(f"ServiceError: no broker answers at {endpoint}"), gone
+    assert time.monotonic() - t0 < 20  # at once, not after a 30 s connect timeout each (two interpreters start here)
+    port = free_port()
+    files = subprocess.Popen([sys.executable, "-m", "coevo", "dashboard", "--connect", endpoint, "--runs-dir", "runs",
+                              "--port", str(port)], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert files.stdout.readline() == (f"dashboard: no broker answers at {endpoint}: showing the runs under runs "
+                                           "from their files\n")
+    finally:
+        files.terminate()
+        files.wait(20)

@@ -84,3 +84,9 @@ def test_generations_world_and_ga_reach_every_coevo_learn_of_the_fuel_task(tmp_p
     cfg = json.loads((out / "runs" / "docking-seed0" / "config.json").read_text())
     assert (cfg["ga"]["generations"], cfg["ga"]["population"], cfg["ga"]["episodes"]) == (2, 4, 4)
     assert cfg["world"]["target_speed"] == 3
+    # Settings this far below the report's are said to be, beside the verdicts; no "nan" for a measure not taken.
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["caveat"].startswith("These settings are below the report's: generations 2 (the report's 50), "
+                                        "population 4 (the report's 50), episodes 4 (the report's 90)")
+    report = (out / "report.md").read_text()
+    assert summary["caveat"] in report and "nan" not in report

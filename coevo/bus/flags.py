@@ -9,7 +9,8 @@ from __future__ import annotations
 import argparse
 import math
 
-__all__ = ["DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "DEFAULT_LEASE_S", "add_connection_args"]
+__all__ = ["DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "DEFAULT_LEASE_S", "add_connection_args",
+           "connection_given"]
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 DEFAULT_TLS_ENDPOINT = "tls/localhost:7447"  # TLS checks the router's name: use one its certificate carries
@@ -59,3 +60,10 @@ def add_connection_args(p: argparse.ArgumentParser, *, default_mode: str = "clie
     g.add_argument("--password", help=f"its password (better: set ${PASSWORD_ENV}; a flag shows in ps)")
     if default_mode == "router":
         g.add_argument("--auth-file", metavar="FILE", help="accepted users, one user:password per line (routers only)")
+
+
+def connection_given(args: argparse.Namespace) -> bool:
+    """Whether any connection flag was given (then a follower goes where they say; else ``coevo status`` and
+    ``coevo dashboard`` find the runs under ``runs/`` and their brokers themselves)."""
+    return args.mode != "client" or any(getattr(args, name, None) is not None for name in (
+        "connect", "listen", "config", "connect_timeout", "lease", "tls_ca", "tls_cert", "tls_key", "user", "password"))

@@ -1,16 +1,18 @@
 """``coevo status``: follow the workers of a run (heartbeats plus liveliness tokens) and its broker.
 
-A worker is *alive* while its liveliness token exists and its last heartbeat is
-recent, *stalled* when the token exists but no heartbeat came for ``stall``
-seconds (a token proves the process exists, not that it progresses; a worker
-heartbeats about every second, even in the middle of a generation), *dead* when
-its token is gone (its process died: seen within milliseconds on a LAN, or its
+A worker is *starting* from its token or first heartbeat until it has finished its first
+generation (loading, waiting for its broker and partners), *alive* while its liveliness
+token exists and its last heartbeat is recent, *stalled* when the token exists but no
+heartbeat came for ``stall`` seconds (a token proves the process exists, not that it
+progresses; a worker heartbeats about every second, even in the middle of a generation),
+*dead* when its token is gone (its process died: seen within milliseconds on a LAN, or its
 link stayed silent for a lease), and *done* when it said so or when its token went after its
 heartbeats showed it at its last generation (a worker that finished its generations and
 ends: its final heartbeat and its token travel apart and may arrive in either order, so a
-finishing worker is never shown dead, in the table, the plain lines or JSON).  The broker is *up*
-while its token exists; its last :class:`~coevo.bus.messages.BrokerStatus` says what
-it stored and rejected for this run; it is *degraded* while its store cannot write
+finishing worker is never shown dead, in the table, the plain lines or JSON).  The broker is
+*starting* until its token is first seen (for at most ``BROKER_GRACE`` s: its router opens
+before its store), *up* while its token exists; its last :class:`~coevo.bus.messages.BrokerStatus`
+says what it stored and rejected for this run; it is *degraded* while its store cannot write
 (it then holds ``coevo/_broker/degraded`` instead, and its status says why).
 
 Heartbeats wait in a ring inside Zenoh and are decoded when the board is read, so
@@ -42,6 +44,7 @@ __all__ = ["DEFAULT_STALL", "WorkerView", "RobotView", "StatusBoard", "status_ta
 log = logging.getLogger(__name__)
 
 DEFAULT_STALL = 3.0  # seconds without a heartbeat; workers send one about every second
+BROKER_GRACE = 10.0  # seconds a broker never seen yet is "starting" (its store opens after its router), then "down"
 
 
 @dataclass
@@ -71,6 +74,8 @@ class WorkerView:
             return "done"
         if not self.token:
             return "done" if self.finished() else "dead"
+        if self.generation == 0:
+            return "starting"  # no generation done yet: loading, or waiting for its broker or partners
         if self.last_heartbeat and now - self.last_heartbeat > stall:
             return "stalled"
         return "alive"
@@ -132,6 +137,8 @@ class StatusBoard:
         self.robots: dict[str, RobotView] = {}  # a CEL run's execution module
         self.rejected = 0  # bad messages on the status keys themselves
         self.broker_up = False
+        self.broker_seen = False  # its token was ever seen: before that, and for BROKER_GRACE s, it is "starting"
+        self.created = time.monotonic()
         self.broker_degraded = False  # its degraded token is up: the store cannot write
         self.broker: BrokerStatus | None = None
         self.changed = threading.Event()
@@ -149,6 +156,12 @@ class StatusBoard:
             session.liveliness().declare_subscriber(keys.BROKER, self._on_broker, history=True),
             session.liveliness().declare_subscriber(keys.BROKER_DEGRADED, self._on_degraded, history=True),
         ]
+        # The broker's state now, before the first display: the subscribers' history arrives a moment later, and
+        # until then a broker that is up would be shown down (then up) in the first second.
+        for key, take in ((keys.BROKER, self._on_broker), (keys.BROKER_DEGRADED, self._on_degraded)):
+            for reply in session.liveliness().get(key, timeout=1.0):
+                if reply.ok is not None:
+                    take(reply.ok)
 
     def close(self) -> None:
         for d in self._decls + self._rings:
@@ -237,6 +250,7 @@ class StatusBoard:
     def _on_broker(self, sample: Any) -> None:
         with self._lock:
             self.broker_up = is_put(sample)
+            self.broker_seen = self.broker_seen or self.broker_up
         self.changed.set()
 
     def _on_degraded(self, sample: Any) -> None:
@@ -261,7 +275,8 @@ class StatusBoard:
         self.poll()
         with self._lock:
             b = self.broker
-            state = "up" if self.broker_up else "degraded" if self.broker_degraded else "down"
+            state = ("up" if self.broker_up else "degraded" if self.broker_degraded else
+                     "starting" if not self.broker_seen and time.monotonic() - self.created < BROKER_GRACE else "down")
             return {"state": state, "open": b.open if b else False,
                     "stored": dict(b.stored) if b else {}, "rejected": dict(b.rejected) if b else {},
                     "dropped": b.dropped if b else 0, "degraded": b.degraded if b and state != "up" else "",
@@ -279,7 +294,7 @@ def _reasons(counts: dict[str, int]) -> str:
     return ", ".join(f"{r} {n}" for r, n in sorted(counts.items())) or "0"
 
 
-_STATE_STYLE = {"alive": "green", "done": "blue", "stalled": "yellow", "dead": "bold red", "up": "green", "down": "bold red",
+_STATE_STYLE = {"starting": "cyan", "alive": "green", "done": "blue", "stalled": "yellow", "dead": "bold red", "up": "green", "down": "bold red",
                 "degraded": "bold yellow"}
 
 
@@ -316,7 +331,10 @@ def _status_rows(board: Any) -> list[tuple[str, ...]]:
     return rows
 
 
-_STATUS_HEADERS = ("worker", "gen", "best", "own", "partner", "unc", "rejected", "state")
+#: The table's columns: generations done of the run's, best fitness of the latest generation, the task's own
+#: measures, the partner versions in use, messages rejected by reason, and the state, followed by the count of
+#: published versions the broker's store has not confirmed yet when there are any ("alive 12 unstored").
+_STATUS_HEADERS = ("worker", "gen", "best", "measures", "partners", "rejected", "state")
 
 
 def _fit(natural: list[int], minimum: list[int], budget: int) -> list[int]:
@@ -335,7 +353,10 @@ class _StatusView:
     """Renders the status table at the width of the console it is printed on (see :func:`status_table`)."""
 
     def __init__(self, rows: list[tuple[str, ...]], title: str) -> None:
-        self.rows, self.title = rows, title
+        self.title = title
+        self.rows = [(*row[:5], row[6], row[7] + (f" {row[5]} unstored" if row[5] not in ("", "0") else ""))
+                     for row in rows]
+        self.styles = [_STATE_STYLE.get(row[7].split(",")[0]) for row in rows]  # 'alive, restarted 2x': alive's
 
     def __rich_console__(self, console: Any, options: Any) -> Any:
         from rich import box
@@ -349,9 +370,9 @@ class _StatusView:
         t = Table(title=self.title, box=box.SIMPLE_HEAD, show_edge=False, pad_edge=False, padding=(0, 1),
                   collapse_padding=True, title_justify="left")
         for h, w in zip(_STATUS_HEADERS, widths, strict=True):
-            t.add_column(h, width=w, overflow="fold", justify="right" if h in ("gen", "best", "unc") else "left")
-        for row in self.rows:
-            t.add_row(*row, style=_STATE_STYLE.get(row[-1].split(",")[0]))
+            t.add_column(h, width=w, overflow="fold", justify="right" if h in ("gen", "best") else "left")
+        for row, style in zip(self.rows, self.styles, strict=True):
+            t.add_row(*row, style=style)
         yield t
 
 
@@ -372,16 +393,21 @@ class PlainStatus:
         self._last: dict[str, str] = {}
 
     def lines(self, board: Any) -> list[str]:
+        """A line per worker (and the broker) that changed; counts that are 0 are left out, to keep lines short."""
         out = []
         stamp = time.strftime("%H:%M:%S")
         for who, gen, best, own, partners, unc, rejected, state in _status_rows(board):
+            also = (f" unstored {unc}" if unc not in ("", "0") else "") + (f" rejected {rejected}" if rejected != "0" else "")
             if who == "broker":
-                text = f"broker {state} {partners} rejected {rejected}"
+                text = f"broker {state} {partners}{also}"
+            elif state == "starting":
+                text = f"{who} starting{also}"  # nothing learned yet to show
             elif not best:  # a CEL run's execution module: no fitness, no partners of its own
-                text = f"{who} gen {gen} {own} {partners} rejected {rejected} {state}"
+                text = f"{who} gen {gen} {own} {partners}{also} {state}"
             else:
-                text = (f"{who} gen {gen} best {best} {own} partners {partners} unconfirmed {unc} "
-                        f"rejected {rejected} {state}")
+                measures = "" if own == "-" else f" {own}"
+                using = "" if partners == "-" else f" with {partners}"  # the partner versions it learns against
+                text = f"{who} gen {gen} best {best}{measures}{using}{also} {state}"
             if self._last.get(who) != text:
                 self._last[who] = text
                 out.append(f"{stamp} {text}")
@@ -427,9 +453,9 @@ class StatusDisplay:
 
 
 def follow(conf: Any, run: str, show: Any, *, every: float, stall: float = DEFAULT_STALL,
-           duration: float | None = None, gate: Any = None) -> None:
+           duration: float | None = None, gate: Any = None, until: Any = None) -> None:
     """``coevo status``: follow ``run``'s workers, calling ``show(board)`` when something changed (or every
-    ``every`` s), for ``duration`` s or until SIGINT/SIGTERM."""
+    ``every`` s), for ``duration`` s, until ``until()`` is true (checked every ``every`` s) or until SIGINT/SIGTERM."""
     from coevo.bus.session import open_session, sigterm_as_exit
 
     sigterm_as_exit()
@@ -441,6 +467,8 @@ def follow(conf: Any, run: str, show: Any, *, every: float, stall: float = DEFAU
                 board.changed.wait(every)
                 board.changed.clear()
                 show(board)
+                if until is not None and until():
+                    break
         except KeyboardInterrupt:
             pass
         finally:

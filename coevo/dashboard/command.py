@@ -54,20 +54,90 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
         raise RunDirError(f"--runs-dir {str(runs_dir)!r} is not a directory")
     if args.key_file and not args.run:
         raise ConfigError("--key-file is one run's key: give that run with --run")
+    gate = _gate(args)  # a bad key file is said before anything is tried
+    from coevo.bus.flags import connection_given
+
+    local = target is None and not connection_given(args)  # the runs under --runs-dir (default runs/)
+    if local:
+        runs_dir = _local_root(runs_dir, args.run)
+    elif target is None and args.connect and args.connect_timeout is None and not _answers(args.connect):
+        gone = f"no broker answers at {', '.join(args.connect)}"  # ended, or not started: --connect-timeout waits
+        if runs_dir is None:
+            from coevo.errors import ServiceError
+
+            raise ServiceError(f"{gone}: has its run ended? Give --runs-dir ROOT to see it from its files (or no "
+                               "--connect: the runs under runs/), or --connect-timeout SECONDS to wait for it")
+        print(f"dashboard: {gone}: showing the runs under {runs_dir} from their files", flush=True)
+        target, kind = runs_dir, classify_dir(runs_dir)
     robot = None if args.no_robot else _robot(args.robot, target, kind, runs_dir, args.run)
-    on_bus = target is None or bool(args.connect)
-    title = f"coevo dashboard: {kind} {target}" if target else "coevo dashboard" + (f": run {args.run}" if args.run else "")
+    if local and robot is None and not args.no_robot:
+        robot = _newest_robot(runs_dir)
+    on_bus = local or target is None or bool(args.connect)
+    title = (f"coevo dashboard: {kind} {target}" if target else f"coevo dashboard: the runs under {runs_dir}" if local
+             else "coevo dashboard" + (f": run {args.run}" if args.run else ""))
 
     def ready(url: str) -> None:
         print(f"dashboard: {url} (read-only; Ctrl-C stops it)", flush=True)
 
+    if local:
+        from coevo.dashboard.model import LocalRuns
+        from coevo.dashboard.server import serve
+
+        source = LocalRuns(runs_dir, stall=args.stall)
+        try:
+            serve(Dashboard(bus=source, stale=args.stale, title=title, robot=robot), host=args.host, port=args.port,
+                  every=args.every, on_ready=ready)
+        finally:
+            source.close()
+        return 0
     if not on_bus:
         from coevo.dashboard.server import serve
 
         serve(Dashboard(target=target, runs_dir=runs_dir, stale=args.stale, title=title, robot=robot), host=args.host,
               port=args.port, every=args.every, on_ready=ready)
         return 0
-    return _on_bus(args, target, runs_dir, title, ready, robot)
+    return _on_bus(args, target, runs_dir, title, ready, robot, gate)
+
+
+def _gate(args: argparse.Namespace) -> object:
+    """With --key-file, the gate that shows only --run's authenticated heartbeats; else None."""
+    from coevo.bus import keys
+
+    if args.run:
+        keys.check_id("run id", args.run)
+    if not args.key_file:
+        return None
+    from coevo.bus.auth import RunKey
+    from coevo.bus.trust import Gate
+
+    return Gate(key=RunKey.load(Path(args.key_file), run=args.run))
+
+
+def _answers(connect: list[str] | None) -> bool:
+    from coevo.bus.flags import DEFAULT_ENDPOINT
+    from coevo.runs.discover import answers
+
+    return any(answers(ep) for ep in connect or [DEFAULT_ENDPOINT])
+
+
+def _local_root(runs_dir: Path | None, run: str | None) -> Path:
+    """The directory whose runs are shown (default runs/), said in one line when it holds none (yet)."""
+    root = runs_dir or Path("runs")
+    if run is not None:
+        raise ConfigError(f"--run {run} follows one run on the bus: give --connect ENDPOINT too (its run.json's "
+                          f"endpoint), or drop --run to see every run under {root}")
+    if not root.is_dir():  # not yet: coevo run & coevo dashboard
+        print(f"dashboard: no runs under {root}/ yet: each run coevo run starts there will be shown", flush=True)
+    return root
+
+
+def _newest_robot(root: Path) -> object:
+    """The robot of the run under ``root`` started last (its run.json written last), if there is one."""
+    from coevo.dashboard.robot import RobotPanel
+    from coevo.rundir.layout import RunPaths
+
+    runs = [RunPaths(d).run_json for d in root.iterdir() if RunPaths(d).run_json.is_file()] if root.is_dir() else []
+    return RobotPanel(max(runs, key=lambda p: p.stat().st_mtime).parent) if runs else None
 
 
 def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Path | None, run: str | None) -> object:
@@ -94,21 +164,12 @@ def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Pa
 
 
 def _on_bus(args: argparse.Namespace, target: Path | None, runs_dir: Path | None, title: str, ready: object,
-            robot: object) -> int:
-    from coevo.bus import keys
+            robot: object, gate: object) -> int:
     from coevo.bus.session import config_from_args, open_session, sigterm_as_exit
     from coevo.dashboard.model import BusSource, Dashboard
     from coevo.dashboard.server import serve
 
-    gate = None
-    if args.run:
-        keys.check_id("run id", args.run)
-    if args.key_file:
-        from coevo.bus.auth import RunKey
-        from coevo.bus.trust import Gate
-
-        gate = Gate(key=RunKey.load(Path(args.key_file), run=args.run))
-    elif args.run:
+    if args.run and gate is None:
         title += " (unverified: no --key-file)"
     conf = config_from_args(args)
     sigterm_as_exit()

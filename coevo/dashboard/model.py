@@ -30,7 +30,7 @@ from typing import Any
 
 from coevo.errors import RunDirError
 
-__all__ = ["Curve", "RunView", "View", "Tail", "RunFiles", "BusSource", "Dashboard", "classify_dir", "is_run", "STALE"]
+__all__ = ["Curve", "RunView", "View", "Tail", "RunFiles", "BusSource", "LocalRuns", "Dashboard", "classify_dir", "is_run", "STALE"]
 
 log = logging.getLogger(__name__)
 
@@ -359,6 +359,7 @@ class BusSource:
         self._lock = threading.Lock()
         self._decls: list[Any] = []
         self.started = time.time()
+        self.waiting = "no run seen on the bus yet (no worker token): is a run connected to this broker?"
         if run is not None:
             self._found.add(run)
         else:
@@ -402,7 +403,7 @@ class BusSource:
             problems.append(f"{board.rejected} messages on run {run}'s status keys rejected: "
                             + ("the --key-file is not this run's key, or they come from outside its roster"
                                if not board.open else "malformed or from a newer coevo"))
-        if broker["state"] != "up":
+        if broker["state"] in ("down", "degraded") and state != "done":  # a run that ended normally has no broker left: not a problem
             problems.append(f"no broker on the bus for run {run} (its token is gone)" if broker["state"] == "down"
                             else f"the broker's store cannot write: {broker['degraded']}")
         if self.only is not None and not workers and not robots and time.time() - self.started > 5:
@@ -421,6 +422,62 @@ class BusSource:
                 log.debug("undeclare: %s", exc)
 
 
+class LocalRuns:
+    """The runs under a directory, as :mod:`coevo.runs.discover` finds them (``coevo dashboard`` with no
+    ``--connect``): each live run followed on its own broker (a session and a :class:`BusSource`), let go when
+    its files say it ended.  Looked for again every ``every`` s, so a run started after the page is followed too;
+    the dashboard shows every run under the directory from its files (``Dashboard(runs_dir=ROOT, bus=this)``)."""
+
+    def __init__(self, root: Path, *, stall: float = 3.0, every: float = 1.0) -> None:
+        self.root, self.stall, self.every = Path(root), stall, every
+        self.started = time.time()
+        self.waiting = f"no run under {self.root} yet (no RUN/run.json): start one with coevo run --root {self.root}"
+        self._next = 0.0
+        self._followed: dict[str, tuple[Any, BusSource]] = {}  # run -> (its session's exit, its source)
+
+    def poll(self) -> list[RunView]:
+        if time.monotonic() >= self._next:
+            self._look()
+            self._next = time.monotonic() + self.every
+        return [v for _, source in self._followed.values() for v in source.poll()]
+
+    def _look(self) -> None:
+        from coevo.runs.discover import LIVE, find_runs
+
+        found = {f.run: f for f in find_runs(self.root, followed=frozenset(self._followed))}
+        for run in [r for r in self._followed if r not in found or found[r].state != LIVE]:
+            self._let_go(run)
+        for f in found.values():
+            if f.state == LIVE and f.run not in self._followed:
+                self._follow(f)
+
+    def _follow(self, found: Any) -> None:
+        from contextlib import ExitStack
+
+        from coevo.bus.session import open_session
+        from coevo.errors import CoevoError
+        from coevo.runs.discover import follow_settings
+
+        stack = ExitStack()
+        try:
+            conf, gate = follow_settings(found, connect_timeout=2.0)
+            session = stack.enter_context(open_session(conf, what=f"session to run {found.run}'s broker", gate=gate))
+        except CoevoError as exc:  # gone since it answered, or a key file it cannot read: shown from its files
+            log.info("run %s not followed on the bus: %s", found.run, exc)
+            stack.close()
+            return
+        self._followed[found.run] = (stack, BusSource(session, run=found.run, stall=self.stall))
+
+    def _let_go(self, run: str) -> None:
+        stack, source = self._followed.pop(run)
+        source.close()
+        stack.close()
+
+    def close(self) -> None:
+        for run in list(self._followed):
+            self._let_go(run)
+
+
 # ---------------------------------------------------------------- both
 def _merge(bus: RunView, files: RunView) -> RunView:
     """A run seen on the bus and in its directory: the bus's live states, the files' complete curves and settings."""
@@ -428,17 +485,18 @@ def _merge(bus: RunView, files: RunView) -> RunView:
     for wid, (b, c) in files.curves.items():
         if len(c) >= len(curves.get(wid, ("", Curve()))[1]):
             curves[wid] = (b, c)
+    state = files.state if files.state == "done" or bus.state == "stopped" else bus.state
     return RunView(run=bus.run, source="bus+files", task=files.task, regime=files.regime if files.regime != "?" else bus.regime,
-                   state=bus.state if bus.state != "stopped" else files.state, workers=bus.workers or files.workers,
+                   state=state, workers=bus.workers or files.workers,
                    robots=bus.robots, broker=bus.broker, curves=curves, external=files.external or bus.external,
-                   final=files.final, problems=bus.problems + files.problems)
+                   final=files.final, problems=(bus.problems if state != "done" else []) + files.problems)
 
 
 class Dashboard:
     """The page's data: the bus's runs, the runs under ``runs_dir`` or in ``target`` (a run, a comparison or a
     directory of runs), merged; :meth:`refresh` reads what is new and moves :attr:`version` when the page changes."""
 
-    def __init__(self, *, bus: BusSource | None = None, runs_dir: Path | None = None, target: Path | None = None,
+    def __init__(self, *, bus: BusSource | LocalRuns | None = None, runs_dir: Path | None = None, target: Path | None = None,
                  stale: float = STALE, title: str = "coevo dashboard", robot: Any = None) -> None:
         """``robot``: a :class:`~coevo.dashboard.robot.RobotPanel` drawing one run's robot, or None."""
         self.bus, self.stale, self.title, self.robot = bus, stale, title, robot
@@ -453,6 +511,8 @@ class Dashboard:
         self._lock = threading.Lock()
 
     def _run_dirs(self) -> list[Path]:
+        if isinstance(self.bus, LocalRuns):
+            return [d for d in _subdirs(self.bus.root) if is_run(d)]
         if self.kind == "run":
             return [self.target]
         if self.kind == "runs":
@@ -485,7 +545,7 @@ class Dashboard:
                     f = self._files_for(self.runs_dir / v.run).read()
                 runs[v.run] = _merge(v, f) if f is not None else v
             if not runs and time.time() - self.bus.started > 5:
-                problems.append("no run seen on the bus yet (no worker token): is a run connected to this broker?")
+                problems.append(self.bus.waiting)
         comparison = self._comparison.read() if self._comparison is not None else None
         robot = None
         if self.robot is not None:

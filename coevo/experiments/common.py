@@ -17,7 +17,21 @@ from typing import Any
 from coevo.errors import RunDirError
 from coevo.replicates.replicate import Replicate
 
-__all__ = ["held_spec", "prepare_out", "open_out", "run_with_progress"]
+__all__ = ["REPORT_SETTINGS", "below_report", "held_spec", "prepare_out", "open_out", "run_with_progress"]
+
+#: The settings the report's findings rest on (Appendix A): per agent and generation, and runs per regime.
+REPORT_SETTINGS = {"generations": 50, "population": 50, "episodes": 90, "runs a regime": 10}
+
+
+def below_report(settings: dict[str, int]) -> str:
+    """One line saying which ``settings`` (named as in :data:`REPORT_SETTINGS`) are below the report's and what that
+    means for a verdict, or '' when none is."""
+    low = [f"{k} {v} (the report's {REPORT_SETTINGS[k]})"
+           for k, v in settings.items() if v < REPORT_SETTINGS[k]]
+    if not low:
+        return ""
+    return ("These settings are below the report's: " + ", ".join(low) + ". This is a smoke test, not a "
+            "reproduction: a finding 'not reproduced' or a target 'MISSED' here says nothing about the report's.")
 
 
 def held_spec(out: Path, marker: str, mine: dict[str, Any], *, what: str = "experiment") -> dict[str, Any] | None:

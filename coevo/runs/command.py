@@ -11,7 +11,9 @@ import argparse
 import contextlib
 import sys
 import time
+from functools import partial
 from pathlib import Path
+from typing import Any
 
 from coevo.console import (
     add_max_lead,
@@ -24,7 +26,7 @@ from coevo.console import (
     world_settings,
 )
 from coevo.config import DEFAULT_MAX_LEAD, MODELS
-from coevo.errors import ConfigError
+from coevo.errors import ConfigError, RunDirError
 
 __all__ = ["configure_run", "configure_worker", "configure_chaos", "configure_status", "configure_keygen",
            "GA_FLAGS", "RUN_FLAGS", "refuse", "add_run_settings"]
@@ -73,18 +75,23 @@ def configure_run(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--open", action="store_true",
                    help="make no key: the run's messages are unauthenticated (local experiments only)")
+    p.add_argument("--listen", metavar="ENDPOINT",
+                   help="where the run's broker listens, e.g. tcp/0.0.0.0:7447 (default: a free loopback port); "
+                        "run.json records it, coevo status and coevo dashboard find it there")
     add_run_settings(p)
     p.set_defaults(func=cmd_run)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     from coevo.bus.status import StatusDisplay
-    from coevo.runs.local import LocalRun, default_run_id, run_local
+    from coevo.runs.discover import follow_hint
+    from coevo.runs.local import LocalRun, check_listen, default_run_id, run_local
     from coevo.rundir.settings import RunSettings
 
+    listen = check_listen(args.listen) if args.listen else None
     if args.resume:
         refuse(args, (*RUN_FLAGS, "run", "settings"), "--resume takes every setting from the run's run.json")
-        lr = LocalRun.resume(Path(args.resume), log_level=args.log_level)
+        lr = LocalRun.resume(Path(args.resume), log_level=args.log_level, listen=listen)
         if lr.settings.cel is not None:
             raise ConfigError(f"{args.resume} is a CEL run: continue it with coevo cel --resume {args.resume}")
     else:
@@ -101,8 +108,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         if settings.cel is not None:
             raise ConfigError(f"{args.settings} is a CEL run's settings: start it with coevo cel (its execution module "
                               "is not a worker)")
-        lr = LocalRun(settings, root=Path(args.root), log_level=args.log_level, open_run=args.open)
+        lr = LocalRun(settings, root=Path(args.root), log_level=args.log_level, open_run=args.open, listen=listen)
         lr.create()
+    print(f"run {lr.run}: its broker listens on {lr.endpoint}, its files are in {lr.dir}\n"
+          f"follow it with: {'  or  '.join(follow_hint(lr.run, lr.root))}", flush=True)
     title = f"run {lr.run} ({lr.settings.regime})" + (" OPEN: messages unauthenticated" if lr.open else "")
     with StatusDisplay(title, quiet=args.quiet) as display:
         summary = run_local(lr, resume=bool(args.resume), measure_epochs=args.measure_epochs, on_status=display.show)
@@ -167,10 +176,38 @@ def cmd_worker(args: argparse.Namespace) -> int:
                                     model=args.model or "best", max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
                                     world=world_settings(args, task), ga=ga_settings(args))
     kind = kind_of_settings(settings).worker()  # a CEL run's learner (coevo cel) plugs into the worker's seam
-    return run_worker(settings, kind=kind, behaviour=args.behaviour, seed=args.seed, worker_id=args.worker_id,
-                      out=Path(args.out) if args.out else (RunPaths(base).worker(args.behaviour).dir if base else None),
-                      conf=config_from_args(args), resume=args.resume,
-                      final_sync=args.final_sync, run_key=find_run_key(args.key_file, settings, base))
+    out = Path(args.out) if args.out else (RunPaths(base).worker(args.behaviour).dir if base else None)
+    conf = config_from_args(args)
+    run_key = find_run_key(args.key_file, settings, base)
+    if base is None:
+        _record_hand_run(settings, out, args)
+    return run_worker(settings, kind=kind, behaviour=args.behaviour, seed=args.seed, worker_id=args.worker_id, out=out,
+                      conf=conf, resume=args.resume, final_sync=args.final_sync, run_key=run_key)
+
+
+def _record_hand_run(settings: Any, out: Path | None, args: argparse.Namespace) -> None:
+    """A worker started by hand (no --settings) leaves the run.json coevo run would have written, when its directory
+    is a run's (``RUN/workers/BEHAVIOUR``, the default ``runs/RUN/workers/BEHAVIOUR``) and none is there yet: the
+    task, regime and GA settings for coevo show, check and the dashboard, and the broker's endpoint and the key's
+    path for coevo status.  The first worker of the run writes it; its ``seed`` is that worker's."""
+    import logging
+    import os
+
+    from coevo.bus.auth import KEY_ENV
+    from coevo.bus.flags import DEFAULT_ENDPOINT
+    from coevo.rundir.layout import RunPaths
+
+    run_dir = (out.parent.parent if out.parent.name == "workers" else None) if out else Path("runs") / settings.run
+    if run_dir is None or RunPaths(run_dir).run_json.exists():
+        return
+    endpoint = (args.connect or [None if args.config else DEFAULT_ENDPOINT])[0]
+    key_file = args.key_file or os.environ.get(KEY_ENV)
+    key = os.path.relpath(key_file, run_dir) if key_file else None
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        settings.model_copy(update={"endpoint": endpoint, "key_file": key}).save(RunPaths(run_dir).run_json)
+    except OSError as exc:  # the worker's own directory says what is wrong, if anything is
+        logging.getLogger(__name__).warning("cannot write %s: %s", RunPaths(run_dir).run_json, exc.strerror or exc)
 
 
 def configure_chaos(p: argparse.ArgumentParser) -> None:
@@ -231,14 +268,18 @@ def cmd_chaos(args: argparse.Namespace) -> int:
 
 def configure_status(p: argparse.ArgumentParser) -> None:
     """``coevo status``'s arguments."""
-    p.add_argument("--run", required=True)
+    p.add_argument("--run", help="the run to follow (default: the newest live run under --runs-dir)")
+    p.add_argument("--runs-dir", metavar="ROOT",
+                   help="without --connect: find the runs here, from their run.json (default runs/, coevo run's --root)")
     p.add_argument("--json", action="store_true", help="one JSON object per update")
     p.add_argument("--stall", type=positive_float_arg(maximum=86400), default=3.0,
                    help="seconds without a heartbeat before a live worker counts as stalled (default 3; workers beat every second)")
     p.add_argument("--every", type=positive_float_arg(maximum=3600), default=0.5,
                    help="refresh period in seconds (default 0.5; changes show at once)")
     p.add_argument("--duration", type=positive_float_arg(maximum=1e7), help="stop after this many seconds (default: until Ctrl-C)")
-    p.add_argument("--key-file", metavar="FILE", help="the run's key: show only authenticated heartbeats (default: unverified)")
+    p.add_argument("--key-file", metavar="FILE",
+                   help="the run's key: show only authenticated heartbeats (default: the key its run directory holds, "
+                        "else unverified)")
     from coevo.bus.flags import add_connection_args
 
     add_connection_args(p)
@@ -248,19 +289,74 @@ def configure_status(p: argparse.ArgumentParser) -> None:
 def cmd_status(args: argparse.Namespace) -> int:
     from coevo.bus import keys
     from coevo.bus.auth import RunKey
+    from coevo.bus.flags import connection_given
     from coevo.bus.session import config_from_args
     from coevo.bus.status import StatusDisplay, follow
     from coevo.bus.trust import Gate
 
-    keys.check_id("run id", args.run)
-    gate = None
-    if args.key_file:
-        gate = Gate(key=RunKey.load(Path(args.key_file), run=args.run))
-    title = f"run {args.run} at {{time}}" + ("" if gate else " (unverified: no --key-file)")
+    if args.run is not None:
+        keys.check_id("run id", args.run)
+    key_file = Path(args.key_file) if args.key_file else None
+    until = None
+    if connection_given(args):
+        if args.runs_dir:
+            raise ConfigError("--runs-dir finds runs and their brokers itself: drop it, or the connection flags")
+        if args.run is None:
+            raise ConfigError("connection flags (--connect ...) follow one run: give it with --run")
+        run, conf = args.run, config_from_args(args)
+        gate = None if key_file is None else Gate(key=RunKey.load(key_file, run=run))
+    else:
+        found = _status_of_local_runs(args)
+        if found is None:  # nothing to follow: said in a line each; a run asked for by name and unreachable fails
+            return 1 if args.run is not None and _gone(Path(args.runs_dir or "runs") / args.run) else 0
+        from coevo.runs.discover import ended, find_run, follow_settings
+
+        run, (conf, gate) = found.run, follow_settings(found, key_file=key_file)
+        until = partial(ended, found.dir)  # its files say it ended: nothing more to follow
+    title = f"run {run} at {{time}}" + ("" if gate else " (unverified: no --key-file)")
     with StatusDisplay(title, json_lines=args.json) as display:
-        follow(config_from_args(args), args.run, display.show, every=args.every, stall=args.stall, duration=args.duration,
-               gate=gate)
+        follow(conf, run, display.show, every=args.every, stall=args.stall, duration=args.duration, gate=gate,
+               until=until)
+    if until is not None and until():
+        _say(find_run(found.dir.parent, found.dir.name), args.json)  # how it ended, from its files
     return 0
+
+
+def _gone(run_dir: Path) -> bool:
+    from coevo.runs.discover import ended
+
+    return not ended(run_dir)
+
+
+def _say(found: Any, json_lines: bool) -> None:
+    import json
+
+    print(json.dumps(found.as_dict()) if json_lines else found.line(), flush=True)
+
+
+def _status_of_local_runs(args: argparse.Namespace) -> Any:
+    """``coevo status`` without --connect: the runs under --runs-dir said in one line each (or JSON), and the one to
+    follow (``--run``, else the newest live one), or None when none is live."""
+    from coevo.runs.discover import LIVE, find_run, find_runs
+
+    root = Path(args.runs_dir or "runs")
+    if args.run is not None:
+        one = find_run(root, args.run)
+        if one is None:
+            raise RunDirError(f"no run {args.run} under {str(root)!r} (no {root / args.run / 'run.json'}): give "
+                              "--runs-dir ROOT, or --connect ENDPOINT for a run elsewhere on the bus")
+        runs = [one]
+    else:
+        runs = find_runs(root)
+        if not runs:
+            raise RunDirError(f"no runs under {str(root)!r} (no {root}/*/run.json): start one with coevo run, or give "
+                              "--runs-dir ROOT, or --connect ENDPOINT --run RUN")
+    live = [f for f in runs if f.state == LIVE]
+    followed = live[-1] if live else None
+    for f in runs:
+        if f is not followed:
+            _say(f, args.json)
+    return followed
 
 
 def configure_keygen(p: argparse.ArgumentParser) -> None:

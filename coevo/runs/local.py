@@ -63,7 +63,8 @@ from coevo.errors import ConfigError, RunDirError, ServiceError
 from coevo.rundir.layout import RunPaths, read_cases, read_json, read_jsonl, read_store, write_csv, write_json
 from coevo.rundir.settings import RunSettings
 
-__all__ = ["MAX_RESTARTS", "STOP_EXITS", "default_run_id", "free_port", "wait_until", "end_processes", "LocalRun", "run_local", "fetch_latest"]
+__all__ = ["MAX_RESTARTS", "STOP_EXITS", "default_run_id", "free_port", "loopback_endpoint", "check_listen", "wait_until",
+           "end_processes", "LocalRun", "run_local", "fetch_latest"]
 
 log = logging.getLogger(__name__)
 
@@ -87,6 +88,29 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
+def loopback_endpoint() -> str:
+    """A free loopback port as a Zenoh endpoint: where a run's broker listens unless told."""
+    return f"tcp/127.0.0.1:{free_port()}"
+
+
+def check_listen(endpoint: str) -> str:
+    """``endpoint`` if a broker could listen there: a tcp/ or tls/ port that is free on this machine; else a
+    ConfigError naming it (the broker would fail to start, and the run with it)."""
+    from coevo.bus.session import check_endpoint
+
+    check_endpoint(endpoint, listen=True)
+    proto, _, address = endpoint.partition("/")
+    if proto in ("tcp", "tls"):
+        host, _, port = address.split("#")[0].rpartition(":")
+        with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as s:
+            try:
+                s.bind((host.strip("[]"), int(port)))
+            except OSError as exc:
+                raise ConfigError(f"--listen {endpoint}: cannot listen there ({exc.strerror or exc}); choose another "
+                                  "port, or leave --listen out for a free one") from None
+    return endpoint
+
+
 def wait_until(check: Callable[[], Any], timeout: float, what: str | Callable[[], str]) -> Any:
     """Poll ``check`` every 50 ms until it returns something true (returned), or fail after ``timeout`` s."""
     end = time.monotonic() + timeout
@@ -104,13 +128,14 @@ class LocalRun:
     COMMAND = "coevo run"  # what starts (and resumes) such a run
 
     def __init__(self, settings: RunSettings, *, root: Path, log_level: str = "WARNING",
-                 worker_env: dict[str, str] | None = None, open_run: bool = False) -> None:
-        """``open_run``: make no key (the run accepts unauthenticated messages; for local experiments only)."""
+                 worker_env: dict[str, str] | None = None, open_run: bool = False, listen: str | None = None) -> None:
+        """``open_run``: make no key (the run accepts unauthenticated messages; for local experiments only);
+        ``listen``: where the broker listens (default: a free loopback port)."""
         self.root = Path(root)
         self.paths = settings.paths(self.root)
         self.dir = self.paths.dir
         settings = settings.with_roster()
-        self.settings = settings.restarted(f"tcp/127.0.0.1:{free_port()}") if settings.endpoint is None else settings
+        self.settings = settings.restarted(listen or loopback_endpoint()) if settings.endpoint is None else settings
         self.open = open_run
         self.key: RunKey | None = None
         self.task = settings.the_task
@@ -133,8 +158,10 @@ class LocalRun:
         return str(self.settings.endpoint)  # never None: __init__ gives a run without one a free port
 
     @classmethod
-    def resume(cls, run_dir: Path, *, log_level: str = "WARNING", worker_env: dict[str, str] | None = None) -> LocalRun:
-        """The run in ``run_dir``, from its run.json, with a new broker endpoint (recorded in run.json)."""
+    def resume(cls, run_dir: Path, *, log_level: str = "WARNING", worker_env: dict[str, str] | None = None,
+               listen: str | None = None) -> LocalRun:
+        """The run in ``run_dir``, from its run.json, with a new broker endpoint (``listen``, default a free loopback
+        port; recorded in run.json)."""
         paths = RunPaths(Path(run_dir))
         if not paths.run_json.exists():
             raise RunDirError(f"{str(paths.dir)!r} holds no run.json: not a coevo run directory (nothing to resume)")
@@ -144,7 +171,7 @@ class LocalRun:
         key_path = settings.key_path(paths.dir)
         # A new incarnation: every message of the previous one (a captured stop, old policies) is stale to this one.
         settings = settings.model_copy(update={"incarnation": settings.incarnation + 1})
-        lr = cls(settings.restarted(f"tcp/127.0.0.1:{free_port()}"), root=paths.dir.parent, log_level=log_level,
+        lr = cls(settings.restarted(listen or loopback_endpoint()), root=paths.dir.parent, log_level=log_level,
                  worker_env=worker_env, open_run=key_path is None)
         if key_path is not None:
             try:

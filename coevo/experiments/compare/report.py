@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from coevo.errors import CoevoError, RuleSetError, RunDirError
+from coevo.experiments.common import below_report
 from coevo.experiments.compare import plots
 from coevo.experiments.compare.experiment import (
     OFFLINE,
@@ -293,6 +294,9 @@ def write_report(out: Path, spec: CompareSpec, *, elapsed: float | None = None) 
     offline = {g: [x for x in records if x["group"] == g] for g in groups(spec) if g not in live}
     rate_tests, paced_tests = _rate_tests(offline)
     verdict = _verdict(spec, records, tests) + _rates_verdict(rate_tests, paced_tests)
+    caveat = below_report({"generations": spec.ga.generations, "population": spec.ga.population,
+                           "episodes": spec.ga.episodes, "runs a regime": spec.runs})
+    verdict = f"{caveat}\n\n{verdict}" if caveat else verdict
     expected = len(replicates(spec))
 
     curves_by_group = {g: {x["run"]: x["curves"] for x in records if x["group"] == g} for g in groups(spec)}

@@ -43,7 +43,8 @@ def cmd_seeds(args: argparse.Namespace) -> int:
     from coevo.replicates.backends import ClusterLost
     from coevo.replicates.runner import run_replicates
 
-    extra = _fuel_settings(args) + list(args.learn_args or [])  # checked before anything is written
+    extra, ga = _fuel_settings(args)  # checked before anything is written
+    extra += list(args.learn_args or [])
     out = Path(args.out) if args.out else Path("runs") / f"seeds-{time.strftime('%Y%m%d-%H%M%S')}"
     from coevo.rundir.layout import ensure_dir
 
@@ -58,32 +59,39 @@ def cmd_seeds(args: argparse.Namespace) -> int:
     t0 = time.time()
     with ProgressBar("seeds", total=len(reps), unit="runs", quiet=args.quiet) as bar:
         try:
-            prog = run_replicates(reps, out, backend, on_progress=lambda p: bar.update(p.runs_done, p.runs_total, p.info))
+            prog = run_replicates(reps, out, backend, on_progress=lambda p: bar.update(
+                p.runs_done, p.runs_total, f"{len(p.failed)} failed" if p.failed else ""))  # the bar counts the runs
         except ClusterLost as exc:
             print(f"{exc}; finished runs are kept: continue with the same command and --resume --out {out}",
                   file=sys.stderr)
             return 3
     for name, why in prog.failed.items():
         print(f"  {name} failed: {why} (log: {out / 'logs' / (name + '.log')})", file=sys.stderr)
-    results = write_report(out, behaviours, seeds, elapsed=time.time() - t0)
+    from coevo.experiments.common import below_report
+
+    caveat = below_report({"generations": ga.generations, "population": ga.population, "episodes": ga.episodes})
+    results = write_report(out, behaviours, seeds, elapsed=time.time() - t0, caveat=caveat)
     print(f"report: {out / 'report.md'}")
     for v in results["verdicts"]:
         print(v["text"])
+    if caveat:
+        print(caveat)
     return 1 if prog.failed else 0
 
 
-def _fuel_settings(args: argparse.Namespace) -> list[str]:
-    """``--generations``, ``--world`` and ``--ga`` as ``coevo learn`` arguments, checked first (a bad one is a
-    ConfigError naming it, before anything runs)."""
+def _fuel_settings(args: argparse.Namespace) -> tuple[list[str], Any]:
+    """``--generations``, ``--world`` and ``--ga`` as ``coevo learn`` arguments, and the GA settings they make, checked
+    first (a bad one is a ConfigError naming it, before anything runs)."""
     from coevo.config import GAConfig, build
     from coevo.console import pairs
     from coevo.tasks import get_task
 
     world, ga = pairs(args.world, "world"), pairs(args.ga, "ga")
     build(get_task("fuel").world_settings, world)
-    get_task("fuel").check_ga(build(GAConfig, {**ga, **({} if args.generations is None else {"generations": args.generations})}))
+    config = build(GAConfig, {**ga, **({} if args.generations is None else {"generations": args.generations})})
+    get_task("fuel").check_ga(config)
     out = [] if args.generations is None else [f"--generations={args.generations}"]
-    return out + [f"--world={k}={v}" for k, v in world.items()] + [f"--ga={k}={v}" for k, v in ga.items()]
+    return out + [f"--world={k}={v}" for k, v in world.items()] + [f"--ga={k}={v}" for k, v in ga.items()], config
 
 
 def _door_spec(args: argparse.Namespace) -> dict[str, Any]:

@@ -61,8 +61,10 @@ def _rows(out: Path, behaviours: list[str], seeds: list[int]) -> list[dict[str, 
     return rows
 
 
-def write_report(out: Path, behaviours: list[str], seeds: list[int], *, elapsed: float | None) -> dict[str, Any]:
-    """report.md, summary.json, seeds.csv and seeds.png from the finished runs in ``out``; returns the verdicts."""
+def write_report(out: Path, behaviours: list[str], seeds: list[int], *, elapsed: float | None,
+                 caveat: str = "") -> dict[str, Any]:
+    """report.md, summary.json, seeds.csv and seeds.png from the finished runs in ``out``; returns the verdicts.
+    ``caveat``: a line under the verdicts (settings below the report's, :func:`coevo.experiments.common.below_report`)."""
     rows = _rows(out, behaviours, seeds)
     verdicts = []
     for b in behaviours:
@@ -80,7 +82,8 @@ def write_report(out: Path, behaviours: list[str], seeds: list[int], *, elapsed:
                                  f"{'met' if met else 'MISSED'}); median time "
                                  f"{statistics.median(r['seconds'] for r in rs):.0f} s, slowest {slowest:.0f} s "
                                  f"(target < 60 s on one core: {'met' if slowest < 60 else 'MISSED'})"})
-    results = {"behaviours": behaviours, "seeds": seeds, "runs": rows, "verdicts": verdicts, "seconds": elapsed,
+    results = {"behaviours": behaviours, "seeds": seeds, "runs": rows, "verdicts": verdicts, "caveat": caveat or None,
+               "seconds": elapsed,
                "runs_expected": len(behaviours) * len(seeds), "runs_finished": len(rows)}
     (out / "summary.json").write_text(json.dumps(results, indent=2))
     cols = ["behaviour", "seed", "seconds", "best_fitness", "quality_tracking", "docking_from_random_starts"]
@@ -91,14 +94,20 @@ def write_report(out: Path, behaviours: list[str], seeds: list[int], *, elapsed:
     _plot(out / "seeds.png", rows, behaviours)
     lines = ["# Learning targets over seeds", "",
              f"{len(rows)} of {results['runs_expected']} runs finished" + (f" in {elapsed:.0f} s" if elapsed else "") + ".",
-             "", "## Verdicts", "", *[f"- {v['text']}" for v in verdicts], "", "![seeds.png](seeds.png)", "",
+             "", "## Verdicts", "", *[f"- {v['text']}" for v in verdicts], *([f"\n{caveat}"] if caveat else []), "",
+             "![seeds.png](seeds.png)", "",
              "## Runs", "", "| behaviour | seed | seconds | best fitness | Quality Tracking % | docking from random starts % |",
              "|---|---|---|---|---|---|"]
-    for r in rows:
+    for r in rows:  # a measure a behaviour's run does not take (Tracking's docking from random starts) is "–"
         lines.append(f"| {r['behaviour']} | {r['seed']} | {r['seconds']:.0f} | {r['best_fitness']:.3f} "
-                     f"| {r['quality_tracking']:.1f} | {r.get('docking_from_random_starts', float('nan')):.1f} |")
+                     f"| {_cell(r.get('quality_tracking'))} | {_cell(r.get('docking_from_random_starts'))} |")
     (out / "report.md").write_text("\n".join(lines) + "\n")
     return results
+
+
+def _cell(value: Any) -> str:
+    """A percentage to one decimal, or "–" when there is none (absent, or NaN)."""
+    return "–" if not isinstance(value, (int, float)) or value != value else f"{value:.1f}"
 
 
 def _plot(path: Path, rows: list[dict[str, Any]], behaviours: list[str]) -> None:
