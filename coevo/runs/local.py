@@ -60,7 +60,8 @@ from coevo.bus.session import fetch_latest, make_config, open_session, put_contr
 from coevo.bus.status import StatusBoard
 from coevo.bus.trust import Gate
 from coevo.errors import ConfigError, RunDirError, ServiceError
-from coevo.rundir.layout import RunPaths, read_cases, read_json, read_jsonl, read_store, write_csv, write_json
+from coevo.rundir.layout import (RunPaths, cut_back, read_cases, read_json, read_jsonl, read_store, write_csv,
+                                 write_json)
 from coevo.rundir.settings import RunSettings
 
 __all__ = ["MAX_RESTARTS", "STOP_EXITS", "default_run_id", "free_port", "loopback_endpoint", "check_listen", "wait_until",
@@ -268,27 +269,26 @@ class LocalRun:
 
     def verify(self) -> None:
         """Read every worker's checkpoint and every store file of the run as the worker and the broker will, before
-        a resume starts or writes anything: a RunDirError names the first that is damaged, foreign or missing.  A
-        store file's torn last line (a crash mid-write, cut by the broker) is not damage."""
+        a resume starts anything.  A damaged, foreign or missing checkpoint or case file is a RunDirError naming it,
+        and nothing is changed.  A damaged policy store file is a replica of what the workers published (their
+        ``published.jsonl``): it is set aside whole (``NAME.cut-N``, said in one line) and the workers publish its
+        versions again.  A store file's torn last line (a crash mid-write, cut by the broker) is not damage."""
         for b in self.task.behaviours:
             try:
                 resume_state(self.paths.worker(b), self.settings.worker_ident(b))
             except RunDirError as exc:
                 raise RunDirError(f"cannot resume {self.dir}: {exc}") from None
+        damaged_stores = []
         for f, reader in [*((f, read_store) for f in self.paths.store_files()),
                           *((f, read_cases) for f in self.paths.case_files())]:
-            problems: list[str] = []
-            try:
-                data = f.read_bytes()
-                reader(f, problems=problems)
-            except (OSError, UnicodeDecodeError) as exc:
-                problems.append(f"{f} cannot be read ({exc})")
-            else:
-                if not data.endswith(b"\n") and data[data.rfind(b"\n") + 1:].startswith(b"{"):
-                    last = data.count(b"\n") + 1
-                    problems = [p for p in problems if not p.startswith(f"{f} line {last} ")]
-            if problems:
+            problems = _damage(f, reader)
+            if problems and reader is read_store:
+                damaged_stores.append((f, problems[0]))
+            elif problems:
                 raise RunDirError(f"cannot resume {self.dir}: {problems[0]}; nothing was started or changed")
+        for f, why in damaged_stores:
+            kept = cut_back(f, 0)
+            log.warning("%s; kept as %s, its versions are published again from the workers' published.jsonl", why, kept)
 
     def worker_dir(self, b: str) -> Path:
         return self.paths.worker(b).dir
@@ -444,6 +444,21 @@ def _sigint_ignored() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+def _damage(f: Path, reader: Callable[..., Any]) -> list[str]:
+    """What is wrong with store or case file ``f`` read by ``reader``, one line a problem; a torn last line that
+    starts as a record is not (the broker cuts it)."""
+    problems: list[str] = []
+    try:
+        data = f.read_bytes()
+        reader(f, problems=problems)
+    except (OSError, UnicodeDecodeError) as exc:
+        return [f"{f} cannot be read ({exc})"]
+    if not data.endswith(b"\n") and data[data.rfind(b"\n") + 1:].startswith(b"{"):
+        last = data.count(b"\n") + 1
+        problems = [p for p in problems if not p.startswith(f"{f} line {last} ")]
+    return problems
 
 
 def last_words(log_file: Path) -> str:
