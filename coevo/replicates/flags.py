@@ -9,12 +9,14 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from coevo.config import Bounded
+
 __all__ = ["add_backend_flags", "check_backend_flags", "backend_of"]
 
 
 def add_backend_flags(p: argparse.ArgumentParser, *, jobs_help: str) -> None:
     g = p.add_argument_group("where the runs go (docs/cluster.md)")
-    g.add_argument("--jobs", type=_count, help=jobs_help)
+    g.add_argument("--jobs", type=Bounded(1, 1024), help=jobs_help)
     g.add_argument("--cluster", metavar="WHERE",
                    help="run the replicates on Dask: local[:N] (N worker processes here, 1 thread each), "
                         "slurm[:N] or pbs[:N] (N batch jobs, see --cluster-config), or a scheduler's address "
@@ -24,16 +26,6 @@ def add_backend_flags(p: argparse.ArgumentParser, *, jobs_help: str) -> None:
     g.add_argument("--shared-dir", type=Path, metavar="DIR",
                    help="with --cluster: the workers see --out at DIR (a shared filesystem); runs are written "
                         "there in place instead of coming back as archives")
-
-
-def _count(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"invalid number {text!r}: give a whole number") from None
-    if not 1 <= v <= 1024:
-        raise argparse.ArgumentTypeError(f"invalid number {v}: give one from 1 to 1024")
-    return v
 
 
 def check_backend_flags(args: argparse.Namespace) -> None:
