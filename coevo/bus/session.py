@@ -88,7 +88,11 @@ class Security:
         if self.user is not None and (not self.user or ":" in self.user):
             raise ConfigError(f"--user {self.user!r}: must be non-empty and contain no ':'")
         if self.auth_file is not None:
-            lines = [x for x in Path(self.auth_file).read_text(encoding="utf-8").splitlines() if x.strip()]
+            try:
+                lines = [x for x in Path(self.auth_file).read_text(encoding="utf-8").splitlines() if x.strip()]
+            except UnicodeDecodeError as exc:
+                raise ConfigError(f"--auth-file {self.auth_file!r} is not text (byte {exc.start} is not UTF-8): every "
+                                  "line must be user:password") from None
             bad = [n for n, x in enumerate(lines, 1) if ":" not in x or not x.split(":", 1)[0] or not x.split(":", 1)[1]]
             if not lines or bad:
                 raise ConfigError(f"--auth-file {self.auth_file!r}: every line must be user:password "

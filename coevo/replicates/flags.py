@@ -36,6 +36,9 @@ def check_backend_flags(args: argparse.Namespace) -> None:
 
     if args.cluster is not None:
         parse_cluster(args.cluster)
+        if args.shared_dir is not None and args.shared_dir.exists() and not args.shared_dir.is_dir():
+            raise ConfigError(f"--shared-dir {str(args.shared_dir)!r} is not a directory: give the folder where the "
+                              "workers see --out")
     elif args.shared_dir is not None or args.cluster_config is not None:
         raise ConfigError("--shared-dir and --cluster-config go with --cluster")
 

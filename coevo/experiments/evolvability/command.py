@@ -14,7 +14,7 @@ from typing import Any
 
 from coevo.console import ProgressBar, count_arg, positive_float_arg, seed_arg
 from coevo.errors import ConfigError
-from coevo.replicates.flags import add_backend_flags, backend_of
+from coevo.replicates.flags import add_backend_flags, backend_of, check_backend_flags
 
 __all__ = ["configure_evolvability", "cmd_evolvability"]
 
@@ -36,6 +36,7 @@ def cmd_evolvability(args: argparse.Namespace) -> int:
                          landscapes=args.landscapes, runs=args.runs, generations=args.generations,
                          population=args.population, seed=args.seed)
     out = Path(args.out) if args.out else Path("runs") / f"evolvability-{time.strftime('%Y%m%d-%H%M%S')}"
+    check_backend_flags(args)
     _prepare(out, spec, resume=args.resume)  # before the grid runs, not after
     backend = backend_of(args, default_jobs=1)
     print(f"evolvability grid: {spec.total_runs} runs of {spec.generations} generations; output in {out}; "
