@@ -367,6 +367,16 @@ def test_every_flag_that_takes_a_number_has_a_stated_bound() -> None:
     assert BOUNDED and not unbounded, unbounded
 
 
+def test_docs_commands_md_lists_every_bound_as_the_parsers_have_it() -> None:
+    rows: dict[tuple[str, str], list[str]] = {}
+    for c, a in BOUNDED:
+        rows.setdefault((a.option_strings[0], a.type.describe()), []).append(c)
+    doc = (Path(__file__).parent.parent / "docs" / "commands.md").read_text()
+    table = {line for line in doc.splitlines() if line.startswith("| `--")}
+    mine = {f"| `{flag}` | {', '.join(cmds)} | {bound} |" for (flag, bound), cmds in rows.items()}
+    assert table == mine, f"in the docs only: {sorted(table - mine)}; in the parsers only: {sorted(mine - table)}"
+
+
 def _outside(b: Bounded) -> st.SearchStrategy[str]:
     """Text that ``b`` must refuse: beyond either end, huge, not finite, not a number (or not whole)."""
     below = (st.floats(max_value=b.lo, exclude_max=True, allow_nan=False) if not b.whole
