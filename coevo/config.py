@@ -46,7 +46,6 @@ def parse_max_lead(value: str | int | None) -> int | None:
     return lead
 
 
-
 @dataclass(frozen=True)
 class Bounded:
     """An argument type: a number from ``lo`` to ``hi`` (above ``lo`` with ``above``; whole with ``whole``), or one

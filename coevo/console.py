@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from dataclasses import dataclass
 from types import TracebackType
@@ -69,12 +68,12 @@ class ProgressBar:
             self._bar = None
 
 
-def count_arg(minimum: int = 1, maximum: int = 10**9) -> Bounded:
-    """An argument type: a whole number in [minimum, maximum]."""
+def count_arg(minimum: int, maximum: int) -> Bounded:
+    """An argument type: a whole number in [minimum, maximum] (the bound is always stated)."""
     return Bounded(minimum, maximum)
 
 
-def positive_float_arg(*, allow_zero: bool = False, maximum: float = 1e9) -> Bounded:
+def positive_float_arg(*, maximum: float, allow_zero: bool = False) -> Bounded:
     """An argument type: a finite number above 0 (or at least 0), at most ``maximum``."""
     return Bounded(0, maximum, whole=False, above=not allow_zero)
 

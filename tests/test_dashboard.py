@@ -455,6 +455,7 @@ def test_200_page_loads_at_once_leave_it_answering_and_its_memory_bounded(tmp_pa
     """The issue's burst: each load beyond the bound is answered 503 at once instead of building a page (0.3-0.5 s
     of CPU each); afterwards a new page comes within 5 s and memory stays under twice idle (the measured figures
     are in docs/faults.md)."""
+    from collections import Counter
     from concurrent.futures import ThreadPoolExecutor
 
     from procs import coevo_proc, poll, stop
@@ -475,8 +476,7 @@ def test_200_page_loads_at_once_leave_it_answering_and_its_memory_bounded(tmp_pa
         with ThreadPoolExecutor(200) as pool:
             codes = list(pool.map(lambda _: _get(url + "/"), range(200)))
         burst = time.monotonic() - t0
-        assert set(codes) <= {200, 503} and codes.count(200) >= 1, codes
-        assert burst < 60, burst
+        assert set(codes) <= {200, 503} and codes.count(200) >= 1 and burst < 60, (burst, Counter(codes))
         t1 = time.monotonic()
         poll(lambda: _get(url + "/", timeout=5) == 200, 5, "a new page after the burst")
         after = time.monotonic() - t1

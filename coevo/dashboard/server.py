@@ -106,11 +106,13 @@ class _Page:
             self._source("", "external").data = ext
 
 
-def make_document(dash: Dashboard, problems: list[str]) -> Any:
-    """The Bokeh application handler: a page per browser session over the shared ``dash``."""
+def make_document(dash: Dashboard, problems: list[str], built: Any = None) -> Any:
+    """The Bokeh application handler: a page per browser session over the shared ``dash``; ``built()`` after each."""
 
     def make(doc: Any) -> None:
         _Page(doc, dash, problems)
+        if built is not None:
+            built()
 
     return make
 
@@ -118,17 +120,19 @@ def make_document(dash: Dashboard, problems: list[str]) -> Any:
 #: Pages open at once (Bokeh sessions); a page beyond them is answered 503 at once.  A dashboard is watched by a
 #: few people; each page holds its own plots (~1 MB).
 MAX_PAGES = 32
-#: New pages: a burst of this many, then PAGES_PER_S a second.  Building a page's document costs 0.3-0.5 s of
-#: CPU (measured: six Bokeh figures made and serialised; the data behind them is the process's one ``Dashboard``),
-#: so 200 page loads at once kept the process busy for minutes; beyond the rate a load is answered 503 at once.
-PAGE_BURST, PAGES_PER_S = 4, 1.0
+#: New pages: a burst of this many, then PAGES_PER_S a second of time not spent building pages.  Building a page's
+#: document costs 0.3-0.5 s of CPU (measured: six Bokeh figures made and serialised; the data behind them is the
+#: process's one ``Dashboard``), so 200 page loads at once kept the process busy for minutes; beyond the rate a
+#: load is answered 503 at once.
+PAGE_BURST, PAGES_PER_S = 4, 0.5
 #: A page whose browser is gone (or never connected its websocket) is dropped this long after; checked every second.
 UNUSED_MS = 5_000
 
 
 class _Admission:
     """Bokeh's ``process_request`` hook, called for every new page before its session is made: a token bucket of
-    new pages and a bound on open ones."""
+    new pages and a bound on open ones.  The bucket does not fill while a page is built (:meth:`built`), so on a
+    machine so busy that a page takes seconds, pages still take at most a share of the time."""
 
     def __init__(self, sessions: Any) -> None:
         self.sessions = sessions  # () -> the open sessions
@@ -145,6 +149,9 @@ class _Admission:
             raise HTTPError(503, reason=f"more than {PAGES_PER_S:g} new pages a second: try again")
         self.tokens -= 1
         return {}
+
+    def built(self) -> None:
+        self.at = max(self.at, time.monotonic())
 
 
 def _static_handler() -> Any:
@@ -173,11 +180,11 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5, on_ready
     from bokeh.core.validation.warnings import EMPTY_LAYOUT
     from bokeh.server.server import BaseServer
     from bokeh.server.tornado import BokehTornado
-    from bokeh.server.util import bind_sockets
     from bokeh.settings import settings
     from bokeh.util.token import generate_secret_key
     from tornado.httpserver import HTTPServer
     from tornado.ioloop import IOLoop
+    from tornado.netutil import bind_sockets
 
     from coevo.errors import ConfigError
 
@@ -192,11 +199,15 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5, on_ready
     dash.refresh()
     poller = threading.Thread(target=follow, args=(dash, every, stop, on_error), name="dashboard-refresh", daemon=True)
     try:
-        sockets, port = bind_sockets(host, port)
+        # a burst of page loads waits in a long queue (each answered at once) instead of its connections being
+        # dropped and retried by the clients seconds later
+        sockets = bind_sockets(port, address=host, backlog=1024)
+        port = sockets[0].getsockname()[1]
     except OSError as exc:
         raise ConfigError(f"cannot serve on {host}:{port}: {exc.strerror or exc} (choose another --port or --host)") from None
     origins = [f"{host}:{port}"] + ([f"localhost:{port}", f"127.0.0.1:{port}"] if host in ("127.0.0.1", "localhost") else [])
-    app = Application(FunctionHandler(make_document(dash, problems)))
+    admission = _Admission(lambda: server.get_sessions())
+    app = Application(FunctionHandler(make_document(dash, problems, admission.built)))
     tornado_app = BokehTornado({"/": app}, extra_websocket_origins=origins, sign_sessions=True,
                                secret_key=generate_secret_key().encode(), session_token_expiration=60,
                                check_unused_sessions_milliseconds=1000, unused_session_lifetime_milliseconds=UNUSED_MS)
@@ -204,7 +215,7 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5, on_ready
     http = HTTPServer(tornado_app)
     http.add_sockets(sockets)
     server = BaseServer(IOLoop.current(), tornado_app, http)
-    app.process_request = _Admission(server.get_sessions)  # type: ignore[method-assign]
+    app.process_request = admission  # type: ignore[method-assign]
     poller.start()
     server.start()
     if on_ready:

@@ -13,7 +13,6 @@ import time
 from pathlib import Path
 
 from coevo.console import ProgressBar, count_arg, seed_arg
-from coevo.errors import ConfigError
 
 __all__ = ["add_arguments", "configure_earl", "main"]
 
