@@ -64,6 +64,15 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         self.exit(EXIT_ERROR, f"ConfigError: {self.prog}: {message} (see {self.prog} --help)\n")
 
+    def _get_value(self, action: argparse.Action, arg_string: str) -> object:
+        """One rule for every flag and argument of every command (the subcommands' parsers are this class too): an
+        empty or blank value is refused, never read as "the default" (``--resume ''``) or as a name (``--out ' '``)."""
+        blank = isinstance(arg_string, str) and not arg_string.strip()
+        if blank and not isinstance(action, argparse._SubParsersAction):  # a command's values: its own parser's
+            name = "/".join(action.option_strings) or action.metavar or action.dest
+            self.error(f"{name} {arg_string!r} is {'empty' if not arg_string else 'blank'}: give a value")
+        return super()._get_value(action, arg_string)  # type: ignore[misc]
+
 
 def configure(name: str, p: argparse.ArgumentParser) -> None:
     """Give ``p`` command ``name``'s arguments, from the module that declares it."""

@@ -10,14 +10,18 @@ frozen pydantic models: invalid values fail at construction with a
 
 from __future__ import annotations
 
+import argparse
+import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any, ClassVar, Literal, TypeVar
 
+from annotated_types import Ge, Gt, Le
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from coevo.errors import ConfigError
 
-__all__ = ["MAX_MAGNITUDE", "Settings", "GAConfig", "build", "MODELS", "DEFAULT_MAX_LEAD", "parse_max_lead", "SAVED_GA_BEFORE",
+__all__ = ["Bounded", "MAX_MAGNITUDE", "Settings", "GAConfig", "build", "MODELS", "DEFAULT_MAX_LEAD", "parse_max_lead", "SAVED_GA_BEFORE",
            "saved_ga"]
 
 _M = TypeVar("_M", bound=BaseModel)
@@ -41,6 +45,52 @@ def parse_max_lead(value: str | int | None) -> int | None:
         raise ConfigError(f"max lead must be 0 or more generations (or 'off'), got {lead}")
     return lead
 
+
+@dataclass(frozen=True)
+class Bounded:
+    """An argument type: a number from ``lo`` to ``hi`` (above ``lo`` with ``above``; whole with ``whole``), or one
+    of ``words`` (text -> value, e.g. ``off``).  Every count, size, time and rate flag of every command is one of
+    these, so each flag's bound is stated in one place, checked before anything is allocated or written, and named
+    in the one-line error (argparse adds the flag's name).  The tests and docs/commands.md read ``lo`` and ``hi``."""
+
+    lo: float
+    hi: float
+    whole: bool = True
+    above: bool = False
+    words: tuple[tuple[str, Any], ...] = ()
+    what: str = "number"
+
+    def __call__(self, text: str) -> Any:
+        for word, value in self.words:
+            if text.strip().lower() == word:
+                return value
+        shown = text if len(text) <= 40 else text[:40] + "..."
+        try:
+            v = int(text) if self.whole else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"invalid {self.what} {shown!r}: give {self.describe()}") from None
+        if not (math.isfinite(v) and (self.lo < v if self.above else self.lo <= v) and v <= self.hi):
+            raise argparse.ArgumentTypeError(f"invalid {self.what} {shown}: give {self.describe()}")
+        return v
+
+    def describe(self) -> str:
+        """The bound in words: ``a whole number from 1 to 1000``."""
+        def num(x: float) -> str:
+            return str(int(x)) if self.whole or float(x).is_integer() else f"{x:g}"
+
+        span = f"above {num(self.lo)}, at most {num(self.hi)}" if self.above else f"from {num(self.lo)} to {num(self.hi)}"
+        return ("a whole number " if self.whole else "a number ") + span + "".join(f", or {w}" for w, _ in self.words)
+
+    @staticmethod
+    def setting(model: type, name: str) -> Bounded:
+        """The bound a settings model (pydantic, e.g. ``GAConfig``) gives its field ``name``: a flag that sets that
+        field is refused at parse time by the model's own bound, kept only there."""
+        field = model.model_fields[name]  # type: ignore[attr-defined]
+        lo = next((m.ge for m in field.metadata if isinstance(m, Ge)), None)
+        gt = next((m.gt for m in field.metadata if isinstance(m, Gt)), None)
+        hi = next(m.le for m in field.metadata if isinstance(m, Le))
+        whole = field.annotation in (int, "int")
+        return Bounded(gt if lo is None else lo, hi, whole=whole, above=lo is None)
 
 
 #: The largest magnitude a number of any settings model may have: no world is a billion inches wide, no GA

@@ -9,18 +9,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from dataclasses import dataclass
 from types import TracebackType
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-if TYPE_CHECKING:
-    from coevo.config import GAConfig
-
+from coevo.config import Bounded, GAConfig
 from coevo.errors import ConfigError
 
-__all__ = ["Lead", "max_lead_of", "ProgressBar", "seed_arg", "count_arg", "positive_float_arg", "pairs", "ga_settings", "world_settings",
+__all__ = ["Bounded", "Lead", "max_lead_of", "ProgressBar", "seed_arg", "count_arg", "positive_float_arg", "pairs", "ga_settings", "world_settings",
            "add_settings", "add_max_lead", "max_lead_arg"]
 
 
@@ -71,47 +68,18 @@ class ProgressBar:
             self._bar = None
 
 
-def seed_arg(text: str) -> int:
-    """A seed: a whole number from 0 to 2**63 - 1 (numpy's generators refuse negative seeds)."""
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"invalid seed {text!r}: give a whole number >= 0") from None
-    if not 0 <= v < 2**63:
-        raise argparse.ArgumentTypeError(f"invalid seed {v}: give a whole number from 0 to 2**63 - 1")
-    return v
+def count_arg(minimum: int, maximum: int) -> Bounded:
+    """An argument type: a whole number in [minimum, maximum] (the bound is always stated)."""
+    return Bounded(minimum, maximum)
 
 
-def count_arg(minimum: int = 1, maximum: int = 10**9) -> Any:
-    """An argument type: a whole number in [minimum, maximum]."""
-
-    def parse(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"invalid number {text!r}: give a whole number") from None
-        if not minimum <= v <= maximum:
-            raise argparse.ArgumentTypeError(f"invalid number {v}: give one from {minimum} to {maximum}")
-        return v
-
-    return parse
-
-
-def positive_float_arg(*, allow_zero: bool = False, maximum: float = math.inf) -> Any:
+def positive_float_arg(*, maximum: float, allow_zero: bool = False) -> Bounded:
     """An argument type: a finite number above 0 (or at least 0), at most ``maximum``."""
+    return Bounded(0, maximum, whole=False, above=not allow_zero)
 
-    def parse(text: str) -> float:
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"invalid number {text!r}") from None
-        if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero) or v > maximum:
-            bound = "0 or more" if allow_zero else "above 0"
-            raise argparse.ArgumentTypeError(f"invalid number {text}: give a finite number {bound}"
-                                             + (f", at most {maximum:g}" if math.isfinite(maximum) else ""))
-        return v
 
-    return parse
+#: A seed: a whole number from 0 to 2**63 - 1 (numpy's generators refuse negative seeds).
+seed_arg = Bounded(0, 2**63 - 1, what="seed")
 
 
 # ---------------------------------------------------------------- run settings from flags
@@ -130,7 +98,7 @@ def pairs(values: list[str] | None, flag: str) -> dict[str, Any]:
 
 
 def ga_settings(args: argparse.Namespace) -> GAConfig:
-    from coevo.config import GAConfig, build
+    from coevo.config import build
 
     over = pairs(args.ga, "ga")
     for name in ("generations", "population", "episodes"):
@@ -158,10 +126,11 @@ def add_settings(p: argparse.ArgumentParser, *, generations: int = 50, initial: 
     """The GA and world settings flags, declared once for every command that takes them: ``generations`` is the
     command's own default (shown in its help); ``initial`` is what ``--initial`` means there (None: not offered,
     the command's task decides)."""
-    # Plain whole numbers: GAConfig checks their ranges (one place) and names the bad value.
-    p.add_argument("--generations", type=int, help=f"generations (default {generations})")
-    p.add_argument("--population", type=int, help="population size (default 50)")
-    p.add_argument("--episodes", type=int, help="evaluation episodes per individual (default 90)")
+    # Bounded by GAConfig's own ranges (one place), refused at parse time.
+    p.add_argument("--generations", type=Bounded.setting(GAConfig, "generations"), help=f"generations (default {generations})")
+    p.add_argument("--population", type=Bounded.setting(GAConfig, "population"), help="population size (default 50)")
+    p.add_argument("--episodes", type=Bounded.setting(GAConfig, "episodes"),
+                   help="evaluation episodes per individual (default 90)")
     p.add_argument("--world", action="append", metavar="NAME=VALUE", help="world setting, e.g. target_speed=3 (repeatable)")
     p.add_argument("--ga", action="append", metavar="NAME=VALUE", help="GA setting, e.g. mutation_rate=0.05 (repeatable)")
     if initial is not None:
@@ -179,13 +148,15 @@ class Lead:
     value: int | None
 
 
-def max_lead_arg(text: str) -> Lead:
-    from coevo.config import parse_max_lead
+@dataclass(frozen=True)
+class _LeadArg(Bounded):
+    def __call__(self, text: str) -> Lead:
+        v = super().__call__(text)
+        return v if isinstance(v, Lead) else Lead(v)
 
-    try:
-        return Lead(parse_max_lead(text))
-    except ConfigError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+
+#: ``--max-lead N|off``: a lead beyond the most generations a GA runs (100,000) would mean nothing.
+max_lead_arg = _LeadArg(0, 100_000, words=(("off", Lead(None)), ("none", Lead(None))), what="max lead")
 
 
 def max_lead_of(given: Lead | None, default: int | None) -> int | None:

@@ -22,12 +22,16 @@ import io
 import itertools
 import re
 import signal
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from coevo.cli import build_parser, main
+from coevo.config import Bounded
 from coevo.errors import CoevoError
 from coevo.rundir.settings import RunSettings
 
@@ -310,3 +314,170 @@ def test_an_endpoint_that_cannot_exist_and_an_empty_path_are_one_line_and_status
     assert escaped is None and code == 2, (code, stderr, escaped)
     assert len(lines) == 1 and lines[0].startswith("ConfigError: ") and needle in lines[0], stderr
     assert not list(tmp_path.iterdir())  # nothing written (no store in the current folder, no runs/)
+
+
+# ---------------------------------------------------------------- bounds and blanks, property-based
+# Every flag of every command, read from the parsers, so a new flag is covered without touching this file.  Most
+# values are checked in this process through the parser alone (milliseconds each); a sample runs the real entry
+# point as a process (marked service).
+
+def _subparsers() -> dict[str, argparse.ArgumentParser]:
+    parser = build_parser()
+    return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+
+
+SUBPARSERS = _subparsers()
+#: (command, action) for every flag or argument that takes a value.
+VALUED = [(c, a) for c, sub in sorted(SUBPARSERS.items()) for a in _flags(sub)]
+BOUNDED = [(c, a) for c, a in VALUED if isinstance(a.type, Bounded)]
+
+
+def _argv(command: str, action: argparse.Action, value: str) -> list[str]:
+    """``--flag=VALUE`` (so that a value like ``-1e16`` is read as a value, as a user would write it)."""
+    if not action.option_strings:
+        return [command, value]
+    if isinstance(action.nargs, int):
+        return [command, action.option_strings[0], *[value] * action.nargs]
+    return [command, f"{action.option_strings[0]}={value}"]
+
+
+def _parse(argv: list[str]) -> tuple[int | None, str]:
+    """``coevo ARGV`` through the parser only (no command runs): (exit status, or None if it parsed; stderr)."""
+    err = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(err):
+            build_parser(only=argv[0]).parse_args(argv)
+    except SystemExit as exc:
+        return (exc.code if isinstance(exc.code, int) else 2), err.getvalue()
+    return None, err.getvalue()
+
+
+def _one_line(code: int | None, stderr: str) -> list[str]:
+    lines = [x for x in stderr.splitlines() if x.strip()]
+    assert code == 2 and len(lines) == 1 and lines[0].startswith("ConfigError: ") and "Traceback" not in stderr, \
+        (code, stderr)
+    return lines
+
+
+def test_every_flag_that_takes_a_number_has_a_stated_bound() -> None:
+    """A count, size, time or rate flag is a :class:`Bounded` (its bound in one place, named when refused): a flag
+    whose type turns "1" into a number and is not one is a flag somebody forgot to bound."""
+    unbounded = [f"{c} {a.option_strings or a.dest}" for c, a in VALUED
+                 if _numeric(a) and not isinstance(a.type, Bounded)]
+    assert BOUNDED and not unbounded, unbounded
+
+
+def test_docs_commands_md_lists_every_bound_as_the_parsers_have_it() -> None:
+    rows: dict[tuple[str, str], list[str]] = {}
+    for c, a in BOUNDED:
+        rows.setdefault((a.option_strings[0], a.type.describe()), []).append(c)
+    doc = (Path(__file__).parent.parent / "docs" / "commands.md").read_text()
+    table = {line for line in doc.splitlines() if line.startswith("| `--")}
+    mine = {f"| `{flag}` | {', '.join(cmds)} | {bound} |" for (flag, bound), cmds in rows.items()}
+    assert table == mine, f"in the docs only: {sorted(table - mine)}; in the parsers only: {sorted(mine - table)}"
+
+
+def _outside(b: Bounded) -> st.SearchStrategy[str]:
+    """Text that ``b`` must refuse: beyond either end, huge, not finite, not a number (or not whole)."""
+    below = (st.floats(max_value=b.lo, exclude_max=True, allow_nan=False) if not b.whole
+             else st.integers(max_value=int(b.lo) - 1)).map(str)
+    above = (st.floats(min_value=b.hi, exclude_min=True, allow_nan=False, allow_infinity=False) if not b.whole
+             else st.integers(min_value=int(b.hi) + 1)).map(str)
+    odd = st.sampled_from(["nan", "inf", "-inf", "1e400", "9" * 5000, "one", "0x10", "1,5", "- 1"])
+    edge = st.just(repr(float(b.lo))) if b.above else st.nothing()
+    whole = st.floats(min_value=max(b.lo, -1e9) + 0.25, max_value=min(b.hi, 1e9) - 0.25).filter(
+        lambda v: not float(v).is_integer()).map(repr) if b.whole and b.hi - b.lo >= 1 else st.nothing()
+    return st.one_of(below, above, odd, edge, whole)
+
+
+@settings(max_examples=400, deadline=2000, suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data())
+def test_a_value_beyond_any_flags_bound_is_one_line_naming_the_flag_and_the_bound(data: st.DataObject) -> None:
+    command, action = data.draw(st.sampled_from(BOUNDED), label="flag")
+    value = data.draw(_outside(action.type), label="value")
+    code, stderr = _parse(_argv(command, action, value))
+    line = _one_line(code, stderr)[0]
+    assert f"argument {action.option_strings[0] if action.option_strings else action.dest}" in line, line
+    if isinstance(action.nargs, int) and value.startswith("-"):  # --gap -1e16 -1e16: argparse reads a flag
+        assert f"expected {action.nargs} arguments" in line or action.type.describe() in line, line
+    else:
+        assert action.type.describe() in line, line  # the bound, in words
+
+
+@settings(max_examples=300, deadline=2000)
+@given(data=st.data())
+def test_an_empty_or_blank_value_of_any_flag_is_one_line_naming_the_flag(data: st.DataObject) -> None:
+    command, action = data.draw(st.sampled_from(VALUED), label="flag")
+    value = data.draw(st.text(alphabet=" \t\n\r\x0b\x0c\u00a0\u2003", max_size=4), label="value")
+    code, stderr = _parse(_argv(command, action, value))
+    line = _one_line(code, stderr)[0]
+    name = "/".join(action.option_strings) or action.metavar or action.dest
+    assert f"{name} {value!r} is {'empty' if not value else 'blank'}" in line, line
+
+
+#: Flags and arguments that name a file or directory to read: by metavar, or a positional.
+READERS = [(c, a) for c, a in VALUED if not a.option_strings or re.search(r"FILE|DIR|JSON|RULES", str(a.metavar or ""))
+           or a.dest in ("settings", "resume", "history", "tracking", "docking", "seed_policy", "cases_from", "lockstep")]
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_random_bytes_in_any_file_a_flag_names_end_in_a_status_never_a_traceback(
+        data: st.DataObject, places: dict[str, Path]) -> None:
+    """Each command runs in this process with the sweep's quick base command line; the file under test holds
+    random bytes (or is a directory of them)."""
+    command, action = data.draw(st.sampled_from(READERS), label="flag")
+    blob = data.draw(st.binary(max_size=600), label="bytes")
+    path = places["dir"] / f"blob-{next(_count)}"
+    path.write_bytes(blob)
+    flag = action.option_strings[0] if action.option_strings else None
+    base = _base(command, flag or "", places)
+    argv = [command, *base, flag, str(path)] if flag else [command, str(path), *base[1:]]
+    t0 = time.monotonic()
+    code, stderr, escaped = _run(argv)
+    assert escaped is None, f"coevo {argv}: {type(escaped).__name__}: {escaped}"
+    assert code in (0, 1, 2, 130) and "Traceback" not in stderr, (argv, code, stderr[-500:])
+    if code == 2:
+        assert len([x for x in stderr.splitlines() if x.strip()]) == 1, (argv, stderr)
+    assert time.monotonic() - t0 < ALARM_S + 5
+
+
+def _blob(tmp: Path) -> str:
+    """A file of random bytes (seeded)."""
+    import random
+
+    p = tmp / "random.bin"
+    p.write_bytes(random.Random(39).randbytes(700))
+    return str(p)
+
+
+HUGE = "9" * 30
+#: The real entry point on a sample: the issue's command lines and random bytes in files of every kind.
+SAMPLE: list[list[str]] = [
+    ["td-baseline", "--out", "o", "--seeds", HUGE], ["td-baseline", "--out", "o", "--trials", HUGE],
+    ["td-baseline", "--out", "o", "--lanes", HUGE], ["evolvability", "--runs", HUGE], ["evolvability", "--landscapes", HUGE],
+    ["bench", "--lanes", "10000000"], ["earl", "--out", "o", "--generations", HUGE], ["earl", "--out", "o", "--runs", HUGE],
+    ["run", "--max-lead", HUGE], ["run", "--resume", ""], ["run", "--regime", ""], ["compare", "--out", " "],
+    ["dashboard", ".", "--host", ""], ["broker", "--auth-file", "BLOB", "--listen", "tcp/127.0.0.1:0", "--data-dir", "d"],
+    ["compare", "--cluster", "local", "--shared-dir", "BLOB", "--runs", "1"], ["check", "BLOB"], ["show", "BLOB"],
+    ["learn", "--behaviour", "tracking", "--seed-policy", "BLOB", "--generations", "1"], ["run", "--settings", "BLOB"],
+    ["status", "--run", "x", "--key-file", "BLOB", *NO_ROUTER], ["status", "--run", "x", "--zenoh-config", "BLOB"],
+    ["worker", "--behaviour", "tracking", "--settings", "BLOB"],
+]
+
+
+@pytest.mark.service
+@pytest.mark.parametrize("argv", SAMPLE, ids=lambda a: " ".join(repr(x) if not x.strip() else x[:12] for x in a))
+def test_the_real_entry_point_refuses_in_one_line_without_a_traceback(argv: list[str], tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    blob = _blob(tmp_path)
+    argv = [blob if a == "BLOB" else a for a in argv]
+    t0 = time.monotonic()
+    r = subprocess.run([sys.executable, "-m", "coevo", *argv], capture_output=True, text=True, cwd=tmp_path, timeout=60)
+    lines = [x for x in r.stderr.splitlines() if x.strip()]
+    assert r.returncode != 0 and len(lines) == 1 and re.match(r"^[A-Z]\w+: ", lines[0]), (r.returncode, r.stderr)
+    assert "Traceback" not in r.stderr + r.stdout
+    assert time.monotonic() - t0 < 30
+    assert not [p for p in tmp_path.iterdir() if p.name != "random.bin"], "something was written"

@@ -50,8 +50,8 @@ def test_executive_learns_from_rule_files(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     "args,needle",
     [
-        (["--population", "0"], "population=0"),
-        (["--generations", "-1"], "generations=-1"),
+        (["--population", "0"], "--population: invalid number 0: give a whole number from 2 to 10000"),
+        (["--generations", "-1"], "--generations: invalid number -1"),
         (["--ga", "mutation_rate=2"], "mutation_rate=2"),
         (["--ga", "no_such=1"], "no_such"),
         (["--world", "tracking_min=70"], "tracking_min"),

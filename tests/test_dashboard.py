@@ -490,3 +490,84 @@ def test_a_run_is_followed_with_no_flags_and_a_gone_broker_is_said_at_once(tmp_p
     finally:
         files.terminate()
         files.wait(20)
+
+
+# ---------------------------------------------------------------- under load, bad paths, SIGTERM
+def _rss_mb(pid: int) -> float:
+    return next(int(x.split()[1]) for x in Path(f"/proc/{pid}/status").read_text().splitlines()
+                if x.startswith("VmRSS")) / 1024
+
+
+def _get(url: str, timeout: float = 60) -> int | str:
+    import urllib.error
+    import urllib.request
+
+    try:
+        with urllib.request.urlopen(url, timeout=timeout) as r:
+            r.read()
+            return r.status
+    except urllib.error.HTTPError as exc:
+        return exc.code
+    except OSError as exc:
+        return type(exc).__name__
+
+
+@pytest.mark.service
+def test_200_page_loads_at_once_leave_it_answering_and_its_memory_bounded(tmp_path: Path) -> None:
+    """The issue's burst: each load beyond the bound is answered 503 at once instead of building a page (0.3-0.5 s
+    of CPU each); afterwards a new page comes within 5 s and memory stays under twice idle (the measured figures
+    are in docs/faults.md)."""
+    from collections import Counter
+    from concurrent.futures import ThreadPoolExecutor
+
+    from procs import coevo_proc, poll, stop
+
+    from coevo.runs.local import free_port
+
+    port = free_port()
+    log = tmp_path / "dashboard.log"
+    dash = coevo_proc("dashboard", str(_run_dir(tmp_path)), "--port", str(port), log=log)
+    try:
+        poll(lambda: "dashboard: http" in log.read_text(), 60, "the dashboard's address")
+        url = f"http://127.0.0.1:{port}"
+        assert _get(url + "/") == 200
+        assert _get(url + "/static/%00") == 400  # a path no file system holds
+        assert _get(url + "/?bokeh-session-id=chosen-by-the-client") == 403  # ids are made and signed by the server
+        idle = _rss_mb(dash.pid)
+        t0 = time.monotonic()
+        with ThreadPoolExecutor(200) as pool:
+            codes = list(pool.map(lambda _: _get(url + "/"), range(200)))
+        burst = time.monotonic() - t0
+        assert set(codes) <= {200, 503} and codes.count(200) >= 1 and burst < 60, (burst, Counter(codes))
+        t1 = time.monotonic()
+        poll(lambda: _get(url + "/", timeout=5) == 200, 5, "a new page after the burst")
+        after = time.monotonic() - t1
+        assert _rss_mb(dash.pid) < 2 * idle, (idle, _rss_mb(dash.pid))
+        print(f"idle {idle:.0f} MB, burst {burst:.1f} s ({codes.count(200)} pages, {codes.count(503)} refused), "
+              f"a page {after:.2f} s after, then {_rss_mb(dash.pid):.0f} MB")
+    finally:
+        stop(dash)
+    assert "Traceback" not in log.read_text(), log.read_text()[-2000:]
+
+
+@pytest.mark.service
+@pytest.mark.parametrize("argv", [["dashboard"], ["status", "--run", "x"]])
+def test_sigterm_ends_it_at_once_while_it_is_still_connecting(argv: list[str], tmp_path: Path) -> None:
+    """A router that refuses every connection: zenoh keeps trying for --connect-timeout (30 s), the process ends
+    within 2 s of SIGTERM."""
+    import signal
+
+    from procs import coevo_proc
+
+    p = coevo_proc(*argv, "--connect", "tcp/127.0.0.1:9", log=tmp_path / "log")
+    try:
+        time.sleep(3)  # well inside the connect: the command is importing, then waiting for the router
+        assert p.poll() is None, (tmp_path / "log").read_text()
+        t0 = time.monotonic()
+        p.send_signal(signal.SIGTERM)
+        p.wait(timeout=10)
+        assert time.monotonic() - t0 < 2, time.monotonic() - t0
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert "Traceback" not in (tmp_path / "log").read_text()

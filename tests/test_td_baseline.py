@@ -173,8 +173,8 @@ def test_command_options_are_checked_before_anything_runs() -> None:
         specs_from_args(p.parse_args(["--out", "x", "--tasks", "swim"]))
     with pytest.raises(ConfigError, match="--variants fast"):
         specs_from_args(p.parse_args(["--out", "x", "--variants", "fast"]))
-    with pytest.raises(ConfigError, match="seeds=0"):
-        specs_from_args(p.parse_args(["--out", "x", "--seeds", "0"]))
+    with pytest.raises(SystemExit):  # --seeds' bound, at parse time
+        p.parse_args(["--out", "x", "--seeds", "0"])
     specs = specs_from_args(p.parse_args(["--out", "x", "--generations", "12"]))
     assert [s.task for s, _ in specs] == ["tracking", "docking", "door"]
     assert [v for _, v in specs] == [("shaped", "default-rules"), ("default-rules",), ("default-rules",)]

@@ -7,7 +7,8 @@ Kept apart from the session module so that a command's ``--help`` does not load 
 from __future__ import annotations
 
 import argparse
-import math
+
+from coevo.config import Bounded
 
 __all__ = ["DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "DEFAULT_LEASE_S", "add_connection_args",
            "connection_given"]
@@ -18,26 +19,10 @@ PASSWORD_ENV = "COEVO_ZENOH_PASSWORD"
 DEFAULT_LEASE_S = 3.0
 
 
-def _timeout_arg(text: str) -> float:
-    """Seconds a client waits for its router: a finite number >= 0, or -1 for ever."""
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"invalid timeout {text!r}: give seconds, or -1 for ever") from None
-    if not (math.isfinite(v) and (v >= 0 or v == -1)) or v > 86400:
-        raise argparse.ArgumentTypeError(f"invalid timeout {text}: give 0 to 86400 seconds, or -1 for ever")
-    return v
-
-
-def _lease_arg(text: str) -> float:
-    """A link lease: 0.1 to 3600 seconds (zenoh counts it in whole milliseconds)."""
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"invalid lease {text!r}: give seconds") from None
-    if not (math.isfinite(v) and 0.1 <= v <= 3600):
-        raise argparse.ArgumentTypeError(f"invalid lease {text}: give 0.1 to 3600 seconds")
-    return v
+#: Seconds a client waits for its router: 0 to a day, or -1 for ever.
+_timeout_arg = Bounded(0, 86400, whole=False, words=(("-1", -1.0),), what="timeout")
+#: A link lease: 0.1 to 3600 seconds (zenoh counts it in whole milliseconds).
+_lease_arg = Bounded(0.1, 3600, whole=False, what="lease")
 
 
 def add_connection_args(p: argparse.ArgumentParser, *, default_mode: str = "client") -> None:

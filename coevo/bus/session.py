@@ -20,6 +20,7 @@ import json
 import logging
 import os
 import signal
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -93,7 +94,11 @@ class Security:
         if self.user is not None and (not self.user or ":" in self.user):
             raise ConfigError(f"--user {self.user!r}: must be non-empty and contain no ':'")
         if self.auth_file is not None:
-            lines = [x for x in Path(self.auth_file).read_text(encoding="utf-8").splitlines() if x.strip()]
+            try:
+                lines = [x for x in Path(self.auth_file).read_text(encoding="utf-8").splitlines() if x.strip()]
+            except UnicodeDecodeError as exc:
+                raise ConfigError(f"--auth-file {self.auth_file!r} is not text (byte {exc.start} is not UTF-8): every "
+                                  "line must be user:password") from None
             bad = [n for n, x in enumerate(lines, 1) if ":" not in x or not x.split(":", 1)[0] or not x.split(":", 1)[1]]
             if not lines or bad:
                 raise ConfigError(f"--auth-file {self.auth_file!r}: every line must be user:password "
@@ -263,6 +268,27 @@ class GatedSession:
         return getattr(self._session, name)
 
 
+def _open(conf: zenoh.Config) -> Any:
+    """``zenoh.open`` on a helper thread, waited for here in short steps: a SIGTERM or Ctrl-C while the router is
+    still being reached (up to ``--connect-timeout``, 30 s) stops this process at once instead of after the wait,
+    which zenoh does not cut short.  A session that opens after all belongs to a process that is ending."""
+    box: dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            box["session"] = zenoh.open(conf)
+        except BaseException as exc:  # noqa: BLE001 - handed to the waiting thread
+            box["error"] = exc
+
+    opener = threading.Thread(target=run, name="zenoh-open", daemon=True)
+    opener.start()
+    while opener.is_alive():
+        opener.join(0.1)
+    if "error" in box:
+        raise box["error"]
+    return box["session"]
+
+
 @contextmanager
 def open_session(conf: zenoh.Config, *, what: str = "session", gate: Gate | None = None) -> Iterator[Any]:
     """A zenoh session closed on exit; a router that cannot be reached (or refuses us) becomes a ServiceError.
@@ -270,7 +296,7 @@ def open_session(conf: zenoh.Config, *, what: str = "session", gate: Gate | None
     With ``gate``, the session's ring subscribers decode through it (see :func:`drain_messages`).
     """
     try:
-        session = zenoh.open(conf)
+        session = _open(conf)
     except zenoh.ZError as exc:
         raise ServiceError(f"cannot open the zenoh {what}: {exc} (is 'coevo broker' running and reachable, "
                            "and does it accept this process's certificate or password?)") from exc

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from typing import Any
 
 from coevo.dashboard import render
@@ -105,26 +106,87 @@ class _Page:
             self._source("", "external").data = ext
 
 
-def make_document(dash: Dashboard, problems: list[str]) -> Any:
-    """The Bokeh application handler: a page per browser session over the shared ``dash``."""
+def make_document(dash: Dashboard, problems: list[str], built: Any = None) -> Any:
+    """The Bokeh application handler: a page per browser session over the shared ``dash``; ``built()`` after each."""
 
     def make(doc: Any) -> None:
         _Page(doc, dash, problems)
+        if built is not None:
+            built()
 
     return make
 
 
+#: Pages open at once (Bokeh sessions); a page beyond them is answered 503 at once.  A dashboard is watched by a
+#: few people; each page holds its own plots (~1 MB).
+MAX_PAGES = 32
+#: New pages: a burst of this many, then PAGES_PER_S a second of time not spent building pages.  Building a page's
+#: document costs 0.3-0.5 s of CPU (measured: six Bokeh figures made and serialised; the data behind them is the
+#: process's one ``Dashboard``), so 200 page loads at once kept the process busy for minutes; beyond the rate a
+#: load is answered 503 at once.
+PAGE_BURST, PAGES_PER_S = 4, 0.5
+#: A page whose browser is gone (or never connected its websocket) is dropped this long after; checked every second.
+UNUSED_MS = 5_000
+
+
+class _Admission:
+    """Bokeh's ``process_request`` hook, called for every new page before its session is made: a token bucket of
+    new pages and a bound on open ones.  The bucket does not fill while a page is built (:meth:`built`), so on a
+    machine so busy that a page takes seconds, pages still take at most a share of the time."""
+
+    def __init__(self, sessions: Any) -> None:
+        self.sessions = sessions  # () -> the open sessions
+        self.tokens, self.at = float(PAGE_BURST), time.monotonic()
+
+    def __call__(self, request: Any) -> dict[str, Any]:
+        from tornado.web import HTTPError
+
+        now = time.monotonic()
+        self.tokens, self.at = min(PAGE_BURST, self.tokens + (now - self.at) * PAGES_PER_S), now
+        if len(self.sessions()) >= MAX_PAGES:
+            raise HTTPError(503, reason=f"{MAX_PAGES} pages are open: close one")
+        if self.tokens < 1:
+            raise HTTPError(503, reason=f"more than {PAGES_PER_S:g} new pages a second: try again")
+        self.tokens -= 1
+        return {}
+
+    def built(self) -> None:
+        self.at = max(self.at, time.monotonic())
+
+
+def _static_handler() -> Any:
+    """Bokeh's handler of its own files (BokehJS), answering a path the file system cannot hold (``/static/%00``)
+    with 400 instead of a traceback and 500."""
+    from bokeh.server.views.static_handler import StaticHandler
+    from tornado.web import HTTPError
+
+    class Static(StaticHandler):  # type: ignore[misc]
+        def validate_absolute_path(self, root: str, absolute_path: str) -> str | None:
+            if "\x00" in absolute_path:
+                raise HTTPError(400, reason="bad path")
+            return super().validate_absolute_path(root, absolute_path)  # type: ignore[no-any-return]
+
+    return Static
+
+
 def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5, on_ready: Any = None) -> None:
-    """Serve ``dash`` on http://host:port/ until SIGINT/SIGTERM, refreshing it every ``every`` s on its own thread."""
+    """Serve ``dash`` on http://host:port/ until SIGINT/SIGTERM, refreshing it every ``every`` s on its own thread.
+
+    Every session id is made and signed here with a key of this process (``sign_sessions``): a page cannot choose
+    its own.  Sessions are bounded (:class:`_Admission`) and dropped :data:`UNUSED_MS` after their page went."""
     from bokeh.application import Application
     from bokeh.application.handlers.function import FunctionHandler
-    from bokeh.server.server import Server
-    from bokeh.settings import settings
-
-    from coevo.errors import ConfigError
-
     from bokeh.core.validation import silence
     from bokeh.core.validation.warnings import EMPTY_LAYOUT
+    from bokeh.server.server import BaseServer
+    from bokeh.server.tornado import BokehTornado
+    from bokeh.settings import settings
+    from bokeh.util.token import generate_secret_key
+    from tornado.httpserver import HTTPServer
+    from tornado.ioloop import IOLoop
+    from tornado.netutil import bind_sockets
+
+    from coevo.errors import ConfigError
 
     settings.resources.set_value("server")  # BokehJS from this server, whatever BOKEH_RESOURCES says
     silence(EMPTY_LAYOUT, True)  # the rows of plots are empty until a run's first generation
@@ -136,17 +198,28 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5, on_ready
     stop = threading.Event()
     dash.refresh()
     poller = threading.Thread(target=follow, args=(dash, every, stop, on_error), name="dashboard-refresh", daemon=True)
-    origins = [f"{host}:{port}"] + ([f"localhost:{port}", f"127.0.0.1:{port}"] if host in ("127.0.0.1", "localhost") else [])
     try:
-        server = Server({"/": Application(FunctionHandler(make_document(dash, problems)))}, address=host, port=port,
-                        allow_websocket_origin=origins, check_unused_sessions_milliseconds=5000,
-                        unused_session_lifetime_milliseconds=15000)
+        # a burst of page loads waits in a long queue (each answered at once) instead of its connections being
+        # dropped and retried by the clients seconds later
+        sockets = bind_sockets(port, address=host, backlog=1024)
+        port = sockets[0].getsockname()[1]
     except OSError as exc:
         raise ConfigError(f"cannot serve on {host}:{port}: {exc.strerror or exc} (choose another --port or --host)") from None
+    origins = [f"{host}:{port}"] + ([f"localhost:{port}", f"127.0.0.1:{port}"] if host in ("127.0.0.1", "localhost") else [])
+    admission = _Admission(lambda: server.get_sessions())
+    app = Application(FunctionHandler(make_document(dash, problems, admission.built)))
+    tornado_app = BokehTornado({"/": app}, extra_websocket_origins=origins, sign_sessions=True,
+                               secret_key=generate_secret_key().encode(), session_token_expiration=60,
+                               check_unused_sessions_milliseconds=1000, unused_session_lifetime_milliseconds=UNUSED_MS)
+    tornado_app.add_handlers(r".*", [(r"/static/(.*)", _static_handler())])  # before Bokeh's own
+    http = HTTPServer(tornado_app)
+    http.add_sockets(sockets)
+    server = BaseServer(IOLoop.current(), tornado_app, http)
+    app.process_request = admission  # type: ignore[method-assign]
     poller.start()
     server.start()
     if on_ready:
-        on_ready(f"http://{host}:{server.port}/")
+        on_ready(f"http://{host}:{port}/")
     try:
         server.io_loop.start()
     except KeyboardInterrupt:

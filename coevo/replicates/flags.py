@@ -9,12 +9,14 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from coevo.config import Bounded
+
 __all__ = ["add_backend_flags", "check_backend_flags", "backend_of"]
 
 
 def add_backend_flags(p: argparse.ArgumentParser, *, jobs_help: str) -> None:
     g = p.add_argument_group("where the runs go (docs/cluster.md)")
-    g.add_argument("--jobs", type=_count, help=jobs_help)
+    g.add_argument("--jobs", type=Bounded(1, 1024), help=jobs_help)
     g.add_argument("--cluster", metavar="WHERE",
                    help="run the replicates on Dask: local[:N] (N worker processes here, 1 thread each), "
                         "slurm[:N] or pbs[:N] (N batch jobs, see --cluster-config), or a scheduler's address "
@@ -26,16 +28,6 @@ def add_backend_flags(p: argparse.ArgumentParser, *, jobs_help: str) -> None:
                         "there in place instead of coming back as archives")
 
 
-def _count(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"invalid number {text!r}: give a whole number") from None
-    if not 1 <= v <= 1024:
-        raise argparse.ArgumentTypeError(f"invalid number {v}: give one from 1 to 1024")
-    return v
-
-
 def check_backend_flags(args: argparse.Namespace) -> None:
     """The flags checked without opening anything (a bad one is a ConfigError naming it), so that a command can
     refuse them before it writes into ``--out``."""
@@ -44,6 +36,9 @@ def check_backend_flags(args: argparse.Namespace) -> None:
 
     if args.cluster is not None:
         parse_cluster(args.cluster)
+        if args.shared_dir is not None and args.shared_dir.exists() and not args.shared_dir.is_dir():
+            raise ConfigError(f"--shared-dir {str(args.shared_dir)!r} is not a directory: give the folder where the "
+                              "workers see --out")
     elif args.shared_dir is not None or args.cluster_config is not None:
         raise ConfigError("--shared-dir and --cluster-config go with --cluster")
 

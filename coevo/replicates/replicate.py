@@ -90,7 +90,10 @@ def _run(rep: Replicate, root: Path, log_file: Path) -> tuple[bool, int | None, 
     absolute first: a command runs with ``root`` as its working directory, so a relative one would be read twice
     (``--out runs/x`` wrote into ``runs/x/runs/x``)."""
     root = Path(root).resolve()
-    log_file.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        log_file.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:  # said as the replicate's failure, not as a traceback from inside a Dask worker
+        return False, None, f"cannot make its log's folder: {type(exc).__name__}: {exc}"
     if rep.function is not None:
         with open(log_file, "w", encoding="utf-8") as fh:
             try:

@@ -104,7 +104,7 @@ def cmd_learn(args: argparse.Namespace) -> int:
 def configure_bench(p: argparse.ArgumentParser) -> None:
     """``coevo bench``'s arguments."""
     p.add_argument("--behaviour", default="tracking", choices=["tracking", "docking"])
-    p.add_argument("--lanes", type=count_arg(1, 10_000_000), default=4500, help="episodes run at once (default 50 x 90)")
+    p.add_argument("--lanes", type=count_arg(1, 100_000), default=4500, help="episodes run at once (default 50 x 90)")
     p.add_argument("--rules", type=count_arg(1, 64), default=32, help="rules per policy (evolved size)")
     p.add_argument("--policy", help="a rule file to drive every lane instead of random rule sets")
     p.add_argument("--repeats", type=count_arg(1, 1000), default=3)

@@ -18,6 +18,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from coevo.console import count_arg, seed_arg
 from coevo.errors import ConfigError
 
 __all__ = ["configure_show", "cmd_show", "DEFAULT_EPISODES", "MAX_EPISODES"]
@@ -64,8 +65,6 @@ def _episodes(args: argparse.Namespace, default: int | None) -> int | None:
     if args.episodes is not None:
         if args.epoch:
             raise ConfigError(f"give --episodes {args.episodes} or --epoch, not both")
-        if not 1 <= args.episodes <= MAX_EPISODES:
-            raise ConfigError(f"--episodes must be between 1 and {MAX_EPISODES}, got {args.episodes}")
         return int(args.episodes)
     return None if args.epoch else default
 
@@ -90,12 +89,6 @@ def cmd_show(args: argparse.Namespace) -> int:
 
     if args.task is not None:
         find_task(args.task)
-    if args.seed < 0:
-        raise ConfigError(f"--seed must be 0 or more, got {args.seed}")
-    if not 1 <= args.fps <= 60:
-        raise ConfigError(f"--fps must be between 1 and 60, got {args.fps}")
-    if args.out is not None and not args.out.strip():
-        raise ConfigError(f"--out {args.out!r}: expected a file name (.png, or .gif/.mp4 with --animate)")
     shown = _shown(args, check_world(pairs(args.world, "world")))
     task, robot = shown.task, shown.robot
     episodes = _episodes(args, task.show_episodes(robot))
@@ -157,11 +150,11 @@ def configure_show(p: argparse.ArgumentParser) -> None:
                    help="show a behaviour's shipped default rules instead (tracking, docking, door)")
     p.add_argument("--tracking", metavar="FILE", help="Tracking rule file: a partner for an Executive rule file")
     p.add_argument("--docking", metavar="FILE", help="Docking rule file: a partner for an Executive rule file")
-    p.add_argument("--episodes", type=int, metavar="N",
+    p.add_argument("--episodes", type=count_arg(1, MAX_EPISODES), metavar="N",
                    help=f"play N episodes (door: trials) in a row, starting a new epoch when one ends (default: the "
                         f"task's; {DEFAULT_EPISODES} for a Tracking or Docking rule set)")
     p.add_argument("--epoch", action="store_true", help="play one epoch (default for a combined fuel robot)")
-    p.add_argument("--seed", type=int, default=0, help="where the robot and Target start, the Target's walk (default 0)")
+    p.add_argument("--seed", type=seed_arg, default=0, help="where the robot and Target start, the Target's walk (default 0)")
     p.add_argument("--task", default=None, choices=_TaskNames(), metavar="TASK",
                    help="the task to draw, one of %(choices)s (default: the one the run directory, rule file or "
                         "behaviour names; another is an error)")
@@ -169,7 +162,7 @@ def configure_show(p: argparse.ArgumentParser) -> None:
                    help="picture to write: .png, or .gif/.mp4 for an animation (MP4 needs ffmpeg); default: next to "
                         "the rule file, inside the run directory, or here, named after the robot, episodes and seed")
     p.add_argument("--animate", action="store_true", help="write an animated GIF (or MP4 with --out FILE.mp4)")
-    p.add_argument("--fps", type=int, default=12, help="animation frames per second (default 12; at most 150 frames)")
+    p.add_argument("--fps", type=count_arg(1, 60), default=12, help="animation frames per second (default 12; at most 150 frames)")
     p.add_argument("--trace", action="store_true",
                    help="show which rule fired at each step: a panel under the picture, and per episode with --rules")
     p.add_argument("--rules", action="store_true",

@@ -23,7 +23,7 @@ from coevo.console import (
 )
 from coevo.config import DEFAULT_MAX_LEAD
 from coevo.errors import ConfigError
-from coevo.replicates.flags import add_backend_flags, backend_of
+from coevo.replicates.flags import add_backend_flags, backend_of, check_backend_flags
 
 __all__ = ["configure_compare", "cmd_compare"]
 
@@ -41,6 +41,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     spec = CompareSpec.make(regimes=tuple(args.regimes), **rates, runs=args.runs, seed=args.seed, model=args.model,
                             max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD), measure_epochs=args.measure_epochs,
                             world=build(WorldConfig, pairs(args.world, "world")), ga=ga_settings(args))
+    check_backend_flags(args)  # before anything is written into --out
     out = Path(args.out) if args.out else Path("runs") / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"
     t0 = time.time()
     if args.report_only:

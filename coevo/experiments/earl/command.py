@@ -12,8 +12,7 @@ import argparse
 import time
 from pathlib import Path
 
-from coevo.console import ProgressBar, seed_arg
-from coevo.errors import ConfigError
+from coevo.console import ProgressBar, count_arg, seed_arg
 
 __all__ = ["add_arguments", "configure_earl", "main"]
 
@@ -21,9 +20,9 @@ __all__ = ["add_arguments", "configure_earl", "main"]
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of ``coevo earl``."""
     parser.add_argument("--out", required=True, help="output directory (must not exist, or be empty)")
-    parser.add_argument("--runs", type=int, default=100, help="independent runs per learner and experiment (default 100)")
+    parser.add_argument("--runs", type=count_arg(1, 1000), default=100, help="independent runs per learner and experiment (default 100)")
     parser.add_argument("--seed", type=seed_arg, default=0, help="seed of every run's generator (default 0)")
-    parser.add_argument("--generations", type=int, default=100, help="EARL1 generations (default 100)")
+    parser.add_argument("--generations", type=count_arg(0, 1000), default=100, help="EARL1 generations (default 100)")
     parser.add_argument("--quiet", action="store_true", help="no progress display")
 
 
@@ -33,10 +32,6 @@ def main(args: argparse.Namespace) -> int:
     from coevo.experiments.earl.report import write_report
     from coevo.rundir.layout import staged_dir
 
-    if args.runs < 1:
-        raise ConfigError(f"--runs {args.runs}: give a whole number >= 1")
-    if args.generations < 0:
-        raise ConfigError(f"--generations {args.generations}: give a whole number >= 0")
     spec = EarlSpec(runs=args.runs, seed=args.seed, generations=args.generations)
     out = Path(args.out)
     with staged_dir(out) as tmp, ProgressBar("earl", quiet=args.quiet) as bar:

@@ -13,7 +13,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from coevo.console import seed_arg
+from coevo.config import GAConfig
+from coevo.console import Bounded, count_arg, positive_float_arg, seed_arg
 from coevo.errors import ConfigError
 from coevo.replicates.flags import add_backend_flags, check_backend_flags
 
@@ -36,22 +37,22 @@ def add_td_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--resume", action="store_true", help="keep the finished runs in --out and run the rest")
     parser.add_argument("--tasks", nargs="+", default=list(TASKS), metavar="TASK",
                         help=f"tasks to compare on ({', '.join(TASKS)}; default all)")
-    parser.add_argument("--seeds", type=int, default=3, help="runs of each learner per task (default 3)")
+    parser.add_argument("--seeds", type=count_arg(1, 1000), default=3, help="runs of each learner per task (default 3)")
     parser.add_argument("--seed", type=seed_arg, default=0, help="first GA seed and the TD runs' seed (default 0)")
-    parser.add_argument("--generations", type=int, default=50, help="GA generations; sets the TD budget (default 50)")
-    parser.add_argument("--population", type=int, default=50, help="GA population (default 50)")
-    parser.add_argument("--episodes", type=int, default=90, help="GA evaluation episodes per individual (default 90)")
-    parser.add_argument("--lanes", type=int, default=256, help="robots feeding each TD table at once (default 256)")
-    parser.add_argument("--trials", type=int, default=100,
+    parser.add_argument("--generations", type=Bounded.setting(GAConfig, "generations"), default=50, help="GA generations; sets the TD budget (default 50)")
+    parser.add_argument("--population", type=Bounded.setting(GAConfig, "population"), default=50, help="GA population (default 50)")
+    parser.add_argument("--episodes", type=Bounded.setting(GAConfig, "episodes"), default=90, help="GA evaluation episodes per individual (default 90)")
+    parser.add_argument("--lanes", type=count_arg(1, 100_000), default=256, help="robots feeding each TD table at once (default 256)")
+    parser.add_argument("--trials", type=count_arg(1, 10_000), default=100,
                         help="fresh trials per measurement: epochs (Tracking) or x5 trials (default 100)")
-    parser.add_argument("--alpha", type=float, default=0.1, help="Q-learning rate (default 0.1)")
-    parser.add_argument("--gamma", type=float, default=1.0, help="discount (default 1: the payoff is the return)")
-    parser.add_argument("--epsilon", type=float, default=0.1, help="exploration rate (default 0.1)")
+    parser.add_argument("--alpha", type=positive_float_arg(maximum=1), default=0.1, help="Q-learning rate (default 0.1)")
+    parser.add_argument("--gamma", type=positive_float_arg(allow_zero=True, maximum=1), default=1.0, help="discount (default 1: the payoff is the return)")
+    parser.add_argument("--epsilon", type=positive_float_arg(allow_zero=True, maximum=1), default=0.1, help="exploration rate (default 0.1)")
     parser.add_argument("--encoder", default="reduced", choices=sorted({e for _, e in ENCODERS}),
                         help="TD observation: the reduced sensors (default) or every sensor at the schema's bins")
     parser.add_argument("--variants", nargs="*", default=["shaped", "default-rules"], metavar="VARIANT",
                         help=f"extra TD runs ({', '.join(VARIANTS)}; each where the task has it; default both)")
-    parser.add_argument("--td-steps", type=int, default=None, help="TD robot-steps per run (default: the GA's)")
+    parser.add_argument("--td-steps", type=count_arg(1, 10**10), default=None, help="TD robot-steps per run (default: the GA's)")
     parser.add_argument("--quiet", action="store_true", help="no progress display")
 
 

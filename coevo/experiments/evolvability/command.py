@@ -12,9 +12,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from coevo.console import ProgressBar, seed_arg
+from coevo.console import ProgressBar, count_arg, positive_float_arg, seed_arg
 from coevo.errors import ConfigError
-from coevo.replicates.flags import add_backend_flags, backend_of
+from coevo.replicates.flags import add_backend_flags, backend_of, check_backend_flags
 
 __all__ = ["configure_evolvability", "cmd_evolvability"]
 
@@ -36,6 +36,7 @@ def cmd_evolvability(args: argparse.Namespace) -> int:
                          landscapes=args.landscapes, runs=args.runs, generations=args.generations,
                          population=args.population, seed=args.seed)
     out = Path(args.out) if args.out else Path("runs") / f"evolvability-{time.strftime('%Y%m%d-%H%M%S')}"
+    check_backend_flags(args)
     _prepare(out, spec, resume=args.resume)  # before the grid runs, not after
     backend = backend_of(args, default_jobs=1)
     print(f"evolvability grid: {spec.total_runs} runs of {spec.generations} generations; output in {out}; "
@@ -74,14 +75,6 @@ def _prepare(out: Path, spec: Any, *, resume: bool) -> None:
         write_json(out / "evolvability.json", {"spec": mine, "created": time.time()})
 
 
-def _number(text: str) -> float | str:
-    """A float, or the text itself so that the settings check can name it."""
-    try:
-        return float(text)
-    except ValueError:
-        return text
-
-
 def _tuple(values: list[Any] | None) -> tuple[Any, ...] | None:
     return None if values is None else tuple(values)
 
@@ -90,12 +83,12 @@ def configure_evolvability(p: argparse.ArgumentParser) -> None:
     """``coevo evolvability``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
     p.add_argument("--out", help="output directory (default runs/evolvability-TIME)")
     p.add_argument("--classes", nargs="+", metavar="CLASS", help="landscape classes (default: gradual abrupt)")
-    p.add_argument("--rates", nargs="+", type=_number, metavar="MR", help="base mutation rates (default: the report's 8)")
+    p.add_argument("--rates", nargs="+", type=positive_float_arg(allow_zero=True, maximum=1), metavar="MR", help="base mutation rates (default: the report's 8)")
     p.add_argument("--models", nargs="+", metavar="MODEL", help="mutation models (default: fm gm fh gh)")
-    p.add_argument("--landscapes", type=int, help="landscapes per class (default 10)")
-    p.add_argument("--runs", type=int, help="runs per landscape and condition (default 10)")
-    p.add_argument("--generations", type=int, help="generations per run (default 200)")
-    p.add_argument("--population", type=int, help="population size (default 100)")
+    p.add_argument("--landscapes", type=count_arg(1, 100), help="landscapes per class (default 10)")
+    p.add_argument("--runs", type=count_arg(1, 100), help="runs per landscape and condition (default 10)")
+    p.add_argument("--generations", type=count_arg(1, 10_000), help="generations per run (default 200)")
+    p.add_argument("--population", type=count_arg(2, 1000), help="population size (default 100)")
     p.add_argument("--seed", type=seed_arg, default=0)
     p.add_argument("--report-only", action="store_true", help="only rewrite the report from the grid finished in --out")
     p.add_argument("--resume", action="store_true", help="continue the grid in --out, keeping its finished landscapes")
