@@ -553,13 +553,15 @@ def test_200_page_loads_at_once_leave_it_answering_and_its_memory_bounded(tmp_pa
 @pytest.mark.service
 @pytest.mark.parametrize("argv", [["dashboard"], ["status", "--run", "x"]])
 def test_sigterm_ends_it_at_once_while_it_is_still_connecting(argv: list[str], tmp_path: Path) -> None:
-    """A router that refuses every connection: zenoh keeps trying for --connect-timeout (30 s), the process ends
-    within 2 s of SIGTERM."""
+    """A peer that takes the TCP connection and never speaks zenoh (nothing listening at all is said at once, see
+    coevo.runs.discover): zenoh keeps trying for --connect-timeout (30 s), the process ends within 2 s of SIGTERM."""
     import signal
+    import socket
 
     from procs import coevo_proc
 
-    p = coevo_proc(*argv, "--connect", "tcp/127.0.0.1:9", log=tmp_path / "log")
+    mute = socket.create_server(("127.0.0.1", 0), backlog=16)  # accepts (the kernel does), then says nothing
+    p = coevo_proc(*argv, "--connect", f"tcp/127.0.0.1:{mute.getsockname()[1]}", log=tmp_path / "log")
     try:
         time.sleep(3)  # well inside the connect: the command is importing, then waiting for the router
         assert p.poll() is None, (tmp_path / "log").read_text()
@@ -570,4 +572,5 @@ def test_sigterm_ends_it_at_once_while_it_is_still_connecting(argv: list[str], t
     finally:
         if p.poll() is None:
             p.kill()
+        mute.close()
     assert "Traceback" not in (tmp_path / "log").read_text()
