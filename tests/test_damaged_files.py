@@ -93,82 +93,86 @@ def damage_log(run: Path, log: str, damage: str) -> tuple[Path, str]:
         fh.write(LINES[damage])
     return f, f"{f} line {lines + 1} "
 
+class TestDamagedRuns:
+    """One class, so that one xdist worker makes the module's finished run once and takes every case."""
 
-@pytest.mark.parametrize("damage", LINES)
-def test_coevo_check_names_each_damaged_line_in_one_line(finished: Path, tmp_path: Path, damage: str) -> None:
-    run = copy_of(finished, tmp_path)
-    where = [damage_log(run, log, damage)[1] for log in LOGS]
-    res = reader("check", run, tmp_path)
-    assert "Traceback" not in res.stderr, res.stderr
-    problems = [p for p in res.stdout.splitlines() if p.startswith("PROBLEM: ")]
-    assert res.returncode == 1 and all(any(p.startswith(f"PROBLEM: {w}") for p in problems) for w in where), problems
-
-
-@pytest.mark.parametrize("damage", LINES)
-@pytest.mark.parametrize("log", [log for log, (_, readers) in LOGS.items() if readers])
-def test_replay_and_learn_history_refuse_a_damaged_line_in_one_line_naming_file_and_line(
-        finished: Path, tmp_path: Path, log: str, damage: str) -> None:
-    run = copy_of(finished, tmp_path)
-    f, where = damage_log(run, log, damage)
-    for command in LOGS[log][1]:
-        assert where in one_line_naming(reader(command, run, tmp_path), f), command
+    @pytest.mark.parametrize("damage", LINES)
+    def test_coevo_check_names_each_damaged_line_in_one_line(self, finished: Path, tmp_path: Path,
+                                                             damage: str) -> None:
+        run = copy_of(finished, tmp_path)
+        where = [damage_log(run, log, damage)[1] for log in LOGS]
+        res = reader("check", run, tmp_path)
+        assert "Traceback" not in res.stderr, res.stderr
+        problems = [p for p in res.stdout.splitlines() if p.startswith("PROBLEM: ")]
+        assert res.returncode == 1, problems
+        assert all(any(p.startswith(f"PROBLEM: {w}") for p in problems) for w in where), problems
 
 
-@pytest.mark.parametrize("damage", SETTINGS)
-def test_a_damaged_run_json_is_one_line_naming_it(finished: Path, tmp_path: Path, damage: str) -> None:
-    run = copy_of(finished, tmp_path)
-    f = run / "run.json"
-    f.write_bytes(SETTINGS[damage](f.read_bytes()))
-    res = reader("check", run, tmp_path)
-    assert "Traceback" not in res.stderr, res.stderr
-    assert res.returncode == 1 and f"PROBLEM: {str(f)!r}" in res.stdout, res.stdout
-    one_line_naming(reader("show", run, tmp_path), f)
+    @pytest.mark.parametrize("damage", LINES)
+    @pytest.mark.parametrize("log", [log for log, (_, readers) in LOGS.items() if readers])
+    def test_replay_and_learn_history_refuse_a_damaged_line_in_one_line_naming_file_and_line(
+            self, finished: Path, tmp_path: Path, log: str, damage: str) -> None:
+        run = copy_of(finished, tmp_path)
+        f, where = damage_log(run, log, damage)
+        for command in LOGS[log][1]:
+            assert where in one_line_naming(reader(command, run, tmp_path), f), command
 
 
-def test_the_dashboard_skips_damaged_lines_and_says_so(finished: Path, tmp_path: Path) -> None:
-    run = copy_of(finished, tmp_path)
-    for name, _ in LOGS.values():
-        with open(run / name, "ab") as fh:
-            fh.write(b"".join(LINES.values()))
-    view = RunFiles(run).read()
-    # not UTF-8, not an object, NaN (and on the curve, a line without its columns) skipped; the torn line waits for
-    # its end, as a line being written does
-    for name, bad in (("workers/tracking/curve.jsonl", 4), ("workers/docking/adoptions.jsonl", 3),
-                      ("store/tracking.jsonl", 3)):
-        assert f"{run / name}: {bad} damaged lines skipped" in view.problems, view.problems
-    assert {w["behaviour"]: w["generation"] for w in view.workers} == {"tracking": 3, "docking": 3, "executive": 3}
+    @pytest.mark.parametrize("damage", SETTINGS)
+    def test_a_damaged_run_json_is_one_line_naming_it(self, finished: Path, tmp_path: Path, damage: str) -> None:
+        run = copy_of(finished, tmp_path)
+        f = run / "run.json"
+        f.write_bytes(SETTINGS[damage](f.read_bytes()))
+        res = reader("check", run, tmp_path)
+        assert "Traceback" not in res.stderr, res.stderr
+        assert res.returncode == 1 and f"PROBLEM: {str(f)!r}" in res.stdout, res.stdout
+        one_line_naming(reader("show", run, tmp_path), f)
 
 
-def test_a_store_file_of_random_bytes_is_kept_aside_and_refilled_by_a_resumed_run(finished: Path,
-                                                                                   tmp_path: Path) -> None:
-    run = copy_of(finished, tmp_path)
-    garbage = bytes(range(14, 247))  # 233 bytes, no newline: the broker reads it as a torn last line
-    (run / "store" / "tracking.jsonl").write_bytes(garbage)
-    res = coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet")
-    assert res.returncode == 0 and "Traceback" not in res.stderr, res.stderr
-    assert (run / "store" / "tracking.jsonl.cut-1").read_bytes() == garbage  # what the broker cut, kept
-    res = reader("check", run, tmp_path)
-    assert res.returncode == 0 and "complete (replay exact)" in res.stdout, res.stdout + res.stderr
+    def test_the_dashboard_skips_damaged_lines_and_says_so(self, finished: Path, tmp_path: Path) -> None:
+        run = copy_of(finished, tmp_path)
+        for name, _ in LOGS.values():
+            with open(run / name, "ab") as fh:
+                fh.write(b"".join(LINES.values()))
+        view = RunFiles(run).read()
+        # not UTF-8, not an object, NaN (and on the curve, a line without its columns) skipped; the torn line waits for
+        # its end, as a line being written does
+        for name, bad in (("workers/tracking/curve.jsonl", 4), ("workers/docking/adoptions.jsonl", 3),
+                          ("store/tracking.jsonl", 3)):
+            assert f"{run / name}: {bad} damaged lines skipped" in view.problems, view.problems
+        assert {w["behaviour"]: w["generation"] for w in view.workers} == {"tracking": 3, "docking": 3, "executive": 3}
 
 
-def test_a_store_reload_keeps_what_it_cuts_and_skips_damaged_lines(finished: Path, tmp_path: Path) -> None:
-    run = copy_of(finished, tmp_path)
-    f = run / "store" / "tracking.jsonl"
-    whole = f.read_bytes()
-    f.write_bytes(LINES["not_utf8"] + whole + LINES["torn"])
-    store = PolicyStore(tmp_path)
-    assert store.history("small", "tracking") == read_store(finished / "store" / "tracking.jsonl")
-    assert f.read_bytes() == LINES["not_utf8"] + whole  # the damaged line in the middle stays, as it was
-    assert (run / "store" / "tracking.jsonl.cut-1").read_bytes() == LINES["torn"]
+    def test_a_store_file_of_random_bytes_is_kept_aside_and_refilled_by_a_resumed_run(
+            self, finished: Path, tmp_path: Path) -> None:
+        run = copy_of(finished, tmp_path)
+        garbage = bytes(range(14, 247))  # 233 bytes, no newline: the broker reads it as a torn last line
+        (run / "store" / "tracking.jsonl").write_bytes(garbage)
+        res = coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet")
+        assert res.returncode == 0 and "Traceback" not in res.stderr, res.stderr
+        assert (run / "store" / "tracking.jsonl.cut-1").read_bytes() == garbage  # what the broker cut, kept
+        res = reader("check", run, tmp_path)
+        assert res.returncode == 0 and "complete (replay exact)" in res.stdout, res.stdout + res.stderr
 
 
-def test_a_resume_keeps_what_it_cuts_back(finished: Path, tmp_path: Path) -> None:
-    run = copy_of(finished, tmp_path)
-    curve = run / "workers" / "tracking" / "curve.jsonl"
-    rows = read_jsonl(curve)
-    with open(curve, "ab") as fh:
-        fh.write(LINES["torn"])
-    res = coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet")
-    assert res.returncode == 0 and "Traceback" not in res.stderr, res.stderr
-    assert read_jsonl(curve) == rows
-    assert (curve.parent / "curve.jsonl.cut-1").read_bytes() == LINES["torn"]
+    def test_a_store_reload_keeps_what_it_cuts_and_skips_damaged_lines(self, finished: Path, tmp_path: Path) -> None:
+        run = copy_of(finished, tmp_path)
+        f = run / "store" / "tracking.jsonl"
+        whole = f.read_bytes()
+        f.write_bytes(LINES["not_utf8"] + whole + LINES["torn"])
+        store = PolicyStore(tmp_path)
+        assert store.history("small", "tracking") == read_store(finished / "store" / "tracking.jsonl")
+        assert f.read_bytes() == LINES["not_utf8"] + whole  # the damaged line in the middle stays, as it was
+        assert (run / "store" / "tracking.jsonl.cut-1").read_bytes() == LINES["torn"]
+
+
+    def test_a_resume_keeps_what_it_cuts_back(self, finished: Path, tmp_path: Path) -> None:
+        run = copy_of(finished, tmp_path)
+        curve = run / "workers" / "tracking" / "curve.jsonl"
+        rows = read_jsonl(curve)
+        with open(curve, "ab") as fh:
+            fh.write(LINES["torn"])
+        res = coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet")
+        assert res.returncode == 0 and "Traceback" not in res.stderr, res.stderr
+        assert read_jsonl(curve) == rows
+        assert (curve.parent / "curve.jsonl.cut-1").read_bytes() == LINES["torn"]

@@ -18,8 +18,8 @@ def _values(n: int = 200_000) -> np.ndarray:
     special = [0.0, -0.0, 1e-300, -1e-300, 5e-324, math.pi, -math.pi, math.pi / 2, -math.pi / 2, 2 * math.pi,
                math.pi / 4, 3 * math.pi / 4, 1e5, -1e5, 1e6]
     k = np.arange(-40, 41) * (math.pi / 4)  # the edges of the reduction's quadrants, and next to them
-    return np.concatenate([special, k, np.nextafter(k, np.inf), np.nextafter(k, -np.inf),
-                           rng.uniform(-7.0, 7.0, n), rng.uniform(-1e-4, 1e-4, n // 10), rng.uniform(-500, 500, n // 10)])
+    return np.concatenate([special, k, np.nextafter(k, np.inf), np.nextafter(k, -np.inf), rng.uniform(-7.0, 7.0, n),
+                           rng.uniform(-1e-4, 1e-4, n // 10), rng.uniform(-500, 500, n // 10)])
 
 
 def _ulps(ours: np.ndarray, ref: np.ndarray) -> float:
