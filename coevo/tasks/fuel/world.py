@@ -76,6 +76,16 @@ def _signed_rad(a: np.ndarray) -> np.ndarray:
     return a - (2 * np.pi) * np.floor((a + np.pi) * (0.5 / np.pi))
 
 
+def _directions(pairs: dict[str, tuple[np.ndarray, np.ndarray]]) -> dict[str, np.ndarray]:
+    """The angle in degrees of each named (dy, dx) pair, from one :func:`coevo.exactmath.atan2` call: it is
+    elementwise, so the same bits as one call each, and numpy's cost is per call at a step's sizes."""
+    if not pairs:
+        return {}
+    ys, xs = zip(*pairs.values())
+    angles = np.degrees(exactmath.atan2(np.concatenate(ys), np.concatenate(xs)))
+    return dict(zip(pairs, np.split(angles, np.cumsum([len(y) for y in ys])[:-1]), strict=True))
+
+
 def _norm(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
     return np.sqrt(dx * dx + dy * dy)  # np.hypot is 4x slower
 
@@ -342,9 +352,8 @@ class BatchWorld:
         h = np.degrees(rh)
         dx, dy = tx - rx, ty - ry
         t_dist = _norm(dx, dy)
-        if want & {"heading", "target_bearing", "range", "bearing"}:
-            t_dir = np.degrees(exactmath.atan2(dy, dx))
-        if want & {"range", "bearing"}:
+        ranged = bool(want & {"range", "bearing"})
+        if ranged:
             x, y = rx, ry
             A = c.arena
             qx = np.clip(x, self.dock_x0, self.dock_x1)
@@ -356,12 +365,27 @@ class BatchWorld:
             for g in gaps[1:]:
                 nearest = np.minimum(nearest, g)
             out["range"] = np.maximum(nearest, 0.0)
+            at_dock = np.flatnonzero(gaps[4] == nearest)
+        if want & {"dock_range", "dock_bearing"}:
+            ddx, ddy = self.dock_point[0] - rx, self.dock_point[1] - ry
+            out["dock_range"] = _norm(ddx, ddy)
+        # Every direction the sensors need (to the Target, to the dock's nearest point where it is the nearest object,
+        # to the middle of the dock's front), in degrees, from one arctangent call.
+        pairs = {}
+        if want & {"heading", "target_bearing", "range", "bearing"}:
+            pairs["target"] = (dy, dx)
+        if ranged and at_dock.size:
+            pairs["dock_gap"] = (qy[at_dock] - y[at_dock], qx[at_dock] - x[at_dock])
+        if "dock_bearing" in want:
+            pairs["dock"] = (ddy, ddx)
+        dirs = _directions(pairs)
+        t_dir = dirs.get("target")
+        if ranged:
             # The direction of the nearest object, the first of equals winning (argmin's rule): Target,
             # then dock, then the walls, later ones overwriting.
             obj_dir = t_dir.copy()
-            at_dock = np.flatnonzero(gaps[4] == nearest)
             if at_dock.size:
-                obj_dir[at_dock] = np.degrees(exactmath.atan2(qy[at_dock] - y[at_dock], qx[at_dock] - x[at_dock]))
+                obj_dir[at_dock] = dirs["dock_gap"]
             for k in (3, 2, 1, 0):
                 obj_dir[gaps[k] == nearest] = _WALL_DIR[k]
             out["bearing"] = wrap_deg(obj_dir - h)
@@ -371,11 +395,8 @@ class BatchWorld:
             out["target_range"] = t_dist
         if "target_bearing" in want:
             out["target_bearing"] = wrap_deg(t_dir - h)
-        if want & {"dock_range", "dock_bearing"}:
-            ddx, ddy = self.dock_point[0] - rx, self.dock_point[1] - ry
-            out["dock_range"] = _norm(ddx, ddy)
-            if "dock_bearing" in want:
-                out["dock_bearing"] = wrap_deg(np.degrees(exactmath.atan2(ddy, ddx)) - h)
+        if "dock_bearing" in want:
+            out["dock_bearing"] = wrap_deg(dirs["dock"] - h)
         if "dock_orientation" in want:
             out["dock_orientation"] = wrap_deg(h - DOCK_HEADING)
         if "fuel" in want:
@@ -427,16 +448,21 @@ class BatchWorld:
         # p += (v + v_bias) * dt, a += (w + w_bias) * dt, the biases zero.  A standing robot's velocity
         # is zero, which leaves its pose as it is.
         rh, sp, tu = self.rh[a], speed[a], turn[a]
-        sin_h, cos_h = exactmath.sincos(rh)
-        gx = self._gx[a] + sp * cos_h * dt
-        gy = self._gy[a] + sp * sin_h * dt
+        noise = target_noise[a]
+        th = _signed_rad(self.th[a] + np.radians(noise))  # the Targets' headings before they walk
+        # One call for the robots' and the Targets' headings (elementwise: the same bits as two; numpy's cost is
+        # per call at these sizes).
+        sines, cosines = exactmath.sincos(np.concatenate([rh, th]))
+        m = rh.size
+        gx = self._gx[a] + sp * cosines[:m] * dt
+        gy = self._gy[a] + sp * sines[:m] * dt
         ga = self._ga[a] + np.radians(tu) * dt
         self._gx[a], self._gy[a], self._ga[a] = gx, gy, ga
         self._sense_contacts(dt)
         rx = self.rx[a] = gx - self.origin[a, 0]
         ry = self.ry[a] = gy - self.origin[a, 1]
         self.rh[a] = _signed_rad(ga)
-        self._target_walk(active, target_noise, a)
+        self._target_walk(a, noise, th, sines[m:], cosines[m:])
         self.speed[:] = speed
         self.turn[:] = turn
 
@@ -602,17 +628,13 @@ class BatchWorld:
         slow = (speed > 0) & (speed <= c.dock_max_speed)
         return on_front & head_on & slow
 
-    def _target_walk(self, active: np.ndarray, noise_deg: np.ndarray, a: slice | np.ndarray | None = None) -> None:
-        """Move the active Targets: a random walk that turns away from walls and the dock.
-
-        Computed on the active lanes ``a`` only (a slice when all are): the others keep their Target.
-        """
+    def _target_walk(self, a: slice | np.ndarray, noise: np.ndarray, th: np.ndarray, sin: np.ndarray,
+                     cos: np.ndarray) -> None:
+        """Move the Targets of the active lanes ``a`` (a slice when all are): a random walk that turns away from walls
+        and the dock.  ``noise``: their heading noise (deg); ``th``: their noisy headings, ``sin``, ``cos`` its sine
+        and cosine (changed here where a Target turns away).  The other lanes keep their Target."""
         c = self.cfg
-        if a is None:
-            a = slice(None) if active.all() else np.flatnonzero(active)
-        tx, ty, noise = self.tx[a], self.ty[a], noise_deg[a]
-        th = _signed_rad(self.th[a] + np.radians(noise))
-        sin, cos = exactmath.sincos(th)
+        tx, ty = self.tx[a], self.ty[a]
         ahead_x = tx + c.target_avoid * cos
         ahead_y = ty + c.target_avoid * sin
         lo = c.target_radius + 2.0
