@@ -163,8 +163,11 @@ def _style(i: int) -> tuple[str, str]:
 
 
 def curve_lines(view: View, behaviour: str, what: str = "fitness") -> dict[str, list[Any]]:
-    """A multi-line plot's columns for ``behaviour``: per run, its best fitness and best so far (``fitness``), or
-    each of the task's measures (``measures``); a colour per run."""
+    """A multi-line plot's columns for ``behaviour``: per run, its generation's best fitness and the fitness of the
+    policy it publishes as its best (``fitness``), or each of the task's measures (``measures``); a colour per run.
+
+    The published best's fitness is the mean of all its re-evaluations (``GAConfig.best_candidates``), so it can go
+    down as evidence comes in: it is not a running maximum, and is not labelled one."""
     cols: dict[str, list[Any]] = {"xs": [], "ys": [], "run": [], "line": [], "color": [], "dash": [], "width": []}
     for i, r in enumerate(view.runs):
         colour, dash = _style(i)
@@ -172,7 +175,8 @@ def curve_lines(view: View, behaviour: str, what: str = "fitness") -> dict[str, 
             if b != behaviour or not len(c):
                 continue
             if what == "fitness":
-                lines = [("best so far", c.best_so_far, 2.5), ("generation's best", c.best, 1.0)]
+                lines = [("published best (mean of its re-evaluations)", c.best_so_far, 2.5),
+                         ("generation's best", c.best, 1.0)]
             else:
                 labels = _labels()
                 lines = [(labels.get(k, k), col, 2.0) for k, col in sorted(c.measures.items())]
