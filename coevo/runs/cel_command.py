@@ -136,7 +136,7 @@ def cmd_cel(args: argparse.Namespace) -> int:
         print(f"external performance at the end: {c['external_end']:.0f} %; new rules reached the robot in "
               f"{c['latency_ms']['median']:.1f} ms (median)" if c.get("latency_ms") else "")
     if summary["interrupted"]:
-        print(f"the run stopped early; continue it with coevo cel --resume {lr.dir}", file=sys.stderr)
+        print(f"the run stopped early; continue it with {lr.resume_command}", file=sys.stderr)
         return 130 if summary.get("stopped_here") else 1
     return 0
 
@@ -153,6 +153,20 @@ def cmd_execution(args: argparse.Namespace) -> int:
                          resume=args.resume, run_key=find_run_key(args.key_file, settings, Path(args.settings).parent))
 
 
+def add_cel_flags(p: argparse.ArgumentParser, *, schedules: list[str]) -> None:
+    """The flags of a live CEL run that ``coevo cel`` and ``coevo cel-experiment`` share: the failure schedule (one of
+    ``schedules``) or events, restarts from the case base, and K."""
+    p.add_argument("--schedule", choices=schedules,
+                   help="figure3: front, front-right and right fail at generation 50 (default); cyclic: fail at 25, "
+                        "repaired at 50, fail again at 75" + ("; none" if "none" in schedules else ""))
+    p.add_argument("--fail", type=fail_arg, action="append", metavar="GEN:SONARS",
+                   help="a failure event instead of --schedule, e.g. 50:front,front_right,right (75: repairs; repeatable)")
+    p.add_argument("--case-base", action="store_true",
+                   help="restart from the case base's nearest earlier strategies (kept in the broker's store)")
+    p.add_argument("--trials-per-generation", type=count_arg(1, 100_000),
+                   help="K: the robot's trials per learner generation (default 100, Figure 3's y-axis)")
+
+
 def configure_cel(p: argparse.ArgumentParser) -> None:
     """``coevo cel``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
     p.add_argument("--run", help="run id (default cel-TIME)")
@@ -161,16 +175,8 @@ def configure_cel(p: argparse.ArgumentParser) -> None:
     p.add_argument("--settings", metavar="RUN_JSON",
                    help="start a run with these settings (a CEL run's run.json, e.g. one coevo cel-experiment wrote)")
     p.add_argument("--seed", type=seed_arg, help="the learner's seed (default 0); the robot's world uses seed + 1000003")
-    p.add_argument("--schedule", choices=list(SCHEDULES),
-                   help="figure3: front, front-right and right fail at generation 50 (default); cyclic: fail at 25, "
-                        "repaired at 50, fail again at 75; none")
-    p.add_argument("--fail", type=fail_arg, action="append", metavar="GEN:SONARS",
-                   help="a failure event instead of --schedule, e.g. 50:front,front_right,right (75: repairs; repeatable)")
-    p.add_argument("--case-base", action="store_true",
-                   help="restart from the case base's nearest earlier strategies (kept in the broker's store)")
+    add_cel_flags(p, schedules=list(SCHEDULES))
     p.add_argument("--cases-from", metavar="RUN_DIR", help="start the case base with an earlier run's (implies --case-base)")
-    p.add_argument("--trials-per-generation", type=count_arg(1, 100_000),
-                   help="K: the robot's trials per learner generation (default 100, Figure 3's y-axis)")
     p.add_argument("--chunk", type=count_arg(1, 100_000), help="trials per stretch of the robot (default K)")
     p.add_argument("--zero-run", type=count_arg(1, 10_000),
                    help="the monitor: zero readings in a row while moving forward to mark a sonar defective (default 8)")

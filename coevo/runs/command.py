@@ -123,7 +123,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if summary["interrupted"]:
         early = ", ".join(f"{b} after {g}" for b, g in summary.get("stopped_early", {}).items())
         print(f"the run stopped early{' (' + early + ' generations)' if early else ''}; continue it with "
-              f"coevo run --resume {lr.dir}", file=sys.stderr)
+              f"{lr.resume_command}", file=sys.stderr)
         return 130 if summary.get("stopped_here") else 1
     if summary["unstored"]:
         print(f"the broker's store lacks published versions {summary['unstored']} (they stay in the workers' "

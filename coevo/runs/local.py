@@ -192,7 +192,7 @@ class LocalRun:
             raise RunDirError(f"{str(self.dir)!r} is a file, not a run directory; choose another --run or --root")
         if self.dir.exists() and any(self.dir.iterdir()):
             raise RunDirError(f"run directory {str(self.dir)!r} already exists; choose another --run or --root, "
-                              f"or continue it with {self.COMMAND} --resume {self.dir}")
+                              f"or continue it with {self.resume_command}")
         try:
             self.dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -223,6 +223,11 @@ class LocalRun:
     def gate(self) -> Gate:
         """What this run's own processes accept: its key (none if open), its roster, its generations."""
         return self.settings.gate(self.key)
+
+    @property
+    def resume_command(self) -> str:
+        """The command line that continues this run from its checkpoints (every advice to resume quotes it)."""
+        return f"{self.COMMAND} --resume {self.dir}"
 
     def start_broker(self) -> subprocess.Popen[bytes]:
         # The broker finds the run's key in its data directory (RUN/secret.key): nothing secret on its command line.
@@ -262,7 +267,7 @@ class LocalRun:
                 self._no_start[who] = words
         if self.restarts[who] >= MAX_RESTARTS:
             raise RunDirError(f"{what} {exit_} after {self.restarts[who]} restarts{': ' + words if words else ''}; "
-                              f"see {self.paths.log(name)} (continue with {self.COMMAND} --resume {self.dir})")
+                              f"see {self.paths.log(name)} (continue with {self.resume_command})")
         self.restarts[who] += 1
         log.warning("run %s: %s %s; starting it again (restart %d of at most %d)", self.run, what, exit_,
                     self.restarts[who], MAX_RESTARTS)
@@ -415,7 +420,7 @@ def run_local(
             latest = fetch_latest(s, run)
         failed = {b: p.returncode for b, p in lr.workers.items() if p.returncode not in (0, None)}
         if failed and not interrupted:
-            raise RunDirError(f"workers failed {failed}; see {lr.paths.logs_dir} (continue with {lr.COMMAND} --resume {lr.dir})")
+            raise RunDirError(f"workers failed {failed}; see {lr.paths.logs_dir} (continue with {lr.resume_command})")
     finally:
         signal.signal(signal.SIGTERM, previous)
         lr.end_all()

@@ -73,19 +73,11 @@ def cmd_cel_experiment(args: argparse.Namespace) -> int:
 
 def configure_cel_experiment(p: argparse.ArgumentParser) -> None:
     """``coevo cel-experiment``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
-    from coevo.runs.cel_command import SCHEDULES, fail_arg
+    from coevo.runs.cel_command import SCHEDULES, add_cel_flags
 
     p.add_argument("--runs", type=count_arg(1, 10_000), default=10, help="live runs, one per seed (default 10)")
     p.add_argument("--first-seed", type=seed_arg, default=0, help="seeds first-seed .. first-seed + runs - 1")
-    p.add_argument("--schedule", choices=[s for s in SCHEDULES if s != "none"],
-                   help="figure3: front, front-right and right fail at generation 50 (default); cyclic: fail at 25, "
-                        "repaired at 50, fail again at 75")
-    p.add_argument("--fail", type=fail_arg, action="append", metavar="GEN:SONARS",
-                   help="a failure event instead of --schedule, e.g. 50:front,front_right,right (repeatable)")
-    p.add_argument("--case-base", action="store_true",
-                   help="restart from the case base's nearest earlier strategies (as coevo cel --case-base)")
-    p.add_argument("--trials-per-generation", type=count_arg(1, 100_000),
-                   help="the robot's trials per learner generation (default 100, Figure 3's y-axis)")
+    add_cel_flags(p, schedules=[s for s in SCHEDULES if s != "none"])
     p.add_argument("--lockstep", metavar="FILE",
                    help="per-seed curves of the in-process lockstep runs (benchmarks/cel.py's JSON, e.g. "
                         "docs/cel/figure3.json): count the live runs equal to them")
