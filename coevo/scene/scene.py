@@ -1,4 +1,4 @@
-"""A task-agnostic picture of recorded episodes: static geometry, tracks on one frame axis, events.
+"""A picture of recorded episodes that any task can make: static geometry, tracks on one frame axis, events.
 
 A task turns its recording into a :class:`Scene` (e.g. :mod:`coevo.tasks.fuel.pictures.scene`);
 :mod:`coevo.scene.draw` renders any scene as a PNG or an animation without knowing the
@@ -16,7 +16,9 @@ import numpy as np
 
 __all__ = ["Shape", "Track", "Ring", "Event", "Span", "Scene", "EVENT_KINDS", "SHAPE_ROLES"]
 
-# Event kinds the renderer has a marker for; a task may use any subset.
+# Event kinds the renderer has a marker for: the endings the tasks so far name (the fuel task's: tracking,
+# docked, collided, ran dry, time up; the door task's: reached goal, ran out of time).  The renderer knows no task,
+# but this vocabulary is theirs: a new task with new endings adds its kinds here (another kind gets a plain marker).
 EVENT_KINDS = ("start", "tracking", "docked", "collided", "ran dry", "time up", "reached goal", "ran out of time")
 # Roles of static shapes the renderer has a style for ("wall": an outline; "goal": a dashed green line;
 # "mark": a dotted grey line; "beam"/"failed beam": a sensor's beam, working or failed; anything else: a filled block).
