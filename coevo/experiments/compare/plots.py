@@ -49,8 +49,11 @@ def _pyplot():  # type: ignore[no-untyped-def]
 
 
 def _axis(ax, title: str, ylabel: str, top: float, *, xlabel: str = "generation") -> None:  # type: ignore[no-untyped-def]
+    from matplotlib.ticker import MaxNLocator
+
     ax.set_title(title)
     ax.set_xlabel(xlabel)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # generations are whole: no 1.5 on a 3-generation run
     ax.set_ylabel(ylabel)
     ax.set_ylim(0, top)
     ax.grid(alpha=0.3)

@@ -115,6 +115,7 @@ def _plot(path: Path, rows: list[dict[str, Any]], behaviours: list[str]) -> None
 
     matplotlib.use("Agg")  # files only, no display needed
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     fig, axes = plt.subplots(1, len(behaviours), figsize=(4 * len(behaviours), 3.2), squeeze=False)
     for ax, b in zip(axes[0], behaviours):
@@ -125,6 +126,7 @@ def _plot(path: Path, rows: list[dict[str, Any]], behaviours: list[str]) -> None
         if vals:
             ax.axhline(statistics.median(vals), color="tab:blue", ls=":", label="median")
         ax.set(title=b, xlabel="seed (run)", ylabel=f"{key} %", ylim=(0, 100))
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # seeds are whole numbers
         ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
