@@ -318,3 +318,15 @@ def test_run_listen_on_a_port_in_use_is_one_line_before_anything_starts(tmp_path
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and err[0].startswith(f"ConfigError: --listen tcp/127.0.0.1:{port}: cannot listen"), err
     assert not (tmp_path / "runs").exists()
+
+
+@pytest.mark.parametrize("endpoint", ["nan", "-1", "/etc", "tcp/", "unixsock-stream/tmp/x.sock", "tcp/127.0.0.1:-1",
+                                      "tcp/127.0.0.1:99999"])
+def test_a_listen_endpoint_that_cannot_be_a_runs_broker_is_one_line_before_anything(
+        endpoint: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from coevo.cli import main
+
+    code = main(["run", "--run", "x", "--root", str(tmp_path / "root"), "--listen", endpoint])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].startswith("ConfigError: ") and endpoint in err[0], err
+    assert not (tmp_path / "root").exists()

@@ -160,6 +160,9 @@ def check_endpoint(ep: str, *, listen: bool) -> None:
     only warns, and a router would say it joined a port that cannot exist."""
     if not isinstance(ep, str) or not ep.strip():
         raise ConfigError(f"endpoint {ep!r} is empty: give one like tcp/127.0.0.1:7447")
+    proto, slash, rest = ep.partition("/")
+    if not slash or not proto or not rest or not proto.replace("-", "").isalnum():
+        raise ConfigError(f"endpoint {ep!r} is not PROTOCOL/ADDRESS (e.g. tcp/127.0.0.1:7447)")
     if not ep.startswith(_PORTED):
         return  # unixsock-stream/PATH, serial/..., and others zenoh knows: its own checks
     addr = ep.split("/", 1)[1].split("#", 1)[0].split("?", 1)[0]

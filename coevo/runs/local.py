@@ -95,20 +95,21 @@ def loopback_endpoint() -> str:
 
 
 def check_listen(endpoint: str) -> str:
-    """``endpoint`` if a broker could listen there: a tcp/ or tls/ port that is free on this machine; else a
+    """``endpoint`` if a run's broker could listen there: a tcp/ or tls/ port that is free on this machine; else a
     ConfigError naming it (the broker would fail to start, and the run with it)."""
     from coevo.bus.session import check_endpoint
 
     check_endpoint(endpoint, listen=True)
     proto, _, address = endpoint.partition("/")
-    if proto in ("tcp", "tls"):
-        host, _, port = address.split("#")[0].rpartition(":")
-        with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as s:
-            try:
-                s.bind((host.strip("[]"), int(port)))
-            except OSError as exc:
-                raise ConfigError(f"--listen {endpoint}: cannot listen there ({exc.strerror or exc}); choose another "
-                                  "port, or leave --listen out for a free one") from None
+    if proto not in ("tcp", "tls"):  # coevo status and dashboard find a run by probing its broker's TCP port
+        raise ConfigError(f"--listen {endpoint}: a run's broker listens on tcp/HOST:PORT or tls/HOST:PORT")
+    host, _, port = address.split("#")[0].rpartition(":")
+    with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as s:
+        try:
+            s.bind((host.strip("[]"), int(port)))
+        except OSError as exc:
+            raise ConfigError(f"--listen {endpoint}: cannot listen there ({exc.strerror or exc}); choose another "
+                              "port, or leave --listen out for a free one") from None
     return endpoint
 
 
