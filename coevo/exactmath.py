@@ -45,20 +45,10 @@ _PIO2 = float.fromhex("0x1.921fb54442d18p+0")
 _PI = float.fromhex("0x1.921fb54442d18p+1")
 
 
-def _inverse_factorials(first: int, count: int) -> tuple[float, ...]:
-    """(-1)^i / (first + 2i)! for i < count: Taylor coefficients (a correctly rounded division of exact integers)."""
-    out, f = [], 1
-    for n in range(1, first + 2 * count):
-        f *= n
-        if n >= first and (n - first) % 2 == 0:
-            out.append(-((-1.0) ** ((n - first) // 2)) / f)
-    return tuple(out)
-
-
 # sin r = r + r*z*(S0 + z*(S1 + ...)), cos r = 1 + z*(C0 + z*(C1 + ...)), z = r*r, |r| <= pi/4: the first term
 # left out is below 1e-19 of the result.
-_SIN = _inverse_factorials(3, 8)  # -1/3!, 1/5!, ..., 1/17!
-_COS = _inverse_factorials(2, 9)  # -1/2!, 1/4!, ..., 1/18!
+_SIN = tuple((-1.0) ** (i + 1) / math.factorial(2 * i + 3) for i in range(8))  # -1/3!, 1/5!, ..., 1/17!
+_COS = tuple((-1.0) ** (i + 1) / math.factorial(2 * i + 2) for i in range(9))  # -1/2!, 1/4!, ..., 1/18!
 # e^r = 1 + r*(1 + r*(1/2! + r*(...1/14!))), |r| <= ln2/2: the first term left out is below 1e-17 of it.
 _EXP = tuple(1.0 / math.factorial(n) for n in range(1, 15))
 # ln(1+f) = 2s + 2s*z*(L0 + z*(L1 + ...)), s = f/(2+f), z = s*s, |s| <= 0.1716: 1/3, 1/5, ..., 1/23.

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from coevo.rundir.machine import cpu_flags
+from coevo.rundir.machine import cpu_flags, numpy_dispatch
 
 HERE = Path(__file__).parent
 FIXTURE = HERE / "data" / "exact_curves.json"
@@ -33,15 +33,6 @@ _CORETYPES = {
     "Haswell": {"avx2", "fma"},  # also what OpenBLAS runs on Zen
     "SkylakeX": {"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"},
 }
-
-
-def _numpy_dispatch() -> list[str]:
-    """numpy's optional SIMD targets this processor runs (what NPY_DISABLE_CPU_FEATURES may turn off)."""
-    try:
-        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
-    except ImportError:  # numpy 1.x
-        from numpy.core._multiarray_umath import __cpu_dispatch__, __cpu_features__
-    return [f for f in __cpu_dispatch__ if __cpu_features__.get(f)]
 
 
 def _uses_openblas() -> bool:
@@ -60,7 +51,7 @@ def _variants() -> list[object]:
                else f"this processor lacks {', '.join(sorted(needs - flags))}" if needs - flags else "")
         out.append(pytest.param({"OPENBLAS_CORETYPE": core}, "numpy", id=f"openblas-{core}",
                                 marks=[pytest.mark.skip(reason=why)] if why else []))
-    simd = _numpy_dispatch()
+    simd = numpy_dispatch()
     out.append(pytest.param({"NPY_DISABLE_CPU_FEATURES": " ".join(simd)}, "numpy,compiled", id="numpy-no-simd",
                             marks=[] if simd else [pytest.mark.skip(reason="numpy runs no optional SIMD code here")]))
     glibc = platform.libc_ver()[0] == "glibc" and x86 and "fma" in flags
@@ -110,7 +101,7 @@ def test_fixture_replays_under(env: dict[str, str], paths: str) -> None:
 def test_run_recorded_under_other_kernels_checks_exact_here(tmp_path: Path) -> None:
     """A whole ``coevo run`` recorded with another BLAS kernel and without numpy's SIMD code replays exactly under
     this process's defaults; and when a number does differ, ``coevo replay`` names what differs between the machines."""
-    flags, simd = cpu_flags(), _numpy_dispatch()
+    flags, simd = cpu_flags(), numpy_dispatch()
     env = {**os.environ, "NPY_DISABLE_CPU_FEATURES": " ".join(simd)}
     if _uses_openblas() and platform.machine() in ("x86_64", "AMD64"):
         env["OPENBLAS_CORETYPE"] = "Haswell" if {"avx2", "fma"} <= flags else "Prescott"

@@ -18,7 +18,7 @@ from functools import cache
 from importlib import metadata
 from typing import Any
 
-__all__ = ["machine", "cpu_flags", "differences"]
+__all__ = ["machine", "cpu_flags", "numpy_dispatch", "differences"]
 
 #: The processor flags worth recording: those that change which code a library runs (BLAS, numpy, libm; pni: SSE3).
 _FLAGS = ("pni", "avx", "avx2", "fma", "avx512f", "avx512bw", "avx512vl", "neon", "asimd", "sve")
@@ -28,27 +28,27 @@ _ENV = ("OPENBLAS_CORETYPE", "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "NPY_DIS
 
 
 @cache
+def _cpuinfo() -> dict[str, str]:
+    """The first processor's fields in Linux's ``/proc/cpuinfo`` (empty elsewhere)."""
+    out: dict[str, str] = {}
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
+            for line in f:
+                key, sep, value = line.partition(":")
+                if not sep:
+                    if out:
+                        break  # the first processor's block ended
+                    continue
+                out.setdefault(key.strip(), value.strip())
+    except OSError:
+        pass
+    return out
+
+
 def cpu_flags() -> frozenset[str]:
     """The processor's feature flags as Linux's ``/proc/cpuinfo`` names them (``pni`` is SSE3); empty elsewhere."""
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
-            for line in f:
-                if line.startswith(("flags", "Features")):
-                    return frozenset(line.split(":", 1)[1].split())
-    except OSError:
-        pass
-    return frozenset()
-
-
-def _cpu_model() -> str:
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "?"
+    info = _cpuinfo()
+    return frozenset((info.get("flags") or info.get("Features") or "").split())
 
 
 def _version(dist: str) -> str:
@@ -70,13 +70,22 @@ def _blas() -> str:
     return "none found"
 
 
-def _numpy_simd() -> str:
-    """The optional SIMD targets numpy's dispatcher runs here (baseline + those enabled)."""
+def numpy_dispatch() -> list[str]:
+    """numpy's optional SIMD targets this processor runs (those ``NPY_DISABLE_CPU_FEATURES`` may turn off)."""
     try:
-        from numpy._core._multiarray_umath import __cpu_baseline__, __cpu_dispatch__, __cpu_features__
+        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
     except ImportError:  # numpy 1.x
-        from numpy.core._multiarray_umath import __cpu_baseline__, __cpu_dispatch__, __cpu_features__
-    return " ".join([*__cpu_baseline__, *(f for f in __cpu_dispatch__ if __cpu_features__.get(f))])
+        from numpy.core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+    return [f for f in __cpu_dispatch__ if __cpu_features__.get(f)]
+
+
+def _numpy_simd() -> str:
+    """The SIMD targets numpy's dispatcher runs here: its baseline and the optional ones enabled."""
+    try:
+        from numpy._core._multiarray_umath import __cpu_baseline__
+    except ImportError:  # numpy 1.x
+        from numpy.core._multiarray_umath import __cpu_baseline__
+    return " ".join([*__cpu_baseline__, *numpy_dispatch()])
 
 
 @cache
@@ -92,7 +101,7 @@ def machine() -> dict[str, str]:
         "numpy_simd": _numpy_simd(),
         "libc": " ".join(platform.libc_ver()) or "?",
         "system": f"{platform.system()} {platform.machine()}",
-        "processor": _cpu_model(),
+        "processor": _cpuinfo().get("model name") or platform.processor() or "?",
         "processor_flags": " ".join(f for f in _FLAGS if f in flags) or "?",
         "byteorder": sys.byteorder,
     }
