@@ -71,7 +71,7 @@ class _Parser(argparse.ArgumentParser):
         if blank and not isinstance(action, argparse._SubParsersAction):  # a command's values: its own parser's
             name = "/".join(action.option_strings) or action.metavar or action.dest
             self.error(f"{name} {arg_string!r} is {'empty' if not arg_string else 'blank'}: give a value")
-        return super()._get_value(action, arg_string)  # type: ignore[misc]
+        return super()._get_value(action, arg_string)
 
 
 def configure(name: str, p: argparse.ArgumentParser) -> None:

@@ -14,7 +14,7 @@ import argparse
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar, Literal, TypeVar
+from typing import Any, ClassVar, Literal, TypeVar, cast
 
 from annotated_types import Ge, Gt, Le
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
@@ -90,7 +90,8 @@ class Bounded:
         gt = next((m.gt for m in field.metadata if isinstance(m, Gt)), None)
         hi = next(m.le for m in field.metadata if isinstance(m, Le))
         whole = field.annotation in (int, "int")
-        return Bounded(gt if lo is None else lo, hi, whole=whole, above=lo is None)
+        low, high = cast(float, gt if lo is None else lo), cast(float, hi)  # numbers: the fields are int or float
+        return Bounded(low, high, whole=whole, above=lo is None)
 
 
 #: The largest magnitude a number of any settings model may have: no world is a billion inches wide, no GA

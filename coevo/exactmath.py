@@ -65,7 +65,7 @@ _TINIEST = 5e-324  # the smallest positive double: a denominator that is never 0
 
 
 def _horner(z: np.ndarray | float, coefs: tuple[float, ...]) -> np.ndarray | float:
-    p = coefs[-1]
+    p: np.ndarray | float = coefs[-1]
     for c in coefs[-2::-1]:
         p = c + z * p
     return p

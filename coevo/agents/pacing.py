@@ -175,7 +175,7 @@ class Pacer:
 
         ``tick`` is called about every ``tick_every`` seconds while waiting.
         """
-        if not self._subs:
+        if not self._subs or self.max_lead is None:
             return 0.0
         need = completed - self.max_lead
         t0 = time.monotonic()

@@ -40,8 +40,10 @@ import logging
 import os
 import threading
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from coevo.bus import keys
 from coevo.bus.messages import CaseUpdate, PolicyUpdate
@@ -120,6 +122,7 @@ class PolicyStore:
         return paths.case_file(stream[len(_CASES):]) if stream.startswith(_CASES) else paths.store_file(stream)
 
     def _load(self) -> None:
+        files: list[tuple[Path, str, str, Callable[..., list[Any]]]]
         files = [(f, f.parent.parent.name, f.stem, read_store) for f in sorted(self.data_dir.glob("*/store/*.jsonl"))]
         files += [(f, f.parent.parent.parent.name, _CASES + f.stem, read_cases)
                   for f in sorted(self.data_dir.glob("*/store/cases/*.jsonl"))]

@@ -83,8 +83,9 @@ def seal(body: bytes, key_expr: str, secret: bytes, fresh: bytes | None = None) 
         from coevo.bus.freshness import header
 
         fresh = header(0)
-    return msgpack.packb({"v": ENVELOPE, "fresh": fresh, "mac": mac2(secret, key_expr, fresh, body), "msg": body},
-                         use_bin_type=True)
+    sealed: bytes = msgpack.packb({"v": ENVELOPE, "fresh": fresh, "mac": mac2(secret, key_expr, fresh, body),
+                                   "msg": body}, use_bin_type=True)
+    return sealed
 
 
 @dataclass(frozen=True)

@@ -55,7 +55,8 @@ def header(epoch: int) -> bytes:
     """The next freshness header of this process, for a message of run incarnation ``epoch``."""
     with _SEQ_LOCK:
         seq = next(_SEQ)
-    return msgpack.packb([int(epoch), _BORN, _INC, seq, time.time()], use_bin_type=True)
+    packed: bytes = msgpack.packb([int(epoch), _BORN, _INC, seq, time.time()], use_bin_type=True)
+    return packed
 
 
 def parse(raw: bytes) -> tuple[int, float, str, int, float]:

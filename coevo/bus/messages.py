@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import hmac
 import math
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Final, Literal, Union, cast
 
 import msgpack
 from pydantic import (
@@ -34,7 +34,7 @@ from coevo.policy.schema import registered
 __all__ = ["SCHEMA_VERSION", "MAX_BYTES", "REASONS", "PolicyUpdate", "Status", "BrokerStatus", "Control", "CaseUpdate",
            "CapabilityUpdate", "ExecutionStatus", "Message", "encode", "decode", "decode_fresh", "unseal", "unseal_fresh"]
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION: Final = 1
 MAX_BYTES = 1 << 20  # a 64-rule policy is ~5 KB; anything near a megabyte is not ours
 
 #: Why a message is rejected: the keys of every ``rejected`` counter (status, broker stats, logs).
@@ -239,7 +239,7 @@ def encode(msg: AnyMessage, *, key: str | None = None,
            secret: bytes | None = None, fresh: bytes | None = None) -> bytes:
     """Message -> bytes; with ``secret``, sealed in an envelope authenticated for the key expression ``key``
     with the freshness header ``fresh`` (default: this process's next, run incarnation 0)."""
-    body = msgpack.packb(msg.model_dump(mode="json"), use_bin_type=True)
+    body: bytes = msgpack.packb(msg.model_dump(mode="json"), use_bin_type=True)
     if secret is None:
         return body
     if key is None:
@@ -277,7 +277,7 @@ def _envelope(data: Any, key: str | None, secret: bytes | None) -> tuple[bytes, 
     if secret is not None:
         if key is None:
             raise TypeError("checking an authenticator needs the key expression the message arrived on")
-        if not hmac.compare_digest(tag, auth.mac2(secret, key, fresh, body)):
+        if not hmac.compare_digest(tag, auth.mac2(secret, key, cast(bytes, fresh), body)):  # format 2: bytes
             raise MessageError("unauthenticated", f"wrong authenticator for {key!r} (forged, altered or moved "
                                                   "onto another key)")
     return body, (None if v1 else fresh)

@@ -47,6 +47,19 @@ DEFAULT_STALL = 3.0  # seconds without a heartbeat; workers send one about every
 BROKER_GRACE = 10.0  # seconds a broker never seen yet is "starting" (its store opens after its router), then "down"
 
 
+def _process_state(view: WorkerView | RobotView, now: float, stall: float) -> str:
+    """What a worker or an execution module is doing, as its heartbeats and its liveliness token show it."""
+    if view.done:
+        return "done"
+    if not view.token:
+        return "done" if view.finished() else "dead"
+    if view.generation == 0:
+        return "starting"  # no generation done yet: loading, or waiting for its broker or partners
+    if view.last_heartbeat and now - view.last_heartbeat > stall:
+        return "stalled"
+    return "alive"
+
+
 @dataclass
 class WorkerView:
     behaviour: str
@@ -70,15 +83,7 @@ class WorkerView:
         return self.done or 0 < self.generations <= self.generation
 
     def state(self, now: float, stall: float) -> str:
-        if self.done:
-            return "done"
-        if not self.token:
-            return "done" if self.finished() else "dead"
-        if self.generation == 0:
-            return "starting"  # no generation done yet: loading, or waiting for its broker or partners
-        if self.last_heartbeat and now - self.last_heartbeat > stall:
-            return "stalled"
-        return "alive"
+        return _process_state(self, now, stall)
 
     def as_dict(self, now: float, stall: float) -> dict[str, Any]:
         return {
@@ -115,7 +120,8 @@ class RobotView:
         """It said done, or it played its last trial."""
         return self.done or 0 < self.trials <= self.trial
 
-    state = WorkerView.state
+    def state(self, now: float, stall: float) -> str:
+        return _process_state(self, now, stall)
 
     def as_dict(self, now: float, stall: float) -> dict[str, Any]:
         return {"robot": self.robot, "trial": self.trial, "trials": self.trials, "generation": self.generation,
@@ -314,7 +320,7 @@ def _state(view: dict[str, Any]) -> str:
 
 def _status_rows(board: Any) -> list[tuple[str, ...]]:
     """(who, gen, best, own, partners, unconfirmed, rejected, state) per worker, then the broker's row."""
-    rows = []
+    rows: list[tuple[str, ...]] = []
     for w in board.snapshot():
         who = w["worker"] if w["worker"].startswith(w["behaviour"]) else f"{w['worker']} ({w['behaviour']})"
         partners = " ".join(f"{k[0].upper()}v{v}" for k, v in sorted(w["partner_versions"].items())) or "-"

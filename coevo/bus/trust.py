@@ -105,7 +105,7 @@ class Gate:
         return msg
 
     def check(self, msg: Any, key_expr: str) -> None:
-        beh, worker = getattr(msg, "behaviour", None), getattr(msg, "worker", None)
+        beh, worker = getattr(msg, "behaviour", ""), getattr(msg, "worker", None)
         if self.robot is not None and isinstance(msg, (CapabilityUpdate, ExecutionStatus)) and msg.robot != self.robot:
             raise MessageError("not_roster", f"{msg.kind} of robot {msg.robot!r}; the run's robot is {self.robot!r}")
         if self.roster is not None and isinstance(msg, (PolicyUpdate, Status, CaseUpdate)):

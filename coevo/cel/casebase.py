@@ -22,6 +22,7 @@ import json
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from coevo.cel.monitor import check_capabilities
 from coevo.errors import ConfigError, RuleSetError
@@ -55,12 +56,12 @@ class Case:
                 "fitness": self.fitness, "generation": self.generation, "rules": self.rules.to_dict()}
 
     @staticmethod
-    def from_dict(d: dict[str, object]) -> Case:
+    def from_dict(d: dict[str, Any]) -> Case:
         if not isinstance(d, dict) or d.get("schema_version") != SCHEMA_VERSION:
             raise ConfigError(f"not a case of schema version {SCHEMA_VERSION}: {str(d)[:80]!r}")
         try:
-            return Case(check_capabilities(d["capabilities"]), RuleSet.from_dict(d["rules"]),  # type: ignore[arg-type]
-                        float(d["fitness"]), int(d["generation"]), int(d["seq"]))  # type: ignore[arg-type]
+            return Case(check_capabilities(d["capabilities"]), RuleSet.from_dict(d["rules"]),
+                        float(d["fitness"]), int(d["generation"]), int(d["seq"]))
         except (KeyError, TypeError, ValueError, RuleSetError) as exc:
             raise ConfigError(f"a malformed case: {exc}") from exc
 

@@ -114,7 +114,8 @@ def replay_execution(run: RunPaths) -> tuple[str, int, int | None, str]:
                              window=cel.window)
     taken = {int(p["first_trial"]): p for p in read_jsonl(ex.policies)}
     rows, logged = read_jsonl(ex.performance), read_jsonl(ex.changes)
-    K, found = cel.trials_per_generation, []
+    K = cel.trials_per_generation
+    found: list[dict[str, Any]] = []
     for g, row in enumerate(rows):
         while module.trial < K * (g + 1):
             p = taken.get(module.trial)
@@ -127,7 +128,7 @@ def replay_execution(run: RunPaths) -> tuple[str, int, int | None, str]:
         for k, v in again.items():
             if row.get(k) != v:
                 return "execution", len(rows), g, f"{k}: recorded {row.get(k)!r}, replayed {v!r}"
-    want = [{k: c[k] for k in ("trial", "decision", "capabilities")} for c in logged]
+    want: list[dict[str, Any]] = [{k: c[k] for k in ("trial", "decision", "capabilities")} for c in logged]
     if found != want:
         first = next((i for i, (a, b) in enumerate(zip(found, want)) if a != b), min(len(found), len(want)))
         trial = (want[first] if first < len(want) else found[first])["trial"]

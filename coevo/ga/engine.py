@@ -80,6 +80,9 @@ class GA:
         self.behaviour = task.check_behaviour(behaviour)
         self.world_cfg = world
         self.cfg = ga = task.ga_settings(self.behaviour, ga)  # the settings left to the task, filled in
+        if ga.max_rules is None:
+            raise ConfigError(f"the task left max_rules unset for {self.behaviour}: its ga_settings must fill it in")
+        self.max_rules: int = ga.max_rules
         self.rng = np.random.default_rng(seed)
         self.mutation = mutation or model_from_config(ga)
         self.evaluator = task.evaluator(self.behaviour, world, ga)
@@ -94,7 +97,7 @@ class GA:
         if seed_policy is not None:
             if seed_policy.behaviour != self.behaviour:
                 raise ConfigError(f"seed policy is a {seed_policy.behaviour} rule set, not {self.behaviour}")
-            self.population = self._seeded(trim(seed_policy, ga.max_rules))
+            self.population = self._seeded(trim(seed_policy, self.max_rules))
         else:
             self.population = [self._usable(random_ruleset(self.behaviour, ga.initial_rules, self.rng, self._use))
                                for _ in range(ga.population)]
@@ -142,9 +145,9 @@ class GA:
             raise ConfigError(f"checkpointed population ({len(population)} rule sets) does not fit a "
                               f"{self.behaviour} GA of population {self.cfg.population}")
         longest = max(len(p) for p in population)
-        if longest > self.cfg.max_rules:  # e.g. a Docking run checkpointed before its rules became symmetric
+        if longest > self.max_rules:  # e.g. a Docking run checkpointed before its rules became symmetric
             raise ConfigError(f"checkpointed {self.behaviour} policies hold up to {longest} rules, more than this GA's "
-                              f"max_rules={self.cfg.max_rules}; resume it with the settings it was started with")
+                              f"max_rules={self.max_rules}; resume it with the settings it was started with")
         self.population = population
         self.genes = np.asarray(state["genes"], dtype=np.uint8)
         self.rng.bit_generator.state = json.loads(state["rng"])
@@ -170,7 +173,7 @@ class GA:
             if p.behaviour != self.behaviour:
                 raise ConfigError(f"replace: a {p.behaviour} rule set cannot join a {self.behaviour} population")
         for i, p in zip(idx, policies):
-            self.population[i] = trim(p, self.cfg.max_rules)
+            self.population[i] = trim(p, self.max_rules)
         self.genes[idx] = self._random_genes(len(idx))
 
     def _seeded(self, seed_policy: RuleSet) -> list[RuleSet]:
@@ -183,7 +186,7 @@ class GA:
             child = self._mutate(seed_policy, 0)
             if cfg.seed_random_rules:
                 extra = random_ruleset(self.behaviour, cfg.seed_random_rules, rng, self._use)
-                child = trim(RuleSet.concat(self.behaviour, [extra, child]), cfg.max_rules)
+                child = trim(RuleSet.concat(self.behaviour, [extra, child]), self.max_rules)
             out.append(self._usable(child))
         out += [self._usable(random_ruleset(self.behaviour, cfg.initial_rules, rng, self._use)) for _ in range(n_random)]
         return out
@@ -265,7 +268,7 @@ class GA:
                 rec[0] += float(again.fitness[0])
                 rec[1] += 1
         ranked = sorted(pool.items(), key=lambda kv: -kv[1][0] / kv[1][1])[: self.cfg.best_candidates]
-        self.candidates = [(rs, total, n) for rs, (total, n) in ranked]
+        self.candidates = [(rs, total, int(n)) for rs, (total, n) in ranked]
         top, (total, n) = ranked[0]
         changed = self.best is None or top != self.best
         self.best, self.best_fitness = top, total / n
@@ -285,7 +288,7 @@ class GA:
                 others = parents[parents != i]
                 j = int(rng.choice(others)) if others.size else int(i)
                 if rng.random() < cfg.crossover_rate:
-                    pair = crossover(pop[i], exps[i], pop[j], exps[j], rng)
+                    pair: tuple[tuple[RuleSet, np.ndarray], ...] = crossover(pop[i], exps[i], pop[j], exps[j], rng)
                 else:
                     pair = tuple((pop[x], ~exps[x].fired_rules(len(pop[x]))) for x in (i, j))
                 for (child, idle), src in zip(pair, (i, j)):
@@ -328,7 +331,7 @@ class GA:
         if extra:
             child = RuleSet.concat(child.behaviour, [child, *extra])
         child = self._mutate(child, self.generation_no, gene)
-        return self._usable(trim(child, cfg.max_rules))
+        return self._usable(trim(child, self.max_rules))
 
 
 def _narrow_in(child: RuleSet, parent: RuleSet, r: int, narrowed: RuleSet) -> tuple[RuleSet, list[RuleSet]]:

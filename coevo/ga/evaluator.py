@@ -62,8 +62,9 @@ class Evaluator(ABC):
 class Problem(Protocol):
     """What the GA needs of a task (:class:`coevo.tasks.base.Task` is one)."""
 
-    #: Its world is its own mirror image (GAConfig.symmetric_rules needs it).
-    mirror_symmetric: bool
+    @property
+    def mirror_symmetric(self) -> bool:
+        """Its world is its own mirror image (GAConfig.symmetric_rules needs it)."""
 
     def ga_settings(self, behaviour: str, ga: GAConfig) -> GAConfig:
         """``ga`` with the settings it leaves to the task (None) filled in for ``behaviour``; a ConfigError if they

@@ -61,13 +61,15 @@ class Experience:
         if self.payoff.size == 0:
             return np.zeros(0, dtype=bool)
         cut = np.quantile(self.payoff, self.high_quantile)
-        return (self.payoff >= cut) & (self.payoff > 0)
+        high: np.ndarray = (self.payoff >= cut) & (self.payoff > 0)
+        return high
 
     def fired_rules(self, n_rules: int) -> np.ndarray:
         """(n_rules,) bool: rules that fired at least once."""
         if self.fired.size == 0:
             return np.zeros(n_rules, dtype=bool)
-        return fired_matrix(np.bitwise_or.reduce(self.fired, keepdims=True), n_rules)[0]
+        fired: np.ndarray = fired_matrix(np.bitwise_or.reduce(self.fired, keepdims=True), n_rules)[0]
+        return fired
 
     @staticmethod
     def empty(n_sensors: int) -> Experience:
@@ -175,8 +177,9 @@ def specialise(
         if usable is None:
             keep = _kept_conditions(rs.schema.n_sensors, fraction, rng)
         else:
+            used = np.flatnonzero(usable)
             keep = np.ones(rs.schema.n_sensors, dtype=bool)
-            keep[cols] = _kept_conditions(len(cols), fraction, rng) if fraction < 1.0 else False
+            keep[used] = _kept_conditions(len(used), fraction, rng) if fraction < 1.0 else False
         lo = np.where(keep, rs.lo[r], lo)
         hi = np.where(keep, rs.hi[r], hi)
     return RuleSet(rs.behaviour, lo[None], hi[None], rs.action[r][None], np.array([exp.payoff[e]]).clip(0, 1))

@@ -33,7 +33,8 @@ _ONE = np.uint64(1)
 def lowest_bit(mask: np.ndarray) -> np.ndarray:
     """Index of the lowest set bit of each uint64 (undefined for 0)."""
     iso = mask & (~mask + _ONE)
-    return np.bitwise_count(iso - _ONE).astype(np.int64)
+    index: np.ndarray = np.bitwise_count(iso - _ONE).astype(np.int64)
+    return index
 
 
 def _interval_bits(lo: np.ndarray, hi: np.ndarray, bit: np.ndarray, bins: int) -> np.ndarray:
@@ -52,7 +53,8 @@ def _interval_bits(lo: np.ndarray, hi: np.ndarray, bit: np.ndarray, bins: int) -
     np.bitwise_xor.at(toggles, (p, s, lo), b)
     np.bitwise_xor.at(toggles, (p, s, hi + 1), b)
     wrap = lo > hi
-    np.bitwise_xor.at(toggles, (p[wrap], s[wrap], 0), b[wrap])
+    # (numpy's stubs take a tuple index of arrays in ufunc.at, but not one that mixes in a number)
+    np.bitwise_xor.at(toggles, (p[wrap], s[wrap], 0), b[wrap])  # type: ignore[arg-type]
     return np.bitwise_xor.accumulate(toggles, axis=2)[..., :bins].copy()
 
 
@@ -151,12 +153,15 @@ class CompiledPolicies:
         w = np.where(bits, self.strength[policy] + 1e-6, 0.0)
         c = np.cumsum(w, axis=1)
         u = rng.random(len(match)) * c[:, -1]
-        return np.minimum((c < u[:, None]).sum(axis=1), 63)
+        rank: np.ndarray = np.minimum((c < u[:, None]).sum(axis=1), 63)
+        return rank
 
     def action_values(self, policy: np.ndarray, rank: np.ndarray) -> np.ndarray:
         """(n, A) action indices of the chosen rules."""
-        return self.actions[policy, rank]
+        actions: np.ndarray = self.actions[policy, rank]
+        return actions
 
     def rule_index(self, policy: np.ndarray, rank: np.ndarray) -> np.ndarray:
         """Original rule indices of ranks."""
-        return self.rank_to_rule[policy, rank]
+        rules: np.ndarray = self.rank_to_rule[policy, rank]
+        return rules

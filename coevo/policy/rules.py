@@ -147,7 +147,8 @@ class RuleSet:
         b = np.asarray(bins)[:, None, :]
         inside = (b >= self.lo) & (b <= self.hi)
         wrapped = (self.lo > self.hi) & ((b >= self.lo) | (b <= self.hi))
-        return (inside | wrapped).all(axis=2)
+        matched = np.asarray((inside | wrapped).all(axis=2))
+        return matched
 
     def to_dict(self) -> dict[str, object]:
         """Plain lists, for msgpack/JSON; :meth:`from_dict` validates on the way back."""

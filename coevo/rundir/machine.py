@@ -11,6 +11,7 @@ does.
 
 from __future__ import annotations
 
+import importlib
 import os
 import platform
 import sys
@@ -70,22 +71,23 @@ def _blas() -> str:
     return "none found"
 
 
+def _umath() -> Any:
+    """numpy's compiled core, which lists the SIMD targets (``numpy._core`` since numpy 2, ``numpy.core`` before)."""
+    try:
+        return importlib.import_module("numpy._core._multiarray_umath")
+    except ImportError:
+        return importlib.import_module("numpy.core._multiarray_umath")
+
+
 def numpy_dispatch() -> list[str]:
     """numpy's optional SIMD targets this processor runs (those ``NPY_DISABLE_CPU_FEATURES`` may turn off)."""
-    try:
-        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
-    except ImportError:  # numpy 1.x
-        from numpy.core._multiarray_umath import __cpu_dispatch__, __cpu_features__
-    return [f for f in __cpu_dispatch__ if __cpu_features__.get(f)]
+    umath = _umath()
+    return [f for f in umath.__cpu_dispatch__ if umath.__cpu_features__.get(f)]
 
 
 def _numpy_simd() -> str:
     """The SIMD targets numpy's dispatcher runs here: its baseline and the optional ones enabled."""
-    try:
-        from numpy._core._multiarray_umath import __cpu_baseline__
-    except ImportError:  # numpy 1.x
-        from numpy.core._multiarray_umath import __cpu_baseline__
-    return " ".join([*__cpu_baseline__, *numpy_dispatch()])
+    return " ".join([*_umath().__cpu_baseline__, *numpy_dispatch()])
 
 
 @cache

@@ -13,7 +13,7 @@ import os
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Final, Literal
 
 from pydantic import BaseModel, Field, field_validator, model_validator
 
@@ -28,7 +28,7 @@ from coevo.tasks import DEFAULT_TASK, Task, get_task
 
 __all__ = ["RunSettings", "SETTINGS_VERSION", "find_run_key"]
 
-SETTINGS_VERSION = 1
+SETTINGS_VERSION: Final = 1
 class RunSettings(Settings):
     """Everything a run's processes share; see the module docstring."""
 

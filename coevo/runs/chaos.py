@@ -154,21 +154,22 @@ def _inject(lr: LocalRun, board: StatusBoard, rng: np.random.Generator, plan: Ch
     broker_fault = kind in ("kill-broker", "broker-dies")
     if not broker_fault and not running:
         return
-    if broker_fault and (lr.broker is None or lr.broker.poll() is not None):
+    broker = lr.broker if broker_fault else None
+    if broker_fault and (broker is None or broker.poll() is not None):
         return  # no broker process to kill (it is being restarted)
-    if kind == "broker-dies":
-        lr.broker.send_signal(signal.SIGKILL)
-        lr.broker.wait()
+    if broker is not None and kind == "broker-dies":
+        broker.send_signal(signal.SIGKILL)
+        broker.wait()
         t_kill = time.monotonic()
         lr.supervise()  # what coevo run's loop does when it sees it gone
         wait_until(lambda: board.broker_up, 60, "the broker the supervisor restarted")
         say(f"the broker died; the run's supervisor restarted it ({time.monotonic() - t_kill:.1f} s to up)")
         chaos.add(kind, up_after=round(time.monotonic() - t_kill, 2))
         return
-    if kind == "kill-broker":
+    if broker is not None and kind == "kill-broker":
         gens = {w["behaviour"]: w["generation"] for w in board.snapshot()}
-        lr.broker.send_signal(signal.SIGKILL)
-        lr.broker.wait()
+        broker.send_signal(signal.SIGKILL)
+        broker.wait()
         say(f"killed the broker (workers at {gens}); down for {down:.1f} s")
         time.sleep(down)
         lr.start_broker()

@@ -61,8 +61,9 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
             stored[(m.behaviour, m.worker, m.version)] = m
     if roster is not None:
         foreign = sorted({(b, w) for b, w, _ in stored if roster.get(b) != w})
-        for b, w in foreign:
-            check.problems.append(f"the store holds {b} policies from worker {w!r}, not the roster's {roster.get(b)!r}")
+        for b, worker in foreign:
+            check.problems.append(f"the store holds {b} policies from worker {worker!r}, not the roster's "
+                                  f"{roster.get(b)!r}")
     # (behaviour, version) -> (worker id, digest of its rules), from the workers' own published.jsonl
     published_all: dict[tuple[str, int], tuple[str, str]] = {}
     adoptions: list[tuple[str, str, list[dict[str, Any]]]] = []  # (behaviour, partner model, adoptions)

@@ -40,7 +40,7 @@ class LearnResult:
     out_dir: Path
     best: RuleSet
     curve: list[GenerationReport]
-    measures: dict[str, float | int]
+    measures: dict[str, float | int | None]
     seconds: float
 
 
@@ -118,9 +118,10 @@ def learn(
         for b, rules in partners.items():
             # The partners it was measured with, so that 'coevo show DIR' can replay them together.
             write_text(tmp.partner_rules(b), format_ruleset(rules))
-        measures = task.final_measures(behaviour, best, world=world, partners=partners, epochs=measure_epochs,
-                                       seed=seed + 1_000_003)
-        measures = {"best_fitness": engine.best_fitness, **measures}
+        measures: dict[str, float | int | None] = {
+            "best_fitness": engine.best_fitness,
+            **task.final_measures(behaviour, best, world=world, partners=partners, epochs=measure_epochs,
+                                  seed=seed + 1_000_003)}
         write_json(tmp.measures, measures)
         task.picture(tmp.picture, behaviour, best, world=world, partners=partners, seed=seed + 1_000_003,
                      name=Path(out_dir).name)

@@ -193,7 +193,7 @@ def draw_png(scene: Scene, path: Path, *, trace: bool = False, dpi: int = 80) ->
         n = max(1, len(scene.spans) - 1)
         alpha = 0.35 + 0.65 * spans / n if len(scene.spans) > 1 else np.ones(len(spans))
         colours = [to_rgba(_colour(c), a) for c, a in zip(cats, alpha, strict=True)]
-        ax.add_collection(LineCollection(segs, colors=colours, linewidths=2.0))
+        ax.add_collection(LineCollection(list(segs), colors=colours, linewidths=2.0))
     for e in scene.events:
         marker, colour, size, _ = EVENT_STYLE.get(e.kind, ("o", "black", 30, e.kind))
         face = "none" if e.kind == "start" else colour
@@ -279,7 +279,7 @@ def animate(scene: Scene, path: Path, *, fps: int = 12, max_frames: int = 150, d
 
     def frame(i: int) -> None:
         upto = seg_frame <= i
-        path_lines.set_segments(segs[upto])
+        path_lines.set_segments(list(segs[upto]))
         path_lines.set_color(list(colours[upto]))
         x, y = robot.xy[i]
         body.set_center((x, y))

@@ -103,7 +103,7 @@ class Task(ABC):
             if not self.mirror_symmetric:
                 raise ConfigError(f"symmetric_rules needs a world that is its own mirror image; task {self.name!r}'s "
                                   f"is not")
-            if filled.max_rules > MAX_SYMMETRIC_RULES:
+            if filled.max_rules is not None and filled.max_rules > MAX_SYMMETRIC_RULES:
                 raise ConfigError(f"symmetric {behaviour} rules need max_rules <= {MAX_SYMMETRIC_RULES} (their mirror "
                                   f"images take the rest of the matcher's 64), got max_rules={filled.max_rules}; "
                                   f"symmetric_rules=false breeds up to 64")
@@ -136,7 +136,7 @@ class Task(ABC):
         return {}
 
     def final_measures(self, behaviour: str, best: RuleSet, *, world: BaseModel, partners: Partners,
-                       epochs: int, seed: int) -> dict[str, float | int]:
+                       epochs: int, seed: int) -> Mapping[str, float | int | None]:
         """The task's measures of a learned policy on fresh trials (``coevo learn``'s summary)."""
         return {}
 
@@ -146,7 +146,7 @@ class Task(ABC):
         return None
 
     def run_measures(self, policies: Mapping[str, RuleSet], *, world: BaseModel, epochs: int,
-                     seed: int) -> dict[str, float | int] | None:
+                     seed: int) -> Mapping[str, float | int | None] | None:
         """The measures of a whole run's final policies together (``coevo run``), or None if incomplete."""
         return None
 

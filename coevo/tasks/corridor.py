@@ -74,7 +74,10 @@ class CorridorEvaluator(Evaluator):
             rank, full = compiled.decide(lane_policy[lanes], bins, conflict=self.ga.conflict, rng=rng)
             rule = compiled.rule_index(lane_policy[lanes], rank)
             fired[lanes] |= np.uint64(1) << rule.astype(np.uint64)
-            log_bins.append(bins), log_rule.append(rule), log_full.append(full), log_lane.append(lanes)
+            log_bins.append(bins)
+            log_rule.append(rule)
+            log_full.append(full)
+            log_lane.append(lanes)
             pos[lanes] = np.clip(pos[lanes] + moves[compiled.action_values(lane_policy[lanes], rank)[:, 0]], 0, goal)
             arrived = lanes[pos[lanes] == goal]
             used[arrived] = t + 1
@@ -137,7 +140,8 @@ def play_walker(robot: Walker, *, seed: int, episodes: int, conflict: str = "str
             path.append(pos)
             if pos == goal:
                 break
-        cells.append(np.array(path)), fired.append(np.array(rules, dtype=np.int64))
+        cells.append(np.array(path))
+        fired.append(np.array(rules, dtype=np.int64))
     return WalkerPlay(robot, seed, tuple(cells), tuple(fired))
 
 
@@ -160,8 +164,9 @@ def corridor_scene(played: WalkerPlay, *, title: str | None = None) -> Scene:
         xy.append(pts)
         rule.append(np.append(fired + 1, 0))
         spans.append(Span(first, last, 0, f"{k + 1:>2}. {ending}: {len(fired)} steps from cell {int(cells[0]) + 1}"))
-        events.append(Event(first, *map(float, pts[0]), "start", str(k + 1)))
-        events.append(Event(last, *map(float, pts[-1]), ending, str(k + 1)))
+        (x0, y0), (x1, y1) = pts[0].tolist(), pts[-1].tolist()
+        events.append(Event(first, x0, y0, "start", str(k + 1)))
+        events.append(Event(last, x1, y1, ending, str(k + 1)))
         captions += [f"episode {k + 1} step {t} cell {int(c) + 1}" for t, c in enumerate(cells)]
         first = last + 1
     return Scene(

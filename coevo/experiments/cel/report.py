@@ -27,7 +27,7 @@ def key_points(schedule: list[tuple[int, list[str]]], generations: int) -> list[
     """The generations the table shows: the default rules, each event's generation and the one before, the end;
     with the report's number where it has one."""
     figure3 = len(schedule) == 1 and tuple(schedule[0][1]) == FIGURE3_FAILURE
-    rows = [{"key": "default", "label": "default rules (generation 0)", "generation": 0}]
+    rows: list[dict[str, Any]] = [{"key": "default", "label": "default rules (generation 0)", "generation": 0}]
     for g, failed in schedule:
         if not 0 < g <= generations:
             continue  # the run ends before it

@@ -39,7 +39,7 @@ def _matrix(curves: Curves, behaviour: str, column: str) -> np.ndarray:
     return m
 
 
-def _pyplot():  # type: ignore[no-untyped-def]
+def _pyplot():
     import matplotlib
 
     matplotlib.use("Agg")  # files only, no display needed
@@ -48,7 +48,7 @@ def _pyplot():  # type: ignore[no-untyped-def]
     return plt
 
 
-def _axis(ax, title: str, ylabel: str, top: float, *, xlabel: str = "generation") -> None:  # type: ignore[no-untyped-def]
+def _axis(ax, title: str, ylabel: str, top: float, *, xlabel: str = "generation") -> None:
     from matplotlib.ticker import MaxNLocator
 
     ax.set_title(title)

@@ -469,8 +469,10 @@ def _markdown(spec: CompareSpec, records: list[dict[str, Any]], table: dict[str,
                   "payoff, playing one epoch from the run's seed (`coevo show runs/RUN --seed SEED` draws it again): "
                   "the path is coloured by the Executive's choice, the green ring is the tracking range around the "
                   "Target, and markers show where each episode began and how it ended.", ""]
-        for r in robots:
-            head = f"**{r['regime']}, {r['which']}**: {r['run']} (executive payoff {r['executive_payoff']:.3f})"
-            lines += [head, "", f"![{r['file']}]({r['file']})" if r["file"] else f"(no picture: {r['problem']})", ""]
+        for robot in robots:
+            head = (f"**{robot['regime']}, {robot['which']}**: {robot['run']} (executive payoff "
+                    f"{robot['executive_payoff']:.3f})")
+            lines += [head, "", f"![{robot['file']}]({robot['file']})" if robot["file"]
+                      else f"(no picture: {robot['problem']})", ""]
     lines += ["", "Files: `results.json` (everything above), `runs.csv`, `curves.csv`, and each run under `runs/`.", ""]
     return "\n".join(lines)

@@ -169,7 +169,7 @@ class DynamicLandscape:
         cell, cand = self._cells(flat, t)
         order = np.argsort(cell, kind="stable")
         bounds = np.searchsorted(cell[order], np.arange(len(cand) + 1))
-        out = np.empty(len(y), dtype)
+        out: np.ndarray = np.empty(len(y), dtype)
         aug = aug[order]
         for c in np.flatnonzero(np.diff(bounds)):
             s, e = bounds[c], bounds[c + 1]
@@ -204,7 +204,7 @@ class DynamicLandscape:
         y = x.reshape(-1, self.spec.dim).astype(dtype) - dtype(self._mid)
         aug = np.concatenate([y, (y**2).sum(axis=1, keepdims=True), np.ones((len(y), 1), dtype)], axis=1)
         w = self._weights32[t] if dtype == np.float32 else self._weights[t].astype(dtype, copy=False)
-        out = np.empty(len(y), dtype)
+        out: np.ndarray = np.empty(len(y), dtype)
         for s in range(0, len(y), chunk):
             out[s : s + chunk] = _scores(aug[s : s + chunk], w).max(axis=1)
         return _exp(out).reshape(x.shape[:-1])

@@ -111,7 +111,7 @@ def _ranking_claims(res: GridResults) -> list[dict[str, Any]]:
     spec, models, rates, cb, on, low = _views(res)
     claims: list[dict[str, Any]] = []
     # 1. FH and GH beat FM and GM on current-best, both classes, mr <= 0.1
-    tests = []
+    tests: list[dict[str, Any]] = []
     for c in cb:
         for r in low:
             ri = rates.index(r)
@@ -163,7 +163,7 @@ def _hypermutation_claim(res: GridResults, claims: list[dict[str, Any]]) -> dict
     spec, models, rates, cb, on, low = _views(res)
     # 4. GH's hypermutation rate rises after an abrupt shift and falls while the landscape is still
     hyper: dict[str, Any] = {}
-    tests = []
+    tests: list[dict[str, Any]] = []
     if "gh" in models and "abrupt" in res.control:
         wins = shift_windows(res.changes["abrupt"], spec.generations)
         ctrl = res.control["abrupt"][models.index("gh")]  # (K, L, N, T)
@@ -196,7 +196,7 @@ def _online_claim(res: GridResults, claims: list[dict[str, Any]]) -> None:
     """Claim 5, appended to ``claims``: online performance drops at high base rates."""
     spec, models, rates, cb, on, low = _views(res)
     # 5. online performance drops at high base rates
-    tests = []
+    tests: list[dict[str, Any]] = []
     high = [r for r in rates if r > 0.1 + 1e-12]
     if 0.1 in rates and high:
         for c in on:
@@ -324,11 +324,11 @@ def _markdown(res: GridResults, rows: list[dict[str, Any]], claims: list[dict[st
     for kind, key in (("current-best", "current_best_mean"), ("online", "online_mean")):
         L += [f"### {kind.capitalize()}", "", "| class | mr | " + " | ".join(models) + " |",
               "|---|---|" + "---|" * len(models)]
-        for c in res.mean:
+        for landscape in res.mean:
             for r in spec.rates:
-                vals = {x["model"]: x[key] for x in rows if x["class"] == c and x["rate"] == r}
+                vals = {x["model"]: x[key] for x in rows if x["class"] == landscape and x["rate"] == r}
                 top = max(vals.values())
-                L.append(f"| {c} | {r} | " + " | ".join(
+                L.append(f"| {landscape} | {r} | " + " | ".join(
                     (f"**{vals[m]:.1f}**" if vals[m] == top else f"{vals[m]:.1f}") for m in models) + " |")
         L.append("")
     L += ["## Readings of the report (ours)", "",
@@ -389,13 +389,13 @@ def write_report(res: GridResults, out: Path, *, elapsed: float | None = None) -
         w.writerows(rows)
     spec = res.spec
     with (out / "runs.csv").open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["class", "model", "rate", "landscape", "run", "online", "current_best"])
+        out_rows = csv.writer(fh)
+        out_rows.writerow(["class", "model", "rate", "landscape", "run", "online", "current_best"])
         for c in res.mean:
             on, cb = res.mean[c].mean(axis=-1), res.best[c].mean(axis=-1)
             for idx in np.ndindex(on.shape):
                 mi, ri, li, ni = idx
-                w.writerow([c, LABEL[spec.models[mi]], spec.rates[ri], li, ni, f"{on[idx]:.6f}", f"{cb[idx]:.6f}"])
+                out_rows.writerow([c, LABEL[spec.models[mi]], spec.rates[ri], li, ni, f"{on[idx]:.6f}", f"{cb[idx]:.6f}"])
     res.save(str(out / "curves.npz"))
     claims, hyper = _claims(res)
     files = _plots(res, out, hyper)

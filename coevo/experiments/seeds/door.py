@@ -40,7 +40,7 @@ def external(rules: Any, cfg: Any, seed: int, g: int, trials: int = EXTERNAL_TRI
     """% of ``trials`` fresh trials (their draw fixed by seed and generation) that reach the goal."""
     from coevo.tasks.door.evaluate import measure
 
-    return float(measure(rules, cfg, trials=trials, seed=1_000_003 * (seed + 1) + g)["success"])
+    return float(measure(rules, cfg, trials=trials, seed=1_000_003 * (seed + 1) + g)["success"] or 0.0)
 
 
 def behaviour(rules: Any, cfg: Any, seed: int, trials: int = 200) -> dict[str, float]:

@@ -78,7 +78,7 @@ class DoorTask(Task):
         return {"success": float(measures.get("success") or 0.0)}
 
     def final_measures(self, behaviour: str, best: RuleSet, *, world: BaseModel, partners: Partners,
-                       epochs: int, seed: int) -> dict[str, float | int]:
+                       epochs: int, seed: int) -> Mapping[str, float | int | None]:
         """External performance (report §8.1): ``best`` on ``epochs`` fresh trials (100 in the report)."""
         self.check_behaviour(behaviour)
         return measure(best, _door_world(world), trials=epochs, seed=seed)

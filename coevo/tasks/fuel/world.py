@@ -344,11 +344,9 @@ class BatchWorld:
         out: dict[str, np.ndarray] = {}
         want = set(names)
         if lanes is None:
-            rx, ry, rh, tx, ty, th, fuel = self.rx, self.ry, self.rh, self.tx, self.ty, self.th, self.fuel
+            rx, ry, rh, tx, ty = self.rx, self.ry, self.rh, self.tx, self.ty
         else:
             rx, ry, rh, tx, ty = self.rx[lanes], self.ry[lanes], self.rh[lanes], self.tx[lanes], self.ty[lanes]
-            th = self.th[lanes] if "heading" in want else None
-            fuel = self.fuel[lanes] if "fuel" in want else None
         h = np.degrees(rh)
         dx, dy = tx - rx, ty - ry
         t_dist = _norm(dx, dy)
@@ -379,27 +377,28 @@ class BatchWorld:
         if "dock_bearing" in want:
             pairs["dock"] = (ddy, ddx)
         dirs = _directions(pairs)
-        t_dir = dirs.get("target")
         if ranged:
             # The direction of the nearest object, the first of equals winning (argmin's rule): Target,
             # then dock, then the walls, later ones overwriting.
-            obj_dir = t_dir.copy()
+            obj_dir = dirs["target"].copy()
             if at_dock.size:
                 obj_dir[at_dock] = dirs["dock_gap"]
             for k in (3, 2, 1, 0):
                 obj_dir[gaps[k] == nearest] = _WALL_DIR[k]
             out["bearing"] = wrap_deg(obj_dir - h)
         if "heading" in want:
-            out["heading"] = wrap_deg(np.degrees(th) - t_dir)
+            th = self.th if lanes is None else self.th[lanes]
+            out["heading"] = wrap_deg(np.degrees(th) - dirs["target"])
         if "target_range" in want:
             out["target_range"] = t_dist
         if "target_bearing" in want:
-            out["target_bearing"] = wrap_deg(t_dir - h)
+            out["target_bearing"] = wrap_deg(dirs["target"] - h)
         if "dock_bearing" in want:
             out["dock_bearing"] = wrap_deg(dirs["dock"] - h)
         if "dock_orientation" in want:
             out["dock_orientation"] = wrap_deg(h - DOCK_HEADING)
         if "fuel" in want:
+            fuel = self.fuel if lanes is None else self.fuel[lanes]
             out["fuel"] = 100.0 * np.clip(fuel, 0.0, 1.0)
         if want & dock_frame.FRAME_NAMES:  # Docking's sensors in the dock's frame (dock_frame.py)
             out.update(dock_frame.observe(self, want, rx, ry))
@@ -693,6 +692,7 @@ def _worth_compiling(lanes: int) -> bool:
 def _kernels() -> ModuleType | None:
     """The compiled loops (:mod:`.kernels`, importing numba on first use), or None without numba (then numpy)."""
     if "kernels" not in _loaded:
+        kernels: ModuleType | None
         try:
             from coevo.tasks.fuel import kernels
         except ImportError:  # pragma: no cover - numba is a dependency; a stripped install still works
