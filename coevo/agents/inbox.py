@@ -28,7 +28,7 @@ from coevo.agents.models import PartnerModels
 from coevo.agents.outbox import BrokerWatch
 from coevo.bus import keys
 from coevo.bus.messages import Control, PolicyUpdate
-from coevo.bus.session import drain, drain_messages, query, ring_subscriber
+from coevo.bus.session import Ring, Session, drain, drain_messages, query, ring_subscriber
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import MessageError, ServiceError
 from coevo.policy.rules import RuleSet
@@ -48,7 +48,7 @@ def rules_digest(rules: dict[str, Any]) -> str:
 class Inbox:
     """A worker's subscriptions: partner policies (adopted between generations) and control (stop)."""
 
-    def __init__(self, session: Any, broker: BrokerWatch, *, run: str, models: PartnerModels, adoptions: IO[str],
+    def __init__(self, session: Session, broker: BrokerWatch, *, run: str, models: PartnerModels, adoptions: IO[str],
                  reject: Callable[[MessageError, str], None], store_timeout: float = 2.0, gate: Gate = OPEN) -> None:
         self._session, self.broker = session, broker
         self.gate = gate
@@ -60,7 +60,7 @@ class Inbox:
         self._fetched: list[tuple[str, bytes]] = []  # partner policies fetched from the store
         self._partner_key = keys.current if models.kind == "current" else keys.policy
         self._subs: list[Any] = []
-        self._control: Any = None
+        self._control: Ring | None = None
 
     def __enter__(self) -> Inbox:
         self._subs = [ring_subscriber(self._session, self._partner_key(self.run, b), INBOX) for b in self.models.needed]

@@ -21,13 +21,14 @@ import math
 import threading
 import time
 from pathlib import Path
+from collections.abc import Callable
 from typing import IO, Any
 
 import msgpack
 
 from coevo.bus import keys
 from coevo.bus.messages import BrokerStatus, PolicyUpdate
-from coevo.bus.session import is_put, query
+from coevo.bus.session import Publisher, Sample, Session, is_put, query
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import MessageError
 from coevo.rundir.layout import append_durably, read_store
@@ -41,7 +42,7 @@ class BrokerWatch:
     """Follows the broker's liveliness token: is a broker with its store up, and did it just (re)appear?  Given an
     open ``run``, also the broker's status of it: does the broker refuse to store it (:attr:`refused`)?"""
 
-    def __init__(self, session: Any, run: str | None = None, gate: Gate = OPEN) -> None:
+    def __init__(self, session: Session, run: str | None = None, gate: Gate = OPEN) -> None:
         self._session = session
         self.up = threading.Event()
         self.back = threading.Event()  # the broker (re)appeared: ask its store what it holds
@@ -55,14 +56,14 @@ class BrokerWatch:
             self._subs.append(self._session.declare_subscriber(keys.broker_status(self._run), self._on_status))
         return self
 
-    def _on_token(self, sample: Any) -> None:
+    def _on_token(self, sample: Sample) -> None:
         if is_put(sample):
             self.up.set()
             self.back.set()
         else:
             self.up.clear()
 
-    def _on_status(self, sample: Any) -> None:
+    def _on_status(self, sample: Sample) -> None:
         """An open run's broker status: refused when the broker counts its policies unauthenticated and stores none."""
         try:
             msg = OPEN.decode(str(sample.key_expr), sample.payload.to_bytes())
@@ -97,7 +98,7 @@ class BrokerWatch:
 class Outbox:
     """A worker's publications: the log of every version, the puts, and the store sync."""
 
-    def __init__(self, session: Any, broker: BrokerWatch, *, run: str, behaviour: str, worker_id: str, log_path: Path,
+    def __init__(self, session: Session, broker: BrokerWatch, *, run: str, behaviour: str, worker_id: str, log_path: Path,
                  store_timeout: float = 2.0, confirm_every: float = 2.0, gate: Gate = OPEN) -> None:
         self._session, self.broker = session, broker
         self.gate = gate  # seals what this worker publishes; checks the store's answers
@@ -110,8 +111,8 @@ class Outbox:
         self.net_seconds = 0.0
         self._last_query = -math.inf  # monotonic time the store was last asked what it holds
         self._log: IO[str] | None = None
-        self._pub: Any = None
-        self._current: Any = None
+        self._pub: Publisher | None = None
+        self._current: Publisher | None = None
         self._policy_key = keys.policy(run, behaviour)
         for msg in read_store(self.log_path):  # the outbox log holds stored-policy lines, like the store's files
             self.published[msg.version] = msg
@@ -154,14 +155,19 @@ class Outbox:
         append_durably(self._log, msg.model_dump(mode="json"))
         self.published[msg.version] = msg
 
+    def _publisher(self, which: Publisher | None) -> Publisher:
+        if which is None:
+            raise RuntimeError("the outbox is closed")
+        return which
+
     def put_current(self, msg: PolicyUpdate) -> None:
         """The current generation's best, on its own key (the ``current`` partner model); not stored."""
-        self._current.put(self.gate.seal(msg, keys.current(self.run, self.behaviour)))
+        self._publisher(self._current).put(self.gate.seal(msg, keys.current(self.run, self.behaviour)))
 
     def put_latest(self) -> None:
         """The newest version; every generation, not only on improvement: partners that missed a put catch up."""
         if self.published:
-            self._pub.put(self.gate.seal(self.published[self.top], self._policy_key))
+            self._publisher(self._pub).put(self.gate.seal(self.published[self.top], self._policy_key))
 
     def sync(self, *, upto: int, now: bool = False) -> bool:
         """Make sure the store holds every version up to ``upto``; republish what it lacks.  True if it does.
@@ -187,13 +193,13 @@ class Outbox:
         self.stored = have & set(self.published)
         missing = sorted(v for v in self.published if v <= upto and v not in have)
         for v in missing:
-            self._pub.put(self.gate.seal(self.published[v], self._policy_key))
+            self._publisher(self._pub).put(self.gate.seal(self.published[v], self._policy_key))
         if missing:
             self.republished += len(missing)
             log.info("%s republished versions %s the store lacked", self.worker_id, missing)
         return not missing
 
-    def final_sync(self, timeout: float, stop: threading.Event, beat: Any) -> None:
+    def final_sync(self, timeout: float, stop: threading.Event, beat: Callable[[], None]) -> None:
         """Before saying done: wait (up to ``timeout`` s) until the store holds every version."""
         end = time.monotonic() + timeout
         while time.monotonic() < end and not stop.is_set():

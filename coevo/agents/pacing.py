@@ -44,8 +44,8 @@ from collections.abc import Callable, Iterable
 from typing import Any
 
 from coevo.bus import keys
-from coevo.bus.messages import Status
-from coevo.bus.session import drain_messages, is_put, ring_subscriber
+from coevo.bus.messages import Message, Status
+from coevo.bus.session import Sample, Session, drain_messages, is_put, ring_subscriber
 from coevo.config import DEFAULT_MAX_LEAD, parse_max_lead
 
 __all__ = ["DEFAULT_MAX_LEAD", "Pacer", "parse_max_lead"]
@@ -55,7 +55,7 @@ log = logging.getLogger(__name__)
 class Pacer:
     """Follows the partners' heartbeats and liveliness and holds a worker back when it is too far ahead."""
 
-    def __init__(self, session: Any, run: str, partners: Iterable[str], *, max_lead: int | None,
+    def __init__(self, session: Session, run: str, partners: Iterable[str], *, max_lead: int | None,
                  wait_limit: float = 120.0, grace: float = 10.0, settle: float = 0.5) -> None:
         self.run = run
         self.partners = tuple(partners)
@@ -92,13 +92,13 @@ class Pacer:
         """(partner, process id) of a liveliness token's key parts."""
         return parts.get("behaviour", ""), parts.get("worker", "")
 
-    def _progress_of(self, msg: Any) -> tuple[str, int, bool] | None:
+    def _progress_of(self, msg: Message) -> tuple[str, int, bool] | None:
         """(partner, generations completed, finished) of a heartbeat; None for anything else."""
         if not isinstance(msg, Status):
             return None
         return msg.behaviour, msg.generation, msg.done or msg.generation >= msg.generations
 
-    def _on_broker(self, sample: Any) -> None:
+    def _on_broker(self, sample: Sample) -> None:
         key = str(sample.key_expr)
         with self._lock:
             if is_put(sample):
@@ -107,7 +107,7 @@ class Pacer:
             else:
                 self._brokers.discard(key)
 
-    def _on_token(self, sample: Any) -> None:
+    def _on_token(self, sample: Sample) -> None:
         beh, who = self._token_partner(keys.parse(str(sample.key_expr)))
         if beh not in self._live:
             return

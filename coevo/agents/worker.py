@@ -33,7 +33,7 @@ import time
 from contextlib import ExitStack
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from coevo import __version__
 from coevo.agents.checkpoint import cut_logs, prepare_dir, resume_state, save_checkpoint
@@ -45,7 +45,7 @@ from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.messages import PolicyUpdate, Status
 from coevo.bus.rejections import Rejections
-from coevo.bus.session import open_session, sigterm_as_exit
+from coevo.bus.session import Config, Publisher, Session, open_session, sigterm_as_exit
 from coevo.config import SAVED_GA_BEFORE
 from coevo.errors import ConfigError, MessageError, ServiceError
 from coevo.ga import GA, GenerationReport
@@ -74,7 +74,7 @@ class Worker:
         worker_id: str | None = None,
         seed: int | None = None,
         out_dir: Path,
-        conf: Any,
+        conf: Config,
         store_timeout: float = 2.0,
         broker_wait: float = 30.0,
         final_sync: float = 30.0,
@@ -119,7 +119,7 @@ class Worker:
         self._best = 0.0
         self._measures: dict[str, float] = {}  # the task's status_measures of the latest generation, for the heartbeat
         self._last_beat = 0.0
-        self._status_pub: Any = None
+        self._status_pub: Publisher | None = None
         self._inbox: Inbox | None = None
         self._outbox: Outbox | None = None
         self.logs: tuple[str, ...] = WorkerPaths.LOGS  # the append-only logs its checkpoint keeps in step
@@ -217,10 +217,10 @@ class Worker:
         inbox.fetch()
         inbox.adopt(completed)
 
-    def _pacer(self, session: Any) -> Pacer:
+    def _pacer(self, session: Session) -> Pacer:
         return Pacer(session, self.run_id, self.models.needed, max_lead=self.max_lead)
 
-    def _services(self, session: Any, broker: BrokerWatch) -> list[Any]:
+    def _services(self, session: Session, broker: BrokerWatch) -> list[Any]:
         """More context managers the generation loop runs inside (a subclass's subscriptions)."""
         return []
 
@@ -297,7 +297,7 @@ class Worker:
                                "give the broker and every worker the run's key (coevo keygen, --key-file)")
         return curve
 
-    def _one_generation(self, ga: GA, inbox: Inbox, outbox: Outbox, pacer: Pacer, curve_log: Any) -> GenerationReport:
+    def _one_generation(self, ga: GA, inbox: Inbox, outbox: Outbox, pacer: Pacer, curve_log: IO[str]) -> GenerationReport:
         """One generation and what follows it: the curve's line, the new best published (after the checkpoint),
         the current best, a heartbeat and the store sync."""
         p = self.paths
@@ -364,7 +364,7 @@ class Worker:
 
 
 def run_worker(settings: RunSettings, *, behaviour: str, seed: int | None, worker_id: str | None, out: Path | None,
-               conf: Any, resume: bool, final_sync: float, run_key: RunKey | None = None,
+               conf: Config, resume: bool, final_sync: float, run_key: RunKey | None = None,
                kind: type[Worker] = Worker) -> int:
     """``coevo worker``: run one worker of ``kind`` (this class, or a learner plugged into its seam, e.g. the CEL
     learner) to its end (exit status 0), or until SIGINT/SIGTERM (130)."""

@@ -45,7 +45,7 @@ from coevo.broker.store import PolicyStore, Quota
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.messages import MAX_BYTES, BrokerStatus, CaseUpdate, PolicyUpdate
-from coevo.bus.session import SessionGone, config_from_args, open_session, sigterm_as_exit
+from coevo.bus.session import Config, LivelinessToken, Query, Sample, SessionGone, config_from_args, open_session, sigterm_as_exit
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import CoevoError, MessageError
 from coevo.rundir.layout import RunPaths
@@ -121,7 +121,7 @@ class Keyring:
 class Broker:
     """Router + store; use as a context manager, or call :meth:`serve_forever`."""
 
-    def __init__(self, conf: Any, data_dir: Path, *, inbox_bytes: int = 64 << 20, status_every: float = 2.0,
+    def __init__(self, conf: Config, data_dir: Path, *, inbox_bytes: int = 64 << 20, status_every: float = 2.0,
                  open_runs: bool = False, quota: Quota | None = None) -> None:
         self.conf = conf
         self.store = PolicyStore(Path(data_dir), quota=quota)
@@ -135,7 +135,7 @@ class Broker:
         self._session_cm: Any = None
         self._decls: list[Any] = []
         self._threads: list[threading.Thread] = []
-        self._token: Any = None
+        self._token: LivelinessToken | None = None
         self._token_key = ""
         self._token_lock = threading.Lock()
 
@@ -205,7 +205,7 @@ class Broker:
             pass
 
     # Callbacks: check the size, queue and return (policies and cases alike).
-    def _on_policy(self, sample: Any) -> None:
+    def _on_policy(self, sample: Sample) -> None:
         key = str(sample.key_expr)
         payload = bytes(sample.payload.to_bytes())
         if len(payload) > MAX_BYTES:
@@ -259,7 +259,7 @@ class Broker:
                     log.debug("broker status not sent: %s", exc)
                     return
 
-    def _on_query(self, query: Any) -> None:
+    def _on_query(self, query: Query) -> None:
         parts = keys.parse(str(query.key_expr))
         topic = parts.get("topic", "")
         cases = topic == "store/cases"

@@ -25,7 +25,8 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from types import FrameType
+from typing import Any, cast
 
 import zenoh
 
@@ -34,7 +35,7 @@ from coevo.bus.messages import Message, PolicyUpdate
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import ConfigError, MessageError, ServiceError
 
-__all__ = ["SessionGone", "fetch_latest", "DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
+__all__ = ["Session", "Sample", "Query", "Config", "Publisher", "LivelinessToken", "SessionGone", "fetch_latest", "DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
            "drain", "drain_messages", "is_put", "make_config", "open_session", "put_control", "query", "ring_subscriber", "sigterm_as_exit",
            "GatedSession", "Ring", "query_messages"]
 
@@ -260,10 +261,20 @@ def config_from_args(args: argparse.Namespace) -> zenoh.Config:
                        security=Security.from_args(args))
 
 
+#: The wire's types, as zenoh's own stubs give them.  A :class:`GatedSession` stands for a session (it forwards
+#: everything to one), so the rest of the code types both as ``Session``.
+Session = zenoh.Session
+Sample = zenoh.Sample
+Query = zenoh.Query
+Config = zenoh.Config
+Publisher = zenoh.Publisher
+LivelinessToken = zenoh.LivelinessToken
+
+
 class GatedSession:
     """A zenoh session that knows its run's :class:`~coevo.bus.trust.Gate` (everything else is the session's)."""
 
-    def __init__(self, session: Any, gate: Gate) -> None:
+    def __init__(self, session: Session, gate: Gate) -> None:
         self._session = session
         self.gate = gate
 
@@ -271,7 +282,7 @@ class GatedSession:
         return getattr(self._session, name)
 
 
-def _open(conf: zenoh.Config) -> Any:
+def _open(conf: zenoh.Config) -> Session:
     """``zenoh.open`` on a helper thread, waited for here in short steps: a SIGTERM or Ctrl-C while the router is
     still being reached (up to ``--connect-timeout``, 30 s) stops this process at once instead of after the wait,
     which zenoh does not cut short.  A session that opens after all belongs to a process that is ending."""
@@ -289,11 +300,12 @@ def _open(conf: zenoh.Config) -> Any:
         opener.join(0.1)
     if "error" in box:
         raise box["error"]
-    return box["session"]
+    session: Session = box["session"]
+    return session
 
 
 @contextmanager
-def open_session(conf: zenoh.Config, *, what: str = "session", gate: Gate | None = None) -> Iterator[Any]:
+def open_session(conf: zenoh.Config, *, what: str = "session", gate: Gate | None = None) -> Iterator[Session]:
     """A zenoh session closed on exit; a router that cannot be reached (or refuses us) becomes a ServiceError.
 
     With ``gate``, the session's ring subscribers decode through it (see :func:`drain_messages`).
@@ -304,12 +316,12 @@ def open_session(conf: zenoh.Config, *, what: str = "session", gate: Gate | None
         raise ServiceError(f"cannot open the zenoh {what}: {exc} (is 'coevo broker' running and reachable, "
                            "and does it accept this process's certificate or password?)") from exc
     try:
-        yield session if gate is None else GatedSession(session, gate)
+        yield session if gate is None else cast(Session, GatedSession(session, gate))
     finally:
         session.close()
 
 
-def query(session: Any, key: str, *, timeout: float, what: str) -> list[tuple[str, bytes]]:
+def query(session: Session, key: str, *, timeout: float, what: str) -> list[tuple[str, bytes]]:
     """(reply key, payload) of the successful replies to a get on ``key`` (a store queryable), waiting up to ``timeout`` s;
     every reply, several on one key included, in the order they came.
 
@@ -325,7 +337,7 @@ def query(session: Any, key: str, *, timeout: float, what: str) -> list[tuple[st
         raise ServiceError(f"query for {what} on {key!r} failed: {exc}") from exc
 
 
-def query_messages(session: Any, key: str, *, timeout: float, what: str, gate: Gate | None = None) -> list[Message]:
+def query_messages(session: Session, key: str, *, timeout: float, what: str, gate: Gate | None = None) -> list[Message]:
     """The replies to a get on ``key`` that pass ``gate`` (default: the session's), decoded; a reply that does not
     goes to the gate's ``reject`` (else the log).  Errors as :func:`query`."""
     gate = gate if gate is not None else getattr(session, "gate", OPEN)
@@ -358,7 +370,7 @@ class Ring:
         self.subscriber.undeclare()
 
 
-def ring_subscriber(session: Any, key: str, capacity: int) -> Ring:
+def ring_subscriber(session: Session, key: str, capacity: int) -> Ring:
     """A subscriber whose samples wait in a ring of the newest ``capacity``, drained with :func:`drain`.
 
     Nothing runs in Python per arriving sample: a flood on the key costs the
@@ -395,7 +407,7 @@ def drain_messages(subscriber: Any, limit: int,
     return out
 
 
-def put_control(session: Any, key: str, payload: bytes) -> None:
+def put_control(session: Session, key: str, payload: bytes) -> None:
     """Put a one-off control message (a stop): blocking congestion control and a high priority, so a congested link
     (a slow subscriber's, under load) delays it rather than drops it, as zenoh's default drops what a full queue
     cannot take (docs/zenoh-notes.md).  Policies and statuses keep the default: a policy is put again until the broker's store
@@ -403,24 +415,24 @@ def put_control(session: Any, key: str, payload: bytes) -> None:
     session.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK, priority=zenoh.Priority.INTERACTIVE_HIGH)
 
 
-def is_put(sample: Any) -> bool:
+def is_put(sample: Sample) -> bool:
     """A liveliness sample that says a token appeared (PUT), rather than went (DELETE)."""
     return bool(sample.kind == zenoh.SampleKind.PUT)
 
 
-def sigterm_as_exit() -> Any:
+def sigterm_as_exit() -> signal._HANDLER:
     """Turn SIGTERM into KeyboardInterrupt: one stop path, and ``finally`` blocks close sessions.
 
     Returns the previous handler, for callers that restore it.
     """
 
-    def _raise(signum: int, frame: Any) -> None:
+    def _raise(signum: int, frame: FrameType | None) -> None:
         raise KeyboardInterrupt(f"signal {signum}")
 
     return signal.signal(signal.SIGTERM, _raise)
 
 
-def fetch_latest(session: Any, run: str, timeout: float = 5.0, gate: Gate | None = None) -> dict[str, PolicyUpdate]:
+def fetch_latest(session: Session, run: str, timeout: float = 5.0, gate: Gate | None = None) -> dict[str, PolicyUpdate]:
     """The store's latest policy of each behaviour of ``run`` that passes ``gate`` (default: the session's)."""
     from coevo.bus import keys
 

@@ -36,7 +36,7 @@ from typing import Any
 
 from coevo.bus import keys
 from coevo.bus.messages import BrokerStatus, ExecutionStatus, Status
-from coevo.bus.session import SessionGone, drain_messages, is_put, ring_subscriber
+from coevo.bus.session import drain_messages, is_put, ring_subscriber, Sample, Session, SessionGone
 from coevo.errors import MessageError
 
 __all__ = ["DEFAULT_STALL", "WorkerView", "RobotView", "StatusBoard", "status_table", "PlainStatus", "StatusDisplay", "follow"]
@@ -135,7 +135,7 @@ class RobotView:
 class StatusBoard:
     """Subscribes to a run's heartbeats, liveliness and broker status; thread-safe snapshot for display."""
 
-    def __init__(self, session: Any, run: str, *, stall: float = DEFAULT_STALL) -> None:
+    def __init__(self, session: Session, run: str, *, stall: float = DEFAULT_STALL) -> None:
         self.run = run
         self.stall = stall
         self._lock = threading.Lock()
@@ -225,7 +225,7 @@ class StatusBoard:
         elif msg.sent_at > v.died_at:
             v.token, v.died_at = True, None
 
-    def _on_robot_token(self, sample: Any) -> None:
+    def _on_robot_token(self, sample: Sample) -> None:
         robot = keys.parse(str(sample.key_expr)).get("robot", "")
         if self._robot is not None and robot != self._robot:
             with self._lock:
@@ -238,7 +238,7 @@ class StatusBoard:
             v.died_at = None if alive else time.time()
         self.changed.set()
 
-    def _on_token(self, sample: Any) -> None:
+    def _on_token(self, sample: Sample) -> None:
         parts = keys.parse(str(sample.key_expr))
         if "worker" not in parts:
             return
@@ -253,13 +253,13 @@ class StatusBoard:
             v.died_at = None if alive else time.time()
         self.changed.set()
 
-    def _on_broker(self, sample: Any) -> None:
+    def _on_broker(self, sample: Sample) -> None:
         with self._lock:
             self.broker_up = is_put(sample)
             self.broker_seen = self.broker_seen or self.broker_up
         self.changed.set()
 
-    def _on_degraded(self, sample: Any) -> None:
+    def _on_degraded(self, sample: Sample) -> None:
         with self._lock:
             self.broker_degraded = is_put(sample)
         self.changed.set()
@@ -318,7 +318,7 @@ def _state(view: dict[str, Any]) -> str:
     return f"{view['state']}, restarted {n}x" if n else view["state"]
 
 
-def _status_rows(board: Any) -> list[tuple[str, ...]]:
+def _status_rows(board: StatusBoard) -> list[tuple[str, ...]]:
     """(who, gen, best, own, partners, unconfirmed, rejected, state) per worker, then the broker's row."""
     rows: list[tuple[str, ...]] = []
     for w in board.snapshot():
@@ -382,7 +382,7 @@ class _StatusView:
         yield t
 
 
-def status_table(board: Any, title: str) -> Any:
+def status_table(board: StatusBoard, title: str) -> Any:
     """The live status as a rich renderable that fits the console, down to 80 columns: a row per worker and the broker.
 
     Short headers, no vertical rules, and cells that wrap only between words: no column
@@ -398,7 +398,7 @@ class PlainStatus:
     def __init__(self) -> None:
         self._last: dict[str, str] = {}
 
-    def lines(self, board: Any) -> list[str]:
+    def lines(self, board: StatusBoard) -> list[str]:
         """A line per worker (and the broker) that changed; counts that are 0 are left out, to keep lines short."""
         out = []
         stamp = time.strftime("%H:%M:%S")

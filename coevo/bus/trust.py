@@ -76,7 +76,7 @@ class Gate:
     def secret(self) -> bytes | None:
         return None if self.key is None else self.key.secret
 
-    def seal(self, msg: Any, key_expr: str) -> bytes:
+    def seal(self, msg: Message, key_expr: str) -> bytes:
         """``msg`` encoded for ``key_expr`` (in an authenticated envelope, fresh, when the run has a key).
         Seal when putting: a sealed payload put twice is a replay to its receivers."""
         if self.key is None:
@@ -104,7 +104,7 @@ class Gate:
             self.fresh.admit(key_expr, fresh, seen)
         return msg
 
-    def check(self, msg: Any, key_expr: str) -> None:
+    def check(self, msg: Message, key_expr: str) -> None:
         beh, worker = getattr(msg, "behaviour", ""), getattr(msg, "worker", None)
         if self.robot is not None and isinstance(msg, (CapabilityUpdate, ExecutionStatus)) and msg.robot != self.robot:
             raise MessageError("not_roster", f"{msg.kind} of robot {msg.robot!r}; the run's robot is {self.robot!r}")

@@ -43,7 +43,7 @@ from coevo.agents.pacing import Pacer
 from coevo.agents.worker import Worker
 from coevo.bus import keys
 from coevo.bus.messages import CapabilityUpdate, CaseUpdate, ExecutionStatus
-from coevo.bus.session import drain_messages, query_messages, ring_subscriber
+from coevo.bus.session import drain_messages, query_messages, ring_subscriber, Session
 from coevo.cel.casebase import Case, CaseBase
 from coevo.cel.learning import LearningModule
 from coevo.cel.settings import CelSettings
@@ -66,7 +66,7 @@ class RobotPacer(Pacer):
     """A learner's pacing by its execution module: the robot has completed generation j's trials when it has
     played ``K (j + 1)`` trials (generation 0's are played with the initial rules)."""
 
-    def __init__(self, session: Any, run: str, robot: str, *, trials_per_generation: int, max_lead: int | None,
+    def __init__(self, session: Session, run: str, robot: str, *, trials_per_generation: int, max_lead: int | None,
                  patience: float, grace: float) -> None:
         self.K = trials_per_generation
         super().__init__(session, run, (robot,), max_lead=max_lead, grace=grace, settle=patience)
@@ -90,7 +90,7 @@ class RobotPacer(Pacer):
 class _Capabilities:
     """The ring of capability lists from the run's robot (the gate checks it is the run's robot)."""
 
-    def __init__(self, session: Any, run: str, reject: Any) -> None:
+    def __init__(self, session: Session, run: str, reject: Any) -> None:
         self._session, self.run, self._reject = session, run, reject
         self._ring: Any = None
 
@@ -174,12 +174,12 @@ class CelLearner(Worker):
         step = self._m.generation(tick=self._tick)
         return step.report, step.new_best, float(self._m.best_fitness) if self._m.best is not None else 0.0
 
-    def _pacer(self, session: Any) -> Pacer:
+    def _pacer(self, session: Session) -> Pacer:
         return RobotPacer(session, self.run_id, self.cel.robot, trials_per_generation=self.cel.trials_per_generation,
                           max_lead=self.max_lead, patience=self.cel.patience,
                           grace=self.cel.patience if self._m.generation_no else math.inf)  # a fresh learner: start order free
 
-    def _services(self, session: Any, broker: BrokerWatch) -> list[Any]:
+    def _services(self, session: Session, broker: BrokerWatch) -> list[Any]:
         self._session, self._broker = session, broker
         self._caps = _Capabilities(session, self.run_id, self._reject)
         self._case_log = open(self.paths.cases, "a", encoding="utf-8")

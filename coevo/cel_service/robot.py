@@ -51,7 +51,7 @@ from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.messages import CapabilityUpdate, Control, ExecutionStatus, PolicyUpdate
 from coevo.bus.rejections import Rejections
-from coevo.bus.session import drain_messages, open_session, ring_subscriber, sigterm_as_exit
+from coevo.bus.session import drain_messages, open_session, ring_subscriber, Session, sigterm_as_exit
 from coevo.cel.execution import CapabilityChange, ExecutionModule, Stretch
 from coevo.cel.monitor import Monitor
 from coevo.cel.settings import ROBOT_SEED_OFFSET
@@ -139,7 +139,7 @@ class Execution:
         self.stop = threading.Event()  # a stop message arrived
         self._unsent: list[CapabilityChange] = []  # the monitor's changes of the last stretch, put after its checkpoint
         self._learner = 0  # generations the learner reported finishing
-        self._session: Any = None
+        self._session: Session | None = None
         self._pubs: dict[str, Any] = {}
         self._logs: dict[str, IO[str]] = {}
 
@@ -258,6 +258,8 @@ class Execution:
     # ------------------------------------------------------------ rules in
     def _fetch_latest(self) -> None:
         """The store's latest policy (a robot that starts late, or was restarted)."""
+        if self._session is None:
+            return  # no session open yet: nothing to ask
         try:
             latest = fetch_latest(self._session, self.run_id, timeout=self.store_timeout, gate=self.gate).get(DOOR)
         except ServiceError as exc:

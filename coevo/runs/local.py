@@ -56,7 +56,7 @@ from coevo.agents.checkpoint import resume_state
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.messages import Control, PolicyUpdate
-from coevo.bus.session import fetch_latest, make_config, open_session, put_control, sigterm_as_exit
+from coevo.bus.session import fetch_latest, make_config, open_session, put_control, Session, sigterm_as_exit
 from coevo.bus.status import StatusBoard
 from coevo.bus.trust import Gate
 from coevo.errors import ConfigError, RunDirError, ServiceError
@@ -331,7 +331,7 @@ class LocalRun:
     def workers_running(self) -> bool:
         return any(p.poll() is None for p in self.workers.values())
 
-    def ask_stop(self, session: Any) -> None:
+    def ask_stop(self, session: Session) -> None:
         key = keys.control(self.run)
         put_control(session, key, self.gate().seal(Control(run=self.run, command="stop", sent_at=time.time()), key))
 
