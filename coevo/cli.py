@@ -51,7 +51,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
                      "Appendix D: FM/GM/FH/GH mutation models on dynamic landscapes, with a report"),
     "earl": ("coevo.experiments.earl.command",
              "Appendix C: the EA-vs-TD grid world and hidden-state experiments, with a report"),
-    "td-baseline": ("coevo.experiments.earl.td_command",
+    "td-baseline": ("coevo.experiments.earl.td.command",
                     "Appendix C: Q-learning against the GA on the robot tasks, at equal experience"),
     "bench": ("coevo.runs.learn_command", "robot-steps/s of the batched world vs a plain one-episode pymunk loop"),
 }

@@ -71,7 +71,7 @@ def places(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> dict[str, Path]:
     p["cel-run"] = cel
     for mod, name in (("coevo.runs.local", "run_local"), ("coevo.runs.chaos", "run_chaos"),
                       ("coevo.experiments.compare.experiment", "run_all"), ("coevo.experiments.earl.experiment", "run_grid"),
-                      ("coevo.experiments.earl.td_tasks", "run_task"), ("coevo.replicates.runner", "run_replicates")):
+                      ("coevo.experiments.earl.td.runs", "run_task"), ("coevo.replicates.runner", "run_replicates")):
         monkeypatch.setattr(f"{mod}.{name}", _reached(name))
     return p
 

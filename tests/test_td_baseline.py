@@ -10,21 +10,13 @@ import pytest
 
 from coevo.errors import ConfigError
 from coevo.experiments.earl.qlearning import QConfig
-from coevo.experiments.earl.td_command import add_td_arguments, specs_from_args
-from coevo.experiments.earl.td_tasks import (
-    ENCODERS,
-    Encoder,
-    HashedQ,
-    TDSpec,
-    default_checkpoints,
-    make_env,
-    measure_policy,
-    robot_steps_of,
-    rules_policy,
-    run_ga,
-    run_task,
-    run_td,
-)
+from coevo.experiments.earl.td.command import add_td_arguments, specs_from_args
+from coevo.experiments.earl.td.encoders import ENCODERS, Encoder
+from coevo.experiments.earl.td.envs import make_env
+from coevo.experiments.earl.td.measures import measure_policy, rules_policy
+from coevo.experiments.earl.td.qtable import HashedQ
+from coevo.experiments.earl.td.runs import robot_steps_of, run_ga, run_task, run_td
+from coevo.experiments.earl.td.spec import TDSpec, default_checkpoints
 
 # --- encoders and the table ------------------------------------------------------------------
 
@@ -182,7 +174,7 @@ def test_command_options_are_checked_before_anything_runs() -> None:
 
 
 def test_report_files_rebuild_from_results_json(tmp_path) -> None:
-    from coevo.experiments.earl.td_report import read_results, write_report
+    from coevo.experiments.earl.td.report import read_results, write_report
 
     res = {"door": run_task(_small("door", seeds=1, generations=1), variants=("default-rules",))}
     data = write_report(tmp_path, res)

@@ -13,7 +13,8 @@ from pathlib import Path
 import pytest
 
 from coevo.cli import main
-from coevo.experiments.earl.td_tasks import TDSpec, run_task
+from coevo.experiments.earl.td.runs import run_task
+from coevo.experiments.earl.td.spec import TDSpec
 
 TINY = ["--seeds", "2", "--generations", "2", "--population", "4", "--episodes", "3", "--lanes", "16", "--trials", "10",
         "--quiet"]

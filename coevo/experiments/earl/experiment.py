@@ -177,15 +177,16 @@ def run_hidden(spec: EarlSpec, progress: Progress = _quiet) -> dict[str, Any]:
     target = np.array(hidden.OPTIMAL_POLICY)
     ea: dict[int, Any] = {}
     for k, (trials, rng) in enumerate(zip(spec.hidden_trials, rngs[1:])):
-        if trials == 0:
-            def fitness(pop: np.ndarray, r: np.random.Generator) -> np.ndarray:
-                return hidden.expected_reward(pop)
-        else:
-            def fitness(pop: np.ndarray, r: np.random.Generator, t: int = trials) -> np.ndarray:
-                return hidden.sampled_reward(pop, r, trials=t)
+        def fitness(pop: np.ndarray, r: np.random.Generator, t: int = trials) -> np.ndarray:
+            return hidden.expected_reward(pop) if t == 0 else hidden.sampled_reward(pop, r, trials=t)
+
         label = "exact" if trials == 0 else f"{trials} trial{'s' if trials > 1 else ''}"
+
+        def generation_done(g: int, n: int, lb: str = label) -> None:
+            progress(f"hidden: EARL1 ({lb})", g + 1, n + 1)
+
         ea[trials] = evolve(fitness, runs=spec.runs, genes=3, cfg=spec.earl1, rng=rng, target=target,
-                            on_generation=lambda g, n, lb=label: progress(f"hidden: EARL1 ({lb})", g + 1, n + 1))
+                            on_generation=generation_done)
     return {
         "q_final": learner.q, "q_policy": learner.greedy_policy(),
         "q_expected": hidden.expected_reward(learner.greedy_policy()),

@@ -2,7 +2,7 @@
 
 ``add_td_arguments`` fills a parser and ``td_main`` runs it: for each task the GA's runs, then the TD runs
 at the GA's robot-steps and the variants, each a replicate of :mod:`coevo.replicates`
-(:mod:`.td_replicates`: ``--jobs`` here, or ``--cluster``; ``--resume`` keeps the finished ones), then the
+(:mod:`.replicates`: ``--jobs`` here, or ``--cluster``; ``--resume`` keeps the finished ones), then the
 report in ``--out``. Bad values raise :class:`~coevo.errors.ConfigError` naming them (a bad ``--out``:
 :class:`~coevo.errors.RunDirError`) before anything runs.
 """
@@ -16,6 +16,7 @@ from pathlib import Path
 from coevo.config import GAConfig
 from coevo.console import Bounded, count_arg, positive_float_arg, seed_arg
 from coevo.errors import ConfigError
+from coevo.experiments.earl.td.spec import TDSpec
 from coevo.replicates.flags import add_backend_flags, check_backend_flags
 
 __all__ = ["configure_td_baseline", "add_td_arguments", "td_main", "specs_from_args"]
@@ -30,7 +31,8 @@ def configure_td_baseline(p: argparse.ArgumentParser) -> None:
 
 def add_td_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of the TD baseline."""
-    from coevo.experiments.earl.td_tasks import ENCODERS, TASKS, VARIANTS
+    from coevo.experiments.earl.td.encoders import ENCODERS
+    from coevo.experiments.earl.td.spec import TASKS, VARIANTS
 
     parser.add_argument("--out", required=True, help="output directory (must not exist, or be empty; with --resume "
                                                      "the same experiment's)")
@@ -56,9 +58,9 @@ def add_td_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress display")
 
 
-def specs_from_args(args: argparse.Namespace) -> list[tuple[object, tuple[str, ...]]]:
+def specs_from_args(args: argparse.Namespace) -> list[tuple[TDSpec, tuple[str, ...]]]:
     """(TDSpec, variants) per task from the parsed options; raises ConfigError naming a bad one."""
-    from coevo.experiments.earl.td_tasks import TASKS, VARIANTS, TDSpec
+    from coevo.experiments.earl.td.spec import TASKS, VARIANTS, TDSpec
 
     tasks = list(dict.fromkeys(args.tasks))
     for t in tasks:
@@ -85,8 +87,8 @@ def td_main(args: argparse.Namespace) -> int:
     import platform
 
     from coevo.experiments.common import open_out, run_with_progress
-    from coevo.experiments.earl.td_replicates import collect, replicates, timing
-    from coevo.experiments.earl.td_report import summarise, write_report
+    from coevo.experiments.earl.td.replicates import collect, replicates, timing
+    from coevo.experiments.earl.td.report import summarise, write_report
     from coevo.rundir.layout import write_json
 
     specs = specs_from_args(args)
@@ -94,13 +96,13 @@ def td_main(args: argparse.Namespace) -> int:
     out = Path(args.out)
     backend = open_out(args, out, "td-baseline.json",
                        {"tasks": [{"spec": s.as_dict(), "variants": list(v)} for s, v in specs]}, default_jobs=1)
-    reps = replicates(specs)  # type: ignore[arg-type]
+    reps = replicates(specs)
     print(f"TD baseline in {out}: {len(reps)} runs ({', '.join(s.task for s, _ in specs)}), {backend.description}",
           flush=True)
     prog = run_with_progress(reps, out, backend, label="td", quiet=args.quiet)
     if prog is None:
         return 3
-    results = collect(out, specs)  # type: ignore[arg-type]
+    results = collect(out, specs)
     if not results:
         print("no task finished: no report", file=sys.stderr)
         return 1

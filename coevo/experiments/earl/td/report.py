@@ -1,6 +1,6 @@
 """The TD baseline's files: ``results.json``, ``curves.csv``, a figure per task and ``report.md``.
 
-Everything is written from the plain data :func:`~coevo.experiments.earl.td_tasks.run_task` returns
+Everything is written from the plain data :func:`~coevo.experiments.earl.td.runs.run_task` returns
 (one dict per task, with an optional ``variants`` entry of extra TD curves, e.g. Tracking's shaped
 reward), so a report can be rebuilt from ``results.json`` alone (:func:`write_report`).
 """
@@ -165,7 +165,7 @@ def _markdown(results: dict[str, dict[str, Any]], cl: list[dict[str, str]]) -> s
              "Q-learning (epsilon-greedy, one hashed table per run over the tasks' discretised sensors and joint "
              "turn x speed actions) against the GA (`coevo learn`'s settings) at equal simulated experience "
              "(robot-steps), both measured on fresh trials at the same checkpoints. Mean [min, max] over the seeds; "
-             "the GA's point is its best so far. Written by `coevo.experiments.earl.td_report` from `results.json`.", ""]
+             "the GA's point is its best so far. Written by `coevo.experiments.earl.td.report` from `results.json`.", ""]
     for task, res in results.items():
         sp = res["spec"]
         ss = summarise(res)

@@ -2,7 +2,7 @@
 
 Per task: one replicate per GA seed (``parts/TASK/ga-seedN.json``); then, after all of them, the TD runs
 (one batched world for every seed, at the GA runs' mean robot-steps: ``parts/TASK/td.json``) and one more per
-variant (``parts/TASK/td-VARIANT.json``).  Each piece is the function :func:`~.td_tasks.run_task` runs in turn,
+variant (``parts/TASK/td-VARIANT.json``).  Each piece is the function :func:`~.runs.run_task` runs in turn,
 so :func:`collect` gives the same results, the seconds apart (tested).  A finished piece is kept by ``--resume``.
 """
 
@@ -14,8 +14,14 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from coevo.experiments.earl.td_tasks import (TDSpec, checkpoint_marks, run_ga, run_td, task_results,
-                                             variant_specs)
+from coevo.experiments.earl.td.runs import (
+    checkpoint_marks,
+    run_ga,
+    run_td,
+    task_results,
+    variant_specs,
+)
+from coevo.experiments.earl.td.spec import TDSpec
 from coevo.replicates.replicate import Replicate
 
 __all__ = ["replicates", "collect", "timing", "TARGET_SECONDS"]
@@ -82,7 +88,7 @@ def replicates(specs: list[tuple[TDSpec, tuple[str, ...]]]) -> list[Replicate]:
 
 
 def collect(out: Path, specs: list[tuple[TDSpec, tuple[str, ...]]]) -> dict[str, dict[str, Any]]:
-    """The results of every task whose pieces all finished, as :func:`~.td_tasks.run_task` gives them."""
+    """The results of every task whose pieces all finished, as :func:`~.runs.run_task` gives them."""
     results = {}
     for spec, variants in specs:
         t = spec.task
