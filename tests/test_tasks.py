@@ -17,7 +17,8 @@ from coevo.policy.rules import RuleSet, random_ruleset
 from coevo.policy.schema import registered, schema
 from coevo.policy.text import format_ruleset, parse_ruleset
 from coevo.tasks import TASKS, get_task, task_of
-from coevo.tasks.corridor import CorridorConfig
+from coevo.tasks.checker import check_task
+from coevo.tasks.corridor import CorridorConfig, CorridorTask
 
 CORRIDOR_GA = GAConfig(generations=12, population=20, episodes=12, best_episodes=24, initial_rules=6, max_rules=16)
 
@@ -41,6 +42,46 @@ def test_unknown_tasks_behaviours_and_regimes_are_named() -> None:
         schema("flying")
     with pytest.raises(ConfigError, match="'mutual'"):
         get_task("corridor").check_regime("mutual")
+
+
+@pytest.mark.parametrize("name", sorted(TASKS))
+def test_every_task_passes_the_task_checker(name: str) -> None:
+    assert check_task(TASKS[name]) == []
+
+
+class _Noisy(CorridorTask):
+    """A corridor whose evaluation draws from the global random state (not the seed it is given)."""
+
+    def evaluator(self, behaviour, world, ga):  # type: ignore[no-untyped-def]
+        inner = super().evaluator(behaviour, world, ga)
+        real = inner.evaluate
+
+        def evaluate(*args, **kw):  # type: ignore[no-untyped-def]
+            ev = real(*args, **kw)
+            ev.fitness = np.clip(ev.fitness + np.random.default_rng().random(len(ev.fitness)) * 0.1, 0, 1)
+            return ev
+
+        inner.evaluate = evaluate  # type: ignore[method-assign]
+        return inner
+
+
+class _Careless(CorridorTask):
+    """A corridor that names a partner it does not have and leaves a GA setting to nobody."""
+
+    def partners_needed(self, behaviour: str, regime: str) -> tuple[str, ...]:
+        return ("executive",)
+
+    def ga_settings(self, behaviour: str, ga: GAConfig) -> GAConfig:
+        return ga
+
+
+def test_the_task_checker_names_what_a_broken_task_gets_wrong() -> None:
+    noisy = check_task(_Noisy())
+    assert any("evaluation must be deterministic" in p for p in noisy), noisy
+    careless = check_task(_Careless(), pictures=False)
+    assert any("partners_needed names ['executive']" in p for p in careless), careless
+    assert any("leaves" in p and "max_rules" in p for p in careless), careless
+    assert check_task(CorridorTask()) == []  # the same checks pass the real one
 
 
 def test_a_corridor_rule_set_prints_and_parses_like_any_other() -> None:
