@@ -307,20 +307,23 @@ class RunPaths:
         return self.dir / "curves.csv"
 
 
-def read_store(path: Path, *, problems: list[str] | None = None, model: type[BaseModel] | None = None) -> list[Any]:
+def read_store(path: Path, *, problems: list[str] | None = None, model: type[BaseModel] | None = None,
+               torn_ok: bool = False) -> list[Any]:
     """The policies of one store file or publication log (``model``: the messages of another kind, e.g.
     CaseUpdate), in order, validated; damaged lines as :func:`read_jsonl` says (the broker reloading its
-    store, and ``coevo check``, give ``problems`` and keep the rest)."""
+    store, and ``coevo check``, give ``problems`` and keep the rest).  ``torn_ok``: a torn last line that
+    starts as a record (a crash mid-write, which the broker cuts when it opens the file) is not damage."""
     from coevo.bus.messages import PolicyUpdate
 
-    return _read_lines(Path(path), model or PolicyUpdate, missing_ok=False, problems=problems, as_models=True)
+    return _read_lines(Path(path), model or PolicyUpdate, missing_ok=False, problems=problems, as_models=True,
+                       torn_ok=torn_ok)
 
 
-def read_cases(path: Path, *, problems: list[str] | None = None) -> list[Any]:
+def read_cases(path: Path, *, problems: list[str] | None = None, torn_ok: bool = False) -> list[Any]:
     """The CaseUpdates of one case file (the store's, or a CEL learner's log), in order, validated."""
     from coevo.bus.messages import CaseUpdate
 
-    return read_store(path, problems=problems, model=CaseUpdate)
+    return read_store(path, problems=problems, model=CaseUpdate, torn_ok=torn_ok)
 
 
 def read_json(path: Path, *, what: str) -> dict[str, Any]:
@@ -461,7 +464,7 @@ def read_jsonl(path: Path, *, schema: type[BaseModel] | None = None, missing_ok:
 
 
 def _read_lines(path: Path, schema: type[BaseModel] | None, *, missing_ok: bool, problems: list[str] | None,
-                as_models: bool) -> list[Any]:
+                as_models: bool, torn_ok: bool = False) -> list[Any]:
     """:func:`read_jsonl`'s rows, or with ``as_models`` the ``schema`` objects made of them."""
 
     def damaged(msg: str) -> None:
@@ -491,7 +494,7 @@ def _read_lines(path: Path, schema: type[BaseModel] | None, *, missing_ok: bool,
             damaged(f"{path} line {n} {_what_is_wrong(exc, schema)}")
             continue
         out.append(model if as_models else row)
-    if torn:
+    if torn and not (torn_ok and torn.startswith(b"{")):
         damaged(f"{path} line {len(lines) + 1} is torn: {len(torn)} bytes and no newline at the end (a write cut short)")
     return out
 
