@@ -135,7 +135,8 @@ class RobotView:
 class StatusBoard:
     """Subscribes to a run's heartbeats, liveliness and broker status; thread-safe snapshot for display."""
 
-    def __init__(self, session: Session, run: str, *, stall: float = DEFAULT_STALL) -> None:
+    def __init__(self, session: Session, run: str, *, stall: float = DEFAULT_STALL,
+                 restarts: Mapping[str, int] | None = None) -> None:
         self.run = run
         self.stall = stall
         self._lock = threading.Lock()
@@ -148,8 +149,9 @@ class StatusBoard:
         self.broker_degraded = False  # its degraded token is up: the store cannot write
         self.broker: BrokerStatus | None = None
         self.changed = threading.Event()
-        # Times the run's supervisor (coevo run) started a process again, by behaviour and "broker"; shown by its state.
-        self.restarts: Mapping[str, int] = {}
+        # Times the run's supervisor (coevo run) started a process again, by behaviour and "broker"; shown by its
+        # state.  The supervisor's own counter, read live.
+        self.restarts: Mapping[str, int] = restarts if restarts is not None else {}
         gate = getattr(session, "gate", None)
         self.open = gate is None or gate.open  # unverified: anyone on the bus can show up here
         self._roster = None if gate is None else gate.roster

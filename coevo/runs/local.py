@@ -400,8 +400,7 @@ def run_local(
     try:
         lr.start(resume=resume)
         with open_session(lr.client_config(), what="status session", gate=lr.gate()) as s:
-            board = StatusBoard(s, run)
-            board.restarts = lr.restarts  # shown beside each process's state
+            board = StatusBoard(s, run, restarts=lr.restarts)  # the restarts shown beside each process's state
             try:
                 while True:
                     board.changed.wait(0.5)
