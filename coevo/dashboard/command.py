@@ -73,6 +73,10 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     if local and robot is None and not args.no_robot:
         robot = _newest_robot(runs_dir)
     on_bus = local or target is None or bool(args.connect)
+    if local or not on_bus:  # (the bus's path says so itself) SIGTERM ends it as Ctrl-C does: status 0, no traceback
+        from coevo.bus.session import sigterm_as_exit
+
+        sigterm_as_exit()
     title = (f"coevo dashboard: {kind} {target}" if target else f"coevo dashboard: the runs under {runs_dir}" if local
              else "coevo dashboard" + (f": run {args.run}" if args.run else ""))
 

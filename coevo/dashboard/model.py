@@ -105,7 +105,9 @@ class View:
                  "robots": [worker(w) for w in r.robots], "broker": r.broker, "final": r.final, "problems": r.problems,
                  "curves": {k: len(c) for k, (_, c) in r.curves.items()},
                  "external": len(r.external) if r.external else 0} for r in self.runs]
-        return json.dumps({"runs": runs, "comparison": self.comparison, "problems": self.problems,
+        comparison = {k: v for k, v in self.comparison.items() if k != "panels"} if self.comparison else None  # its
+        # "lengths" stand for the panels: a panel changes only when a curve grows or a run's state moves
+        return json.dumps({"runs": runs, "comparison": comparison, "problems": self.problems,
                            "robot": self.robot.key() if self.robot is not None else None}, sort_keys=True, default=str)
 
 
