@@ -4,6 +4,8 @@ real run."""
 
 from __future__ import annotations
 
+import base64
+import io
 import json
 import os
 import re
@@ -584,9 +586,30 @@ def test_the_robot_is_drawn_from_the_newest_policies_once_every_agent_published_
     assert panel.picture.png and len(panel.picture.tables) == 3 and panel.picture.episodes >= 1
     page = render.robot_html(View("t", robot=panel.picture))
     assert 'class="robot"' in page and "data:image/png;base64," in page and "rules fired" in page
+    from PIL import Image
+
+    from coevo.dashboard.robot import DPI, TEXT_PX
+    from coevo.scene.draw import SMALLEST_TEXT
+
+    width = Image.open(io.BytesIO(base64.b64decode(panel.picture.png))).size[0]
+    assert SMALLEST_TEXT * DPI / 72 >= TEXT_PX >= 12  # the smallest text, at the picture's own size
+    assert width == pytest.approx(10.5 * DPI, abs=2) and width <= 1240  # its own size fits a laptop's page
     assert not panel.update(now=30.0)  # nothing newer: not drawn again
     _publish(d, "tracking", 2, task.default_rules("tracking"))
     assert panel.update(now=31.0) and panel.picture.versions["tracking"] == 2
+
+
+def test_a_page_without_a_robot_says_why_and_how_to_have_one(tmp_path: Path) -> None:
+    from coevo.dashboard.command import _no_robot
+
+    # the issue's case: --connect ENDPOINT --runs-dir ROOT, no --run and no --robot
+    note = _no_robot(None, None, tmp_path / "runs", None, local=False)
+    assert "every run on the bus" in note and f"--robot RUN (a run's name under {tmp_path / 'runs'})" in note
+    assert "--runs-dir ROOT" in _no_robot(None, None, None, "r1", local=False)  # --run without its files
+    assert "a run's name under" in _no_robot(tmp_path, "comparison", None, None, local=False)
+    html = render.robot_html(View("t", robot_note=note))
+    assert 'class="robot-note"' in html and "--robot RUN" in html
+    assert render.robot_html(View("t")) == ""  # --no-robot: nothing asked for, nothing said
 
 
 # ---------------------------------------------------------------- zero-config following

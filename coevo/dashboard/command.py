@@ -72,6 +72,7 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     robot = None if args.no_robot else _robot(args.robot, target, kind, runs_dir, args.run)
     if local and robot is None and not args.no_robot:
         robot = _newest_robot(runs_dir)
+    note = "" if robot is not None or args.no_robot else _no_robot(target, kind, runs_dir, args.run, local)
     on_bus = local or target is None or bool(args.connect)
     if local or not on_bus:  # (the bus's path says so itself) SIGTERM ends it as Ctrl-C does: status 0, no traceback
         from coevo.bus.session import sigterm_as_exit
@@ -89,7 +90,7 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
 
         source = LocalRuns(runs_dir, stall=args.stall)
         try:
-            serve(Dashboard(bus=source, stale=args.stale, title=title, robot=robot), host=args.host, port=args.port,
+            serve(Dashboard(bus=source, stale=args.stale, title=title, robot=robot, robot_note=note), host=args.host, port=args.port,
                   every=args.every, on_ready=ready)
         finally:
             source.close()
@@ -97,10 +98,11 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     if not on_bus:
         from coevo.dashboard.server import serve
 
-        serve(Dashboard(target=target, runs_dir=runs_dir, stale=args.stale, title=title, robot=robot), host=args.host,
+        serve(Dashboard(target=target, runs_dir=runs_dir, stale=args.stale, title=title, robot=robot, robot_note=note),
+              host=args.host,
               port=args.port, every=args.every, on_ready=ready)
         return 0
-    return _on_bus(args, target, runs_dir, title, ready, robot, gate)
+    return _on_bus(args, target, runs_dir, title, ready, robot, gate, note)
 
 
 def _gate(args: argparse.Namespace) -> object:
@@ -144,6 +146,20 @@ def _newest_robot(root: Path) -> object:
     return RobotPanel(max(runs, key=lambda p: p.stat().st_mtime).parent) if runs else None
 
 
+def _no_robot(target: Path | None, kind: str | None, runs_dir: Path | None, run: str | None, local: bool) -> str:
+    """Why no robot is drawn, and how to have one, for the page (said instead of a section silently absent)."""
+    if local:
+        return (f"No robot: no run under {runs_dir} when the dashboard started. Start it again once a run has begun, "
+                "or give --robot RUN_DIR.")
+    if run is not None:  # --run on the bus without --runs-dir: its files are not known
+        return (f"No robot: it is drawn from run {run}'s files, and where they are is not given. Add --runs-dir ROOT "
+                f"(the directory holding {run}/), or --robot RUN_DIR.")
+    where = (f"a run's name under {target}" if kind in ("runs", "comparison") and target is not None
+             else f"a run's name under {runs_dir}" if runs_dir is not None else "a run's directory")
+    return (f"No robot: this page shows every run {'in ' + str(target) if target else 'on the bus'}, and a robot is one "
+            f"run's. Add --robot RUN ({where}) to draw that run's newest robot.")
+
+
 def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Path | None, run: str | None) -> object:
     """The RobotPanel of the run ``--robot`` names (a path, or a run name under the directory shown or --runs-dir),
     by default of the run shown when it is a single run (a run directory, or ``--run`` with ``--runs-dir``, whose
@@ -168,7 +184,7 @@ def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Pa
 
 
 def _on_bus(args: argparse.Namespace, target: Path | None, runs_dir: Path | None, title: str, ready: object,
-            robot: object, gate: object) -> int:
+            robot: object, gate: object, note: str) -> int:
     from coevo.bus.session import config_from_args, open_session, sigterm_as_exit
     from coevo.dashboard.model import BusSource, Dashboard
     from coevo.dashboard.server import serve
@@ -180,7 +196,8 @@ def _on_bus(args: argparse.Namespace, target: Path | None, runs_dir: Path | None
     with open_session(conf, what="dashboard session", gate=gate) as session:
         source = BusSource(session, run=args.run, stall=args.stall)
         try:
-            serve(Dashboard(bus=source, target=target, runs_dir=runs_dir, stale=args.stale, title=title, robot=robot),
+            serve(Dashboard(bus=source, target=target, runs_dir=runs_dir, stale=args.stale, title=title, robot=robot,
+                            robot_note=note),
                   host=args.host, port=args.port, every=args.every, on_ready=ready)
         finally:
             source.close()

@@ -292,10 +292,12 @@ ROBOT_RULES = 12  # rules listed per rule set: the strongest that fired
 
 
 def robot_html(view: View) -> str:
-    """The drawn robot of one run: its picture (an inline PNG) and each rule set's strongest rules that fired."""
+    """The drawn robot of one run: its picture (an inline PNG, shown at its own size: its smallest text is
+    robot.TEXT_PX) and each rule set's strongest rules that fired; or why there is none and how to have one."""
     pic = view.robot
     if pic is None:
-        return ""
+        return (_STYLE + '<h3 class="coevo">Robot</h3><p class="robot-note" style="font:13px sans-serif">'
+                f"{_e(view.robot_note)}</p>") if view.robot_note else ""
     versions = ", ".join(f"{_e(b)} v{v}" for b, v in pic.versions.items())
     head = f'<h3 class="coevo">Robot of {_e(pic.run)}' + (f": {versions}" if versions else "") + "</h3>"
     if not pic.png:

@@ -23,11 +23,14 @@ import numpy as np
 from coevo.errors import ConfigError
 from coevo.scene.scene import Scene
 
-__all__ = ["draw_png", "animate", "check_out_path", "FORMATS", "ANIMATION_FORMATS"]
+__all__ = ["draw_png", "animate", "check_out_path", "FORMATS", "ANIMATION_FORMATS", "SMALLEST_TEXT"]
 
 FORMATS = (".png",)
 ANIMATION_FORMATS = (".gif", ".mp4")
 CATEGORY_COLOURS = ("tab:blue", "tab:orange", "tab:purple", "tab:cyan")
+#: Points of a picture's smallest text (legend, episode summaries, a block's label, the trace's ticks): a page that
+#: shows a picture at its own size chooses its dpi from this (coevo.dashboard.robot: 12 px at least)
+SMALLEST_TEXT = 7.5
 # kind -> (marker, colour, size, legend label)
 EVENT_STYLE = {
     "start": ("o", "black", 40, "episode start (* new epoch)"),
@@ -118,7 +121,7 @@ def _arena(ax: Any, scene: Scene) -> None:
                                  alpha=None if s.alpha == 1 else s.alpha))
             if s.label:
                 cx, cy = s.points.mean(axis=0)
-                ax.annotate(s.label, (cx, cy), ha="center", va="center", fontsize=6, color="white")
+                ax.annotate(s.label, (cx, cy), ha="center", va="center", fontsize=SMALLEST_TEXT, color="white")
     pad = 0.03 * (x1 - x0)
     ax.set_xlim(x0 - pad, x1 + pad)
     ax.set_ylim(y0 - pad, y1 + pad)
@@ -167,7 +170,7 @@ def _legend(ax: Any, scene: Scene) -> None:
     for kind, (marker, colour, size, label) in EVENT_STYLE.items():
         if kind in kinds:
             handles.append(Line2D([], [], marker=marker, color=colour, linestyle="", markersize=np.sqrt(size), label=label))
-    ax.legend(handles=handles, loc="upper left", fontsize=7.5, frameon=False)
+    ax.legend(handles=handles, loc="upper left", fontsize=SMALLEST_TEXT, frameon=False)
 
 
 def draw_png(scene: Scene, path: Path, *, trace: bool = False, dpi: int = 80) -> None:
@@ -204,7 +207,7 @@ def draw_png(scene: Scene, path: Path, *, trace: bool = False, dpi: int = 80) ->
     _legend(side, scene)
     lines = [s.summary for s in scene.spans]
     side.text(0.0, 0.52, "\n".join(lines[:24] + ([f"... {len(lines) - 24} more"] if len(lines) > 24 else [])),
-              va="top", ha="left", fontsize=7.5, family="monospace", transform=side.transAxes)
+              va="top", ha="left", fontsize=SMALLEST_TEXT, family="monospace", transform=side.transAxes)
     if trace and scene.rule is not None:
         _trace_panel(fig.add_subplot(grid[1, :]), scene)
     fig.suptitle(scene.title, fontsize=11)
@@ -231,7 +234,7 @@ def _trace_panel(ax: Any, scene: Scene) -> None:
     ax.set_ylim(0.3, top + 0.7)
     ax.set_ylabel("rule #", fontsize=8)
     ax.set_xlabel(f"step (all episodes in a row); {scene.rule_label}", fontsize=8)
-    ax.tick_params(labelsize=7)
+    ax.tick_params(labelsize=SMALLEST_TEXT)
     if top <= 16:
         ax.set_yticks(range(1, top + 1))
     ax.grid(axis="y", alpha=0.25)
