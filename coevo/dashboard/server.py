@@ -79,8 +79,8 @@ class _Page:
             self.figures[key].title.text = title
         if key not in self.plots:
             if what == "fitness":
-                fig, src = self._figure(f"curve-{behaviour}", f"{behaviour}: best fitness (thick: the published best; "
-                                        "a colour per run)", "fitness")
+                fig, src = self._figure(f"curve-{behaviour}", f"{behaviour}: best fitness (thick: the published best)",
+                                        "fitness")
                 self.fitness_row.children.append(fig)
             elif what == "measures":
                 fig, src = self._figure(f"measures-{behaviour}", title or f"{behaviour}: the task's measures", "%")
