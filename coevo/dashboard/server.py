@@ -176,6 +176,7 @@ class _Regimes:
         self.sources: dict[tuple[int, str], tuple[Any, Any]] = {}  # (panel, group) -> (band source, lines source)
         self.renderers: dict[str, list[Any]] = {}  # group -> its renderers in every panel
         self.items: list[tuple[int, str, Any]] = []  # (panel, group, its legend entry)
+        self.labels: dict[tuple[int, str], str] = {}  # ... and its text now
         self.groups: list[str] = []
         self.view: Any = None
         figs = [_plain_figure(f"panel-{beh}-{col}", title, ylabel, height=270)
@@ -218,7 +219,7 @@ class _Regimes:
                 fig.add_layout(Legend(click_policy="hide", location="top_left", orientation="horizontal",
                                       name=f"legend-{i}", label_text_font_size="12px", padding=2, margin=0,
                                       spacing=12, glyph_width=16, border_line_alpha=0), "above")
-            item = LegendItem(label=value(group), renderers=[area, mean, runs])
+            item = LegendItem(label=value(group), renderers=[mean, area, runs])
             fig.legend[0].items.append(item)
             self.items.append((i, group, item))
             self.sources[(i, group)] = (band, lines)
@@ -257,8 +258,9 @@ class _Regimes:
         for i, g, item in self.items:
             lines = c["panels"][i]["groups"].get(g, {"lines": []})["lines"]
             done = sum(ln["state"] == "done" for ln in lines)
-            label = f"{g}, {done} runs" if done == len(lines) else f"{g}, {done} of {len(lines)} runs finished"
-            if item.label != value(label):
+            label = f"{g}, {done} runs" + (f" (+{len(lines) - done} going)" if done < len(lines) else "")
+            if self.labels.get((i, g)) != label:  # a legend redrawn only when its text changes
+                self.labels[(i, g)] = label
                 item.label = value(label)
 
 
