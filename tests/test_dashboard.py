@@ -482,7 +482,7 @@ return out;
 """
 
 TINY_COMPARISON = ["--runs", "10", "--generations", "3", "--population", "6", "--episodes", "10", "--ga",
-                   "best_episodes=10", "--ga", "initial_rules=8", "--measure-epochs", "5", "--quiet"]
+                   "best_episodes=10", "--ga", "initial_rules=8", "--measure-epochs", "5", "--jobs", "2", "--quiet"]
 
 
 def _above_the_fold(box: list[float], viewport: list[int]) -> bool:
