@@ -93,9 +93,10 @@ def sonars_arg(text: str) -> str:
     from coevo.tasks.door.settings import sonar_names
 
     try:
-        return ",".join(sonar_names(text))
+        names = sonar_names(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
+    return ",".join(names) if names else text  # none named: as given, for the command's own word on it
 
 
 def pairs(values: list[str] | None, flag: str) -> dict[str, Any]:
