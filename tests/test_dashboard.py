@@ -391,6 +391,7 @@ def _generations(text: str) -> dict[str, int]:
 def test_the_page_in_headless_chromium_follows_a_real_run(tmp_path: Path) -> None:
     from procs import coevo_proc, poll, stop
 
+    from coevo.runs.discover import answers
     from coevo.runs.local import free_port
 
     browser = _browser(tmp_path)
@@ -402,6 +403,9 @@ def test_the_page_in_headless_chromium_follows_a_real_run(tmp_path: Path) -> Non
         settings = tmp_path / "runs" / "watched" / "run.json"
         poll(settings.exists, 60, "the run's run.json")
         endpoint = json.loads(settings.read_text())["endpoint"]
+        # its broker listening first: a broker that does not answer within 1 s sends the page to the files (tested
+        # in test_a_run_is_followed_with_no_flags_and_a_gone_broker_is_said_at_once), which a loaded machine did here
+        poll(lambda: answers(endpoint), 60, "the run's broker listening")
         port = free_port()
         dash = coevo_proc("dashboard", "--connect", endpoint, "--port", str(port), "--run", "watched", "--runs-dir",
                           str(tmp_path / "runs"), log=tmp_path / "dashboard.log")
@@ -412,7 +416,7 @@ def test_the_page_in_headless_chromium_follows_a_real_run(tmp_path: Path) -> Non
         first = poll(lambda: (g := _generations(text())) and len(g) == 3 and g, 60,
                      lambda: f"the three workers on the page: {text()[-600:]}")
         assert set(first) == {"tracking-0", "docking-1", "executive-2"}
-        assert "watched" in text() and "read-only" in text()
+        assert "coevo dashboard: run watched" in text() and "read-only" in text()
         points = poll(lambda: browser.execute_script(CURVE_POINTS, "curve-tracking") > 0 and
                       browser.execute_script(CURVE_POINTS, "curve-tracking"), 30, "a point on Tracking's curve")
         poll(lambda: any(_generations(text()).get(w, 0) > g for w, g in first.items()), 60,
