@@ -165,7 +165,7 @@ class _Regimes:
         self.headline = row(self.table1, self.verdict, sizing_mode="stretch_width")
         self.picker = MultiChoice(title="Runs drawn thick (all runs are drawn thin; a legend entry hides its regime):",
                                   options=[], value=[], name="run-selector", width=560)
-        self.picker.on_change("value", lambda attr, old, new: self._redraw())
+        self.picker.on_change("value", self._picked)
         key = Div(text=("<p style='font:13px sans-serif;color:#333;margin:22px 0 0 12px'>Per regime: "
                         "<b>thick line</b> the mean of its finished runs, <b>band</b> the 95 % bootstrap interval of "
                         "that mean, <b>thin lines</b> its runs (<b>dotted</b>: not finished). Hover for values.</p>"),
@@ -242,6 +242,11 @@ class _Regimes:
         if runs != list(self.picker.options):
             self.picker.options = runs
         self._redraw()
+
+    def _picked(self, attr: str, old: list[str], new: list[str]) -> None:
+        """The run selector moved (in this page only): its panels drawn again, the document walked once."""
+        with self.picker.document.models.freeze():
+            self._redraw()
 
     def _redraw(self) -> None:
         from bokeh.core.properties import value
