@@ -663,11 +663,17 @@ def test_a_run_is_followed_with_no_flags_and_a_gone_broker_is_said_at_once(tmp_p
     assert gone.returncode == 2 and gone.stderr.startswith(f"ServiceError: no broker answers at {endpoint}"), gone
     assert time.monotonic() - t0 < 20  # at once, not after a 30 s connect timeout each (two interpreters start here)
     port = free_port()
+    t1 = time.monotonic()
     files = subprocess.Popen([sys.executable, "-m", "coevo", "dashboard", "--connect", endpoint, "--runs-dir", "runs",
                               "--port", str(port)], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         assert files.stdout.readline() == (f"dashboard: no broker answers at {endpoint}: showing the runs under runs "
                                            "from their files\n")
+        # ... and it does: the page is served from the files (it went on to the bus and ended 30 s later, on a
+        # ServiceError)
+        served = files.stdout.readline()
+        assert served == f"dashboard: http://127.0.0.1:{port}/ (read-only; Ctrl-C stops it)\n", served
+        assert time.monotonic() - t1 < 25  # not after the bus's 30 s connect timeout
     finally:
         files.terminate()
         files.wait(20)

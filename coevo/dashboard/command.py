@@ -58,22 +58,24 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     from coevo.bus.flags import connection_given
 
     local = target is None and not connection_given(args)  # the runs under --runs-dir (default runs/)
+    gone = False
     if local:
         runs_dir = _local_root(runs_dir, args.run)
     elif target is None and args.connect and args.connect_timeout is None and not _answers(args.connect):
-        gone = f"no broker answers at {', '.join(args.connect)}"  # ended, or not started: --connect-timeout waits
+        why = f"no broker answers at {', '.join(args.connect)}"  # ended, or not started: --connect-timeout waits
         if runs_dir is None:
             from coevo.errors import ServiceError
 
-            raise ServiceError(f"{gone}: has its run ended? Give --runs-dir ROOT to see it from its files (or no "
+            raise ServiceError(f"{why}: has its run ended? Give --runs-dir ROOT to see it from its files (or no "
                                "--connect: the runs under runs/), or --connect-timeout SECONDS to wait for it")
-        print(f"dashboard: {gone}: showing the runs under {runs_dir} from their files", flush=True)
-        target, kind = runs_dir, classify_dir(runs_dir)
+        print(f"dashboard: {why}: showing the runs under {runs_dir} from their files", flush=True)
+        target, kind, gone = runs_dir, classify_dir(runs_dir), True
     robot = None if args.no_robot else _robot(args.robot, target, kind, runs_dir, args.run)
     if local and robot is None and not args.no_robot:
         robot = _newest_robot(runs_dir)
     note = "" if robot is not None or args.no_robot else _no_robot(target, kind, runs_dir, args.run, local)
-    on_bus = local or target is None or bool(args.connect)
+    on_bus = local or not gone and (target is None or bool(args.connect))  # gone: the files only, as it said (it
+    # went on to the bus, and 30 s later ended on a ServiceError)
     if local or not on_bus:  # (the bus's path says so itself) SIGTERM ends it as Ctrl-C does: status 0, no traceback
         from coevo.bus.session import sigterm_as_exit
 
