@@ -247,6 +247,19 @@ def test_mean_interval_bootstrap() -> None:
     assert mean_interval([]).n == 0 and mean_interval([]).text() == "–"
 
 
+def test_mean_intervals_is_mean_interval_per_generation() -> None:
+    from coevo.experiments.compare.stats import mean_intervals
+
+    runs = np.random.default_rng(3).random((7, 6))
+    runs[:, 2] = 0.25  # every run the same
+    runs[4, 5] = np.nan  # a run without that generation
+    mean, low, high = mean_intervals(runs)
+    for j in range(runs.shape[1]):
+        one = mean_interval(runs[:, j])
+        assert (mean[j], low[j], high[j]) == pytest.approx((one.mean, one.low, one.high), rel=1e-12)
+    assert np.isnan(mean_intervals(runs[:1])[1]).all()  # one run: no interval
+
+
 def test_kruskal_wallis_across_groups_and_its_effect_size() -> None:
     same = compare_groups("x", {"r1": [0.0] * 4, "r2": [0.0] * 4})
     assert same.h == 0.0 and same.p_value == 1.0 and not same.appreciable

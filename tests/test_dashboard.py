@@ -4,6 +4,8 @@ real run."""
 
 from __future__ import annotations
 
+import base64
+import io
 import json
 import os
 import re
@@ -240,13 +242,52 @@ def test_a_comparison_shows_replicates_by_state_and_table_1_so_far(tmp_path: Pat
     assert c["counts"] == {"done": 2, "running": 1, "failed": 1, "waiting": 0}
     assert c["table1"]["mutual"]["No Docking / Med"] == 1 and c["table1"]["independent"]["Good Docking / Hi"] == 1
     assert {r.run for r in view.runs} == {"mutual-00", "independent-00", "mutual-01"}  # their curves are on the page
-    html = render.comparison_html(view)
-    assert "Table 1 so far" in html and "No Docking / Med" in html and "failed" in html
+    html = render.table1_html(view) + render.comparison_html(view)
+    assert "Table 1" in html and "mutual so far" in html and "No Docking / Med" in html and "failed" in html
     # The Executive curve of the finished runs (each curve 0.1, 0.2, 0.3): its end and the mean of its last 10.
     ec = c["executive_curve"]
     assert set(ec) == {"mutual", "independent"} and ec["mutual"]["end"]["n"] == 1
     assert ec["mutual"]["end"]["mean"] == pytest.approx(0.3) and ec["mutual"]["last_generations"]["mean"] == pytest.approx(0.2)
     assert "Executive curve (finished runs)" in html and "0.30 (n = 1)" in html
+
+
+def test_a_comparison_page_has_table_1_beside_the_report_and_per_regime_lines_bands_and_a_run_selector(
+        tmp_path: Path) -> None:
+    from coevo.experiments.compare.table1 import REPORT_COUNTS
+
+    out = _comparison(tmp_path)
+    dash = Dashboard(target=out, stale=60)
+    dash.refresh()
+    executive = next(p for p in dash.current()[1].comparison["panels"] if p["behaviour"] == "executive")
+    band, lines = render.regime_columns(executive, "mutual")
+    # mutual-01 still going: drawn dotted, and one finished run makes no band yet
+    assert lines["run"] == ["mutual-00", "mutual-01"] and lines["dash"] == ["solid", "dotted"]
+    assert band["generation"] == []
+    for run in ("mutual-01", "independent-01"):  # a second finished run per regime: a band
+        d = out / "runs" / run
+        if not d.exists():
+            _run_dir(out / "runs", run)
+        (d / "summary.json").write_text(json.dumps({"interrupted": False, "measures": {
+            "docking_success_rate": 30.0, "dock_choice": 10.0, "quality_tracking": 65.0}}))
+        with open(d / "workers" / "executive" / "curve.jsonl", "a") as f:
+            f.write(_row(3, 0.6) if run == "mutual-01" else "")
+    (out / "logs" / "independent-01.log").unlink()
+    dash.refresh()
+    view = dash.current()[1]
+    c = view.comparison
+    assert c["regimes"] == ["mutual", "independent"] and c["table1_report"] == REPORT_COUNTS
+    head = render.table1_html(view)
+    for g in ("mutual", "independent"):  # the report's count beside ours, in grey
+        assert f'<span class="report">{sum(REPORT_COUNTS[g].values())}</span>' in head
+    assert "No report yet" in render.verdict_html(view) and "below the report" in render.verdict_html(view)
+    executive = next(p for p in c["panels"] if p["behaviour"] == "executive" and p["column"] == "best_fitness")
+    band, lines = render.regime_columns(executive, "mutual", picked={"mutual-01"})
+    # mutual-00's executive curve 0.1, 0.2, 0.3 and mutual-01's 0.1, 0.2, 0.6: their mean and its bootstrap interval
+    assert band["generation"] == [1, 2, 3] and band["n"] == [2, 2, 2]
+    assert band["mean"] == pytest.approx([0.1, 0.2, 0.45]) and band["low"] == pytest.approx([0.1, 0.2, 0.3])
+    assert band["high"] == pytest.approx([0.1, 0.2, 0.6]) and band["regime"] == ["mutual"] * 3
+    assert lines["run"] == ["mutual-00", "mutual-01"] and lines["dash"] == ["solid", "solid"]
+    assert lines["width"] == [render.RUN_WIDTH, render.PICKED_WIDTH]  # the picked run thick, the other thin
 
 
 def test_a_directory_claiming_to_be_a_comparison_but_broken_is_a_run_dir_error(tmp_path: Path) -> None:
@@ -350,6 +391,7 @@ def _generations(text: str) -> dict[str, int]:
 def test_the_page_in_headless_chromium_follows_a_real_run(tmp_path: Path) -> None:
     from procs import coevo_proc, poll, stop
 
+    from coevo.runs.discover import answers
     from coevo.runs.local import free_port
 
     browser = _browser(tmp_path)
@@ -361,6 +403,9 @@ def test_the_page_in_headless_chromium_follows_a_real_run(tmp_path: Path) -> Non
         settings = tmp_path / "runs" / "watched" / "run.json"
         poll(settings.exists, 60, "the run's run.json")
         endpoint = json.loads(settings.read_text())["endpoint"]
+        # its broker listening first: a broker that does not answer within 1 s sends the page to the files (tested
+        # in test_a_run_is_followed_with_no_flags_and_a_gone_broker_is_said_at_once), which a loaded machine did here
+        poll(lambda: answers(endpoint), 60, "the run's broker listening")
         port = free_port()
         dash = coevo_proc("dashboard", "--connect", endpoint, "--port", str(port), "--run", "watched", "--runs-dir",
                           str(tmp_path / "runs"), log=tmp_path / "dashboard.log")
@@ -371,7 +416,7 @@ def test_the_page_in_headless_chromium_follows_a_real_run(tmp_path: Path) -> Non
         first = poll(lambda: (g := _generations(text())) and len(g) == 3 and g, 60,
                      lambda: f"the three workers on the page: {text()[-600:]}")
         assert set(first) == {"tracking-0", "docking-1", "executive-2"}
-        assert "watched" in text() and "read-only" in text()
+        assert "coevo dashboard: run watched" in text() and "read-only" in text()
         points = poll(lambda: browser.execute_script(CURVE_POINTS, "curve-tracking") > 0 and
                       browser.execute_script(CURVE_POINTS, "curve-tracking"), 30, "a point on Tracking's curve")
         poll(lambda: any(_generations(text()).get(w, 0) > g for w, g in first.items()), 60,
@@ -398,6 +443,121 @@ def test_the_page_in_headless_chromium_follows_a_real_run(tmp_path: Path) -> Non
         for p in reversed(procs):
             stop(p)
     assert procs[1].returncode == 0, (tmp_path / "dashboard.log").read_text()
+
+
+# A comparison's headline as the browser drew it: each element's box in the viewport's coordinates (the legend and
+# the bands are drawn on a canvas: their boxes are BokehJS's, offset by their canvas's place on the page)
+HEADLINE_BOXES = """
+function find(n, pred) {
+  if (n.shadowRoot) { const r = find(n.shadowRoot, pred); if (r) return r; }
+  for (const c of n.children || []) { if (pred(c)) return c; const r = find(c, pred); if (r) return r; }
+  return null;
+}
+const rect = (r) => [r.left, r.top, r.right, r.bottom];
+const out = {viewport: [window.innerWidth, window.innerHeight], legends: [], bands: []};
+const table = find(document.body, (e) => e.tagName === 'TABLE' && e.classList.contains('table1'));
+if (table) {
+  out.table1 = rect(table.getBoundingClientRect());
+  out.table1_rows = [...table.rows].map((r) => [...r.cells].map((c) => c.textContent.trim()));
+}
+const verdict = find(document.body, (e) => e.classList && e.classList.contains('verdict'));
+out.verdict = verdict ? verdict.textContent : null;
+const doc = window.Bokeh && Bokeh.documents[0];
+for (const m of doc ? doc.all_models : []) {
+  if (m.type === 'ColumnDataSource' || !m.name) continue;
+  const legend = m.name.startsWith('legend-'), band = m.name.startsWith('band-');
+  if (!legend && !band) continue;
+  const v = Bokeh.index.find_one(m);
+  if (!v) continue;
+  const c = v.plot_view.canvas_view.el.getBoundingClientRect();
+  let b;
+  if (legend) {
+    b = [v.bbox.left, v.bbox.top, v.bbox.right, v.bbox.bottom];
+    out.legends.push({name: m.name, box: [c.left + b[0], c.top + b[1], c.left + b[2], c.top + b[3]],
+                      labels: m.items.map((i) => i.label.value)});
+  } else {
+    const g = v.glyph, xs = [...g.sx], ys = [...g.sy1, ...g.sy2];
+    if (!xs.length) continue;
+    out.bands.push({name: m.name, visible: m.visible, points: xs.length,
+                    box: [c.left + Math.min(...xs), c.top + Math.min(...ys), c.left + Math.max(...xs), c.top + Math.max(...ys)]});
+  }
+}
+return out;
+"""
+
+TINY_COMPARISON = ["--runs", "10", "--generations", "3", "--population", "6", "--episodes", "10", "--ga",
+                   "best_episodes=10", "--ga", "initial_rules=8", "--measure-epochs", "5", "--jobs", "2", "--quiet"]
+
+
+def _above_the_fold(box: list[float], viewport: list[int]) -> bool:
+    left, top, right, bottom = box
+    return 0 <= left < right <= viewport[0] and 0 <= top <= bottom <= viewport[1]
+
+
+@pytest.mark.service
+@pytest.mark.slow
+def test_a_20_run_comparison_opens_with_its_headline_above_the_fold_in_headless_chromium(tmp_path: Path) -> None:
+    """A real 20-run Table 1 comparison (coevo compare, tiny settings: ~3 min on 2 cores) opened at a laptop's
+    1280 x 800: the legend, a band per regime and Table 1 with the report's counts are drawn inside the first screen,
+    Table 1's counts are the report's (REPORT_COUNTS) and the runs' (results.json), and the verdict is the report's."""
+    from procs import coevo_proc, poll, stop
+
+    from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS
+    from coevo.runs.local import free_port
+
+    browser = _browser(tmp_path)  # before the comparison: no browser, no three minutes spent
+    dash = None
+    try:
+        out = tmp_path / "cmp"
+        made = subprocess.run([sys.executable, "-m", "coevo", "compare", "--out", str(out), *TINY_COMPARISON],
+                              capture_output=True, text=True, timeout=1800, check=False)
+        assert made.returncode == 0, made.stdout + made.stderr
+        results = json.loads((out / "results.json").read_text())
+        assert results["runs_finished"] == 20
+        port = free_port()
+        dash = coevo_proc("dashboard", str(out), "--port", str(port), log=tmp_path / "dashboard.log")
+        poll(lambda: "dashboard: http" in (tmp_path / "dashboard.log").read_text(), 60, "the dashboard's address")
+        browser.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
+                                {"width": 1280, "height": 800, "deviceScaleFactor": 1, "mobile": False})
+        browser.get(f"http://127.0.0.1:{port}/")
+        page = poll(lambda: (b := browser.execute_script(HEADLINE_BOXES)) and b.get("table1") and
+                    len({x["name"] for x in b["bands"]}) == 2 and b["legends"] and b, 60,
+                    lambda: f"Table 1, the legends and the bands drawn: {browser.execute_script(HEADLINE_BOXES)}")
+        time.sleep(1.0)  # the last layout pass
+        page = browser.execute_script(HEADLINE_BOXES)
+        viewport = page["viewport"]
+        assert viewport == [1280, 800], viewport
+        shot = tmp_path / "comparison.png"
+        browser.save_screenshot(str(shot))
+        if os.environ.get("COEVO_DASHBOARD_COMPARE_SCREENSHOT"):  # docs/dashboard-compare.png is made this way
+            shutil.copy(shot, os.environ["COEVO_DASHBOARD_COMPARE_SCREENSHOT"])
+
+        # Table 1: inside the first screen, a column of the runs' counts and one of the report's per regime
+        assert _above_the_fold(page["table1"], viewport), page["table1"]
+        head, *rows = page["table1_rows"]
+        assert head == ["Table 1", "mutual so far", "report", "independent so far", "report"], head
+        assert [r[0] for r in rows] == [*CLASSES, "runs finished"]
+        for j, g in ((1, "mutual"), (3, "independent")):
+            assert [int(r[j]) for r in rows[:-1]] == [results["table1"][g][c] for c in CLASSES], (g, rows)
+            assert [int(r[j + 1]) for r in rows[:-1]] == [REPORT_COUNTS[g].get(c, 0) for c in CLASSES], (g, rows)
+            assert rows[-1][j:j + 2] == ["10", str(sum(REPORT_COUNTS[g].values()))]
+        assert page["verdict"] and results["verdict"].split("\n\n")[-1][:200] in page["verdict"]
+
+        # a legend naming both regimes, and a band per regime, inside the first screen
+        first = [x for x in page["legends"] if _above_the_fold(x["box"], viewport)]
+        assert first and all(x["labels"] == ["mutual, 10 runs", "independent, 10 runs"] for x in first), page["legends"]
+        for regime in ("mutual", "independent"):
+            bands = [x for x in page["bands"] if x["name"] == f"band-{regime}" and x["visible"]]
+            seen = [x for x in bands if _above_the_fold(x["box"], viewport) and x["box"][2] - x["box"][0] > 100
+                    and x["box"][3] > x["box"][1]]
+            assert len(seen) >= 1 and all(x["points"] == 3 for x in seen), (regime, bands)  # a point per generation
+        assert shot.stat().st_size > 20_000
+    finally:
+        browser.quit()
+        if dash is not None:
+            stop(dash)
+    assert dash.returncode == 0, (tmp_path / "dashboard.log").read_text()
+    assert "Traceback" not in (tmp_path / "dashboard.log").read_text()
 
 
 # ---------------------------------------------------------------- the robot, from the publication logs
@@ -430,9 +590,30 @@ def test_the_robot_is_drawn_from_the_newest_policies_once_every_agent_published_
     assert panel.picture.png and len(panel.picture.tables) == 3 and panel.picture.episodes >= 1
     page = render.robot_html(View("t", robot=panel.picture))
     assert 'class="robot"' in page and "data:image/png;base64," in page and "rules fired" in page
+    from PIL import Image
+
+    from coevo.dashboard.robot import DPI, TEXT_PX
+    from coevo.scene.draw import SMALLEST_TEXT
+
+    width = Image.open(io.BytesIO(base64.b64decode(panel.picture.png))).size[0]
+    assert SMALLEST_TEXT * DPI / 72 >= TEXT_PX >= 12  # the smallest text, at the picture's own size
+    assert width == pytest.approx(10.5 * DPI, abs=2) and width <= 1240  # its own size fits a laptop's page
     assert not panel.update(now=30.0)  # nothing newer: not drawn again
     _publish(d, "tracking", 2, task.default_rules("tracking"))
     assert panel.update(now=31.0) and panel.picture.versions["tracking"] == 2
+
+
+def test_a_page_without_a_robot_says_why_and_how_to_have_one(tmp_path: Path) -> None:
+    from coevo.dashboard.command import _no_robot
+
+    # the issue's case: --connect ENDPOINT --runs-dir ROOT, no --run and no --robot
+    note = _no_robot(None, None, tmp_path / "runs", None, local=False)
+    assert "every run on the bus" in note and f"--robot RUN (a run's name under {tmp_path / 'runs'})" in note
+    assert "--runs-dir ROOT" in _no_robot(None, None, None, "r1", local=False)  # --run without its files
+    assert "a run's name under" in _no_robot(tmp_path, "comparison", None, None, local=False)
+    html = render.robot_html(View("t", robot_note=note))
+    assert 'class="robot-note"' in html and "--robot RUN" in html
+    assert render.robot_html(View("t")) == ""  # --no-robot: nothing asked for, nothing said
 
 
 # ---------------------------------------------------------------- zero-config following
@@ -482,11 +663,17 @@ def test_a_run_is_followed_with_no_flags_and_a_gone_broker_is_said_at_once(tmp_p
     assert gone.returncode == 2 and gone.stderr.startswith(f"ServiceError: no broker answers at {endpoint}"), gone
     assert time.monotonic() - t0 < 20  # at once, not after a 30 s connect timeout each (two interpreters start here)
     port = free_port()
+    t1 = time.monotonic()
     files = subprocess.Popen([sys.executable, "-m", "coevo", "dashboard", "--connect", endpoint, "--runs-dir", "runs",
                               "--port", str(port)], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         assert files.stdout.readline() == (f"dashboard: no broker answers at {endpoint}: showing the runs under runs "
                                            "from their files\n")
+        # ... and it does: the page is served from the files (it went on to the bus and ended 30 s later, on a
+        # ServiceError)
+        served = files.stdout.readline()
+        assert served == f"dashboard: http://127.0.0.1:{port}/ (read-only; Ctrl-C stops it)\n", served
+        assert time.monotonic() - t1 < 25  # not after the bus's 30 s connect timeout
     finally:
         files.terminate()
         files.wait(20)

@@ -289,6 +289,50 @@ def test_door_scene_shows_the_room_and_the_failed_sonar() -> None:
     assert np.isfinite(scene.tracks[0].xy).all()
 
 
+def test_each_door_trial_crosses_its_own_wall_drawn_in_its_own_colour() -> None:
+    """Every trial has a wall of its own (its opening somewhere else): each trial's wall and its opening's posts
+    belong to that trial's category, the colour of its path, and a path that reaches the goal crosses the wall
+    between its own trial's posts."""
+    from coevo.tasks import get_task
+    from coevo.tasks.door import DoorConfig, default_ruleset
+    from coevo.tasks.door.world import GOAL
+
+    door = get_task("door")
+    cfg = DoorConfig()
+    played = door.show_play(door.show_robot("r", cfg, {"door": default_ruleset()}), seed=0, episodes=6)
+    scene = door.show_scene(played)
+    assert scene.categories == tuple(f"trial {k + 1}" for k in range(6)) and len(set(scene.colours[:6])) == 6
+    robot = scene.tracks[0]
+    assert [sp.category for sp in scene.spans] == list(range(6))
+    assert all((robot.category[sp.first: sp.last + 1] == k).all() for k, sp in enumerate(scene.spans))
+    assert sum(played.outcome == GOAL) >= 1
+    for k, sp in enumerate(scene.spans):
+        posts = sorted(s.points[0, 0] for s in scene.statics if s.role == "door post" and s.category == k)
+        walls = [s for s in scene.statics if s.role == "wall piece" and s.category == k]
+        assert posts == pytest.approx([played.trials.opening[k], played.trials.opening[k] + cfg.opening])
+        assert 1 <= len(walls) <= 2 and all(s.alpha < 0.5 for s in walls)  # faint: the others' show through
+        if played.outcome[k] == GOAL:
+            xy = robot.xy[sp.first: sp.last + 1]
+            j = int(np.argmax(xy[:, 1] >= cfg.wall_centre))  # where its path crosses the wall
+            assert posts[0] < xy[j, 0] < posts[1], (k, xy[j], posts)
+
+
+def test_a_long_title_is_wrapped_inside_the_picture_not_cut() -> None:
+    from coevo.scene.draw import _pyplot, _title
+
+    plt = _pyplot()
+    for size in ((6.0, 6.4), (10.5, 6.4)):  # the animation's figure, the picture's
+        fig = plt.figure(figsize=size)
+        title = "runs/learn-door-seed0-20261126-123456-a-long-name: 4 door trials, seed 0, failed: front, front_right, right; 2 reached the goal"
+        top = _title(fig, title, 10)
+        fig.canvas.draw()
+        box = fig._suptitle.get_window_extent()
+        width, height = fig.bbox.width, fig.bbox.height
+        assert 0 <= box.x0 < box.x1 <= width and box.y0 >= top * height - 1 and box.y1 <= height, (size, box)
+        assert fig._suptitle.get_text().replace("\n", " ") == title
+        plt.close(fig)
+
+
 def test_show_draws_a_corridor_learn_run(tmp_path: Path) -> None:
     d = _learn(tmp_path, "corridor")
     assert main(["show", str(d), "--out", str(tmp_path / "c.png"), "--rules"]) == 0

@@ -58,21 +58,28 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     from coevo.bus.flags import connection_given
 
     local = target is None and not connection_given(args)  # the runs under --runs-dir (default runs/)
+    gone = False
     if local:
         runs_dir = _local_root(runs_dir, args.run)
     elif target is None and args.connect and args.connect_timeout is None and not _answers(args.connect):
-        gone = f"no broker answers at {', '.join(args.connect)}"  # ended, or not started: --connect-timeout waits
+        why = f"no broker answers at {', '.join(args.connect)}"  # ended, or not started: --connect-timeout waits
         if runs_dir is None:
             from coevo.errors import ServiceError
 
-            raise ServiceError(f"{gone}: has its run ended? Give --runs-dir ROOT to see it from its files (or no "
+            raise ServiceError(f"{why}: has its run ended? Give --runs-dir ROOT to see it from its files (or no "
                                "--connect: the runs under runs/), or --connect-timeout SECONDS to wait for it")
-        print(f"dashboard: {gone}: showing the runs under {runs_dir} from their files", flush=True)
-        target, kind = runs_dir, classify_dir(runs_dir)
+        print(f"dashboard: {why}: showing the runs under {runs_dir} from their files", flush=True)
+        target, kind, gone = runs_dir, classify_dir(runs_dir), True
     robot = None if args.no_robot else _robot(args.robot, target, kind, runs_dir, args.run)
     if local and robot is None and not args.no_robot:
         robot = _newest_robot(runs_dir)
-    on_bus = local or target is None or bool(args.connect)
+    note = "" if robot is not None or args.no_robot else _no_robot(target, kind, runs_dir, args.run, local)
+    on_bus = local or not gone and (target is None or bool(args.connect))  # gone: the files only, as it said (it
+    # went on to the bus, and 30 s later ended on a ServiceError)
+    if local or not on_bus:  # (the bus's path says so itself) SIGTERM ends it as Ctrl-C does: status 0, no traceback
+        from coevo.bus.session import sigterm_as_exit
+
+        sigterm_as_exit()
     title = (f"coevo dashboard: {kind} {target}" if target else f"coevo dashboard: the runs under {runs_dir}" if local
              else "coevo dashboard" + (f": run {args.run}" if args.run else ""))
 
@@ -85,7 +92,7 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
 
         source = LocalRuns(runs_dir, stall=args.stall)
         try:
-            serve(Dashboard(bus=source, stale=args.stale, title=title, robot=robot), host=args.host, port=args.port,
+            serve(Dashboard(bus=source, stale=args.stale, title=title, robot=robot, robot_note=note), host=args.host, port=args.port,
                   every=args.every, on_ready=ready)
         finally:
             source.close()
@@ -93,10 +100,11 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     if not on_bus:
         from coevo.dashboard.server import serve
 
-        serve(Dashboard(target=target, runs_dir=runs_dir, stale=args.stale, title=title, robot=robot), host=args.host,
+        serve(Dashboard(target=target, runs_dir=runs_dir, stale=args.stale, title=title, robot=robot, robot_note=note),
+              host=args.host,
               port=args.port, every=args.every, on_ready=ready)
         return 0
-    return _on_bus(args, target, runs_dir, title, ready, robot, gate)
+    return _on_bus(args, target, runs_dir, title, ready, robot, gate, note)
 
 
 def _gate(args: argparse.Namespace) -> object:
@@ -140,6 +148,20 @@ def _newest_robot(root: Path) -> object:
     return RobotPanel(max(runs, key=lambda p: p.stat().st_mtime).parent) if runs else None
 
 
+def _no_robot(target: Path | None, kind: str | None, runs_dir: Path | None, run: str | None, local: bool) -> str:
+    """Why no robot is drawn, and how to have one, for the page (said instead of a section silently absent)."""
+    if local:
+        return (f"No robot: no run under {runs_dir} when the dashboard started. Start it again once a run has begun, "
+                "or give --robot RUN_DIR.")
+    if run is not None:  # --run on the bus without --runs-dir: its files are not known
+        return (f"No robot: it is drawn from run {run}'s files, and where they are is not given. Add --runs-dir ROOT "
+                f"(the directory holding {run}/), or --robot RUN_DIR.")
+    where = (f"a run's name under {target}" if kind in ("runs", "comparison") and target is not None
+             else f"a run's name under {runs_dir}" if runs_dir is not None else "a run's directory")
+    return (f"No robot: this page shows every run {'in ' + str(target) if target else 'on the bus'}, and a robot is one "
+            f"run's. Add --robot RUN ({where}) to draw that run's newest robot.")
+
+
 def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Path | None, run: str | None) -> object:
     """The RobotPanel of the run ``--robot`` names (a path, or a run name under the directory shown or --runs-dir),
     by default of the run shown when it is a single run (a run directory, or ``--run`` with ``--runs-dir``, whose
@@ -164,7 +186,7 @@ def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Pa
 
 
 def _on_bus(args: argparse.Namespace, target: Path | None, runs_dir: Path | None, title: str, ready: object,
-            robot: object, gate: object) -> int:
+            robot: object, gate: object, note: str) -> int:
     from coevo.bus.session import config_from_args, open_session, sigterm_as_exit
     from coevo.dashboard.model import BusSource, Dashboard
     from coevo.dashboard.server import serve
@@ -176,7 +198,8 @@ def _on_bus(args: argparse.Namespace, target: Path | None, runs_dir: Path | None
     with open_session(conf, what="dashboard session", gate=gate) as session:
         source = BusSource(session, run=args.run, stall=args.stall)
         try:
-            serve(Dashboard(bus=source, target=target, runs_dir=runs_dir, stale=args.stale, title=title, robot=robot),
+            serve(Dashboard(bus=source, target=target, runs_dir=runs_dir, stale=args.stale, title=title, robot=robot,
+                            robot_note=note),
                   host=args.host, port=args.port, every=args.every, on_ready=ready)
         finally:
             source.close()

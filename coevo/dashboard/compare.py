@@ -1,5 +1,15 @@
 """A comparison directory (``coevo compare --out OUT``) as the dashboard shows it: its replicates, done, running,
-failed or waiting, and the report's Table 1 counted over the runs finished so far.
+failed or waiting; the report's Table 1 counted over the runs finished so far beside the report's own counts; the
+verdict of its report once written; and the regimes' curves.
+
+The curves are the report's panels (:data:`coevo.experiments.compare.plots.PANELS`: each behaviour's best fitness per
+generation, and the Executive's and Docking's measures), per regime: every live run's line (a running one as far as
+it got) and, over the finished runs, the mean per generation with a 95 % percentile-bootstrap interval
+(:func:`~coevo.experiments.compare.stats.mean_intervals`, the statistic of the report's Executive-curve table, so a
+band ends on the report's interval at the last generation).  A bootstrap, not a normal interval: the values are
+bounded (fitness in [0, 1], shares in %) and a regime's runs split into starved and docking ones, where a normal
+interval is symmetric and spills past the bounds.  A band is computed once per set of finished runs (a run that has
+finished no longer changes).
 
 The replicates, their run directories, what "finished" means and the Table 1 classes are the
 comparison's own (:mod:`coevo.experiments.compare`), so the page counts exactly what the report
@@ -46,6 +56,10 @@ class ComparisonFiles:
         self.replicates = replicates(self.spec)
         self._classes: dict[str, str] = {}  # a finished replicate's Table 1 class: it no longer changes
         self._curves: dict[str, list[float]] = {}  # ... and its Executive curve (best per generation)
+        self._tails: dict[tuple[str, str], Any] = {}  # (run, behaviour) -> the Tail of its curve.jsonl
+        self._rows: dict[tuple[str, str], list[dict[str, Any]]] = {}  # ... and the rows read so far
+        self._bands: dict[tuple[int, str], tuple[tuple[str, ...], dict[str, list[float]] | None]] = {}
+        self._results: tuple[float, dict[str, Any] | None] = (-1.0, None)  # results.json: (mtime, what it says)
 
     def run_dirs(self) -> list[Path]:
         """The live replicates' run directories that exist so far (their curves go on the page)."""
@@ -106,12 +120,106 @@ class ComparisonFiles:
                                         if isinstance(r.get("best_fitness"), (int, float))]
         return self._curves[rep.run_id]
 
+    def _curve_rows(self, rep: Any) -> dict[str, list[dict[str, Any]]]:
+        """A live replicate's curve rows per behaviour, read on from where the last call stopped."""
+        from coevo.dashboard.model import Tail
+        from coevo.experiments.compare.experiment import run_dir
+        from coevo.rundir.layout import RunPaths
+        from coevo.tasks.fuel.behaviours import Behaviour
+
+        out = {}
+        for b in Behaviour:
+            key = (rep.run_id, b.value)
+            tail = self._tails.get(key)
+            if tail is None:
+                tail = self._tails[key] = Tail(RunPaths(run_dir(self.out, rep)).worker(b.value).curve)
+            new = tail.read()
+            rows = self._rows.setdefault(key, [])
+            if tail.reset:  # a resumed worker cut its log back to its checkpoint
+                rows.clear()
+            rows += [r for r in new if isinstance(r.get("generation"), int)]
+            out[b.value] = rows
+        return out
+
+    def _panels(self, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+        """The report's panels with, per live regime, its runs' lines and its finished runs' mean and band."""
+        import numpy as np
+
+        from coevo.experiments.compare.plots import PANELS
+
+        state = {r["run"]: r["state"] for r in rows}
+        by_group: dict[str, list[Any]] = {}
+        for rep in self.replicates:
+            if not rep.offline and state.get(rep.run_id) in ("done", "running", "failed"):
+                by_group.setdefault(rep.group, []).append(rep)
+        curves = {rep.run_id: self._curve_rows(rep) for reps in by_group.values() for rep in reps}
+        panels = []
+        for i, (title, behaviour, column, ylabel, top) in enumerate(PANELS):
+            groups: dict[str, dict[str, Any]] = {}
+            for group, reps in by_group.items():
+                lines = []
+                for rep in reps:
+                    pts = [(int(r["generation"]), float(r[column])) for r in curves[rep.run_id][behaviour]
+                           if isinstance(r.get(column), (int, float)) and np.isfinite(r[column])]
+                    if pts:
+                        lines.append({"run": rep.run_id, "state": state[rep.run_id], "generation": [g for g, _ in pts],
+                                      "value": [v for _, v in pts]})
+                finished = tuple(ln["run"] for ln in lines if ln["state"] == "done")
+                held = self._bands.get((i, group))
+                if held is None or held[0] != finished:
+                    held = self._bands[(i, group)] = (finished, self._band([ln for ln in lines if ln["run"] in finished]))
+                groups[group] = {"lines": lines, "band": held[1]}
+            panels.append({"title": title, "behaviour": behaviour, "column": column, "ylabel": ylabel, "top": top,
+                           "groups": groups})
+        return panels
+
+    @staticmethod
+    def _band(lines: list[dict[str, Any]]) -> dict[str, list[float]] | None:
+        """The mean per generation of finished runs' lines and its 95 % interval; None below two runs."""
+        import numpy as np
+
+        from coevo.experiments.compare.stats import mean_intervals
+
+        if len(lines) < 2:
+            return None
+        last = max(g for ln in lines for g in ln["generation"])
+        m = np.full((len(lines), last), np.nan)
+        for k, ln in enumerate(lines):
+            m[k, np.asarray(ln["generation"]) - 1] = ln["value"]
+        mean, low, high = mean_intervals(m)
+        keep = ~np.isnan(mean)
+        return {"generation": [int(g) for g in np.flatnonzero(keep) + 1], "mean": mean[keep].tolist(),
+                "low": low[keep].tolist(), "high": high[keep].tolist(),
+                "n": (~np.isnan(m)).sum(axis=0)[keep].astype(int).tolist()}
+
+    def _verdict(self) -> dict[str, Any] | None:
+        """The report's verdict from results.json, if it has been written: ``{"text", "finished", "expected"}``."""
+        f = self.out / "results.json"
+        mtime = _mtime(f)
+        if mtime != self._results[0]:
+            try:
+                data = json.loads(f.read_text(encoding="utf-8"))
+                held = {"text": str(data["verdict"]), "finished": int(data["runs_finished"]),
+                        "expected": int(data["runs_expected"])}
+            except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError, TypeError, ValueError):
+                held = None
+            self._results = (mtime, held)
+        return self._results[1]
+
     def read(self) -> dict[str, Any]:
-        """Replicates by state, the Table 1 so far and the Executive curve of the finished live runs:
-        ``{"dir", "replicates": [...], "counts", "table1", "executive_curve"}``."""
-        from coevo.experiments.compare.experiment import generations_done, generations_of, groups
+        """Replicates by state, the Table 1 so far beside the report's, the Executive curve of the finished live runs,
+        the verdict and the regimes' panels: ``{"dir", "replicates": [...], "counts", "table1", "table1_report",
+        "executive_curve", "verdict", "caveat", "panels", "regimes", "lengths"}`` (``lengths``: rows read per curve, what tells
+        the page its panels changed)."""
+        from coevo.experiments.common import below_report
+        from coevo.experiments.compare.experiment import (
+            OFFLINE,
+            generations_done,
+            generations_of,
+            groups,
+        )
         from coevo.experiments.compare.report import executive_curve
-        from coevo.experiments.compare.table1 import CLASSES, count
+        from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS, count
 
         now = time.time()
         rows = []
@@ -129,6 +237,13 @@ class ComparisonFiles:
             rows.append({"run": rep.run_id, "group": rep.group, "state": state, "why": why, "class": cls or "",
                          "generations": done, "of": total})
         counts = {s: sum(1 for r in rows if r["state"] == s) for s in ("done", "running", "failed", "waiting")}
+        ga = self.spec.ga
+        caveat = below_report({"generations": ga.generations, "population": ga.population, "episodes": ga.episodes,
+                               "runs a regime": self.spec.runs})
         return {"dir": str(self.out), "replicates": rows, "counts": counts, "classes": list(CLASSES),
                 "table1": {g: count(c) for g, c in classes.items()},
-                "executive_curve": {g: executive_curve(c) for g, c in curves.items() if c}}
+                "table1_report": {g: REPORT_COUNTS[g] for g in classes if g in REPORT_COUNTS},
+                "executive_curve": {g: executive_curve(c) for g, c in curves.items() if c},
+                "verdict": self._verdict(), "caveat": caveat, "panels": self._panels(rows),
+                "regimes": [r for r in self.spec.regimes if r != OFFLINE],  # the live ones: those with curves
+                "lengths": {f"{run}/{b}": len(r) for (run, b), r in sorted(self._rows.items())}}

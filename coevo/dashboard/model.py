@@ -95,6 +95,7 @@ class View:
     comparison: dict[str, Any] | None = None
     problems: list[str] = field(default_factory=list)
     robot: Any = None  # coevo.dashboard.robot.RobotPicture of the run whose robot is drawn, if one is
+    robot_note: str = ""  # else why none is, and how to have one (empty: none asked for, --no-robot)
 
     def fingerprint(self) -> str:
         """What the page shows, in short: equal fingerprints draw the same page (heartbeat ages left out)."""
@@ -105,8 +106,11 @@ class View:
                  "robots": [worker(w) for w in r.robots], "broker": r.broker, "final": r.final, "problems": r.problems,
                  "curves": {k: len(c) for k, (_, c) in r.curves.items()},
                  "external": len(r.external) if r.external else 0} for r in self.runs]
-        return json.dumps({"runs": runs, "comparison": self.comparison, "problems": self.problems,
-                           "robot": self.robot.key() if self.robot is not None else None}, sort_keys=True, default=str)
+        comparison = {k: v for k, v in self.comparison.items() if k != "panels"} if self.comparison else None  # its
+        # "lengths" stand for the panels: a panel changes only when a curve grows or a run's state moves
+        return json.dumps({"runs": runs, "comparison": comparison, "problems": self.problems,
+                           "robot": self.robot.key() if self.robot is not None else self.robot_note}, sort_keys=True,
+                          default=str)
 
 
 # ---------------------------------------------------------------- files
@@ -497,9 +501,10 @@ class Dashboard:
     directory of runs), merged; :meth:`refresh` reads what is new and moves :attr:`version` when the page changes."""
 
     def __init__(self, *, bus: BusSource | LocalRuns | None = None, runs_dir: Path | None = None, target: Path | None = None,
-                 stale: float = STALE, title: str = "coevo dashboard", robot: Any = None) -> None:
-        """``robot``: a :class:`~coevo.dashboard.robot.RobotPanel` drawing one run's robot, or None."""
-        self.bus, self.stale, self.title, self.robot = bus, stale, title, robot
+                 stale: float = STALE, title: str = "coevo dashboard", robot: Any = None, robot_note: str = "") -> None:
+        """``robot``: a :class:`~coevo.dashboard.robot.RobotPanel` drawing one run's robot, or None and
+        ``robot_note`` saying why (on the page, where the robot would be)."""
+        self.bus, self.stale, self.title, self.robot, self.robot_note = bus, stale, title, robot, robot_note
         self.runs_dir = Path(runs_dir) if runs_dir else None
         self.target = Path(target) if target else None
         self.kind = classify_dir(self.target) if self.target else None
@@ -552,7 +557,7 @@ class Dashboard:
             self.robot.update()
             robot = self.robot.picture
         view = View(self.title, runs=[runs[k] for k in sorted(runs)], comparison=comparison, problems=problems,
-                    robot=robot)
+                    robot=robot, robot_note=self.robot_note)
         fp = view.fingerprint()
         with self._lock:
             self.view = view

@@ -13,12 +13,17 @@ from typing import Any
 
 from coevo.dashboard.model import View
 
-__all__ = ["PALETTE", "problems_html", "runs_html", "workers_html", "comparison_html", "curve_lines", "behaviours", "measure_names",
-           "external_lines", "robot_html"]
+__all__ = ["PALETTE", "REGIME_COLOURS", "problems_html", "runs_html", "workers_html", "comparison_html",
+           "table1_html", "verdict_html", "regime_colour", "regime_columns", "curve_lines", "behaviours",
+           "measure_names", "external_lines", "robot_html"]
 
-# Bokeh's Category10 (d3): distinct lines for up to ten runs, then repeated with another dash
-PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf")
+# Bokeh's Category20 (d3): a colour per run for up to twenty runs, then the colours repeat (a line style never
+# stands for a run: on the measures' plot it says which measure, nowhere else)
+PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf",
+           "#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#c49c94", "#f7b6d2", "#c7c7c7", "#dbdb8d", "#9edae5")
 DASHES = ("solid", "dashed", "dotted", "dotdash")
+#: A comparison's regimes in the colours of its report's regimes.png (matplotlib's tab:red, tab:green, ...)
+REGIME_COLOURS = ("#d62728", "#2ca02c", "#1f77b4", "#ff7f0e", "#9467bd", "#8c564b")
 _STATE_COLOUR = {"alive": "#2ca02c", "running": "#2ca02c", "done": "#1f77b4", "stalled": "#b8860b", "dead": "#d62728",
                  "failed": "#d62728", "stopped": "#7f7f7f", "up": "#2ca02c", "down": "#d62728", "degraded": "#b8860b",
                  "waiting": "#7f7f7f", "files": "#7f7f7f", "starting": "#7f7f7f"}
@@ -106,22 +111,96 @@ def workers_html(view: View) -> str:
 
 
 def comparison_html(view: View) -> str:
-    """A comparison's replicates by state and its Table 1 so far."""
+    """A comparison's long tables, for the fold below its headline: the Executive curve of the finished runs and the
+    replicates by state."""
+    c = view.comparison
+    if not c:
+        return ""
+    reps = [[_e(r["run"]), _e(r["group"]), _state(r["state"]), f"{r['generations']}/{r['of']}", _e(r["class"] or "-"),
+             _e(r["why"])] for r in c["replicates"]]
+    return (_executive_curve_html(c.get("executive_curve", {}))
+            + _table("replicates", ["replicate", "group", "state", "worker generations", "class", "why"], reps,
+                     numeric={3}))
+
+
+def table1_html(view: View) -> str:
+    """The comparison's headline: its replicates by state, and Table 1 over the finished runs beside the report's
+    counts (a grey column "report" after each regime the report counted)."""
     c = view.comparison
     if not c:
         return ""
     counts = ", ".join(f"{n} {s}" for s, n in c["counts"].items())
-    reps = [[_e(r["run"]), _e(r["group"]), _state(r["state"]), f"{r['generations']}/{r['of']}", _e(r["class"] or "-"),
-             _e(r["why"])] for r in c["replicates"]]
     groups = list(c["table1"])
-    t1 = [[_e(cls)] + [str(c["table1"][g].get(cls, 0)) for g in groups] for cls in c["classes"]]
+    report = c.get("table1_report", {})
+    heads, cols = ["Table 1"], []
+    for g in groups:
+        heads.append(f"{g} so far")
+        cols.append(lambda cls, g=g: str(c["table1"][g].get(cls, 0)))
+        if g in report:
+            heads.append("report")
+            cols.append(lambda cls, g=g: f'<span class="report">{report[g].get(cls, 0)}</span>')
+    rows = [[_e(cls)] + [f(cls) for f in cols] for cls in c["classes"]]
     done = {g: sum(c["table1"][g].values()) for g in groups}
-    t1.append(["<i>runs finished</i>"] + [str(done[g]) for g in groups])
-    return (f"<h3 class='coevo'>Comparison {_e(c['dir'])}: {counts}</h3>"
-            + _table("table1", ["Table 1 so far"] + groups, t1, numeric=set(range(1, len(groups) + 1)))
-            + _executive_curve_html(c.get("executive_curve", {}))
-            + _table("replicates", ["replicate", "group", "state", "worker generations", "class", "why"], reps,
-                     numeric={3}))
+    rows.append(["<i>runs finished</i>"] + [x for g in groups for x in (
+        [str(done[g])] + ([f'<span class="report">{sum(report[g].values())}</span>'] if g in report else []))])
+    style = ("<style>table.table1 td,table.table1 th{white-space:nowrap;padding:1px 8px}"
+             "table.table1 span.report{color:#777}</style>")
+    return (f"<h3 class='coevo'>Runs: {counts}</h3>" + style
+            + _table("table1", heads, rows, numeric=set(range(1, len(heads)))))
+
+
+def verdict_html(view: View) -> str:
+    """The verdict of the comparison's report once written (said when it covers fewer runs than have finished), else
+    when it will be, and always whether the settings are below the report's."""
+    c = view.comparison
+    if not c:
+        return ""
+    v = c.get("verdict")
+    done = c["counts"]["done"]
+    total = len(c["replicates"])
+    box = "font:13px/1.35 sans-serif;max-height:300px;overflow:auto;margin:0 0 0 12px"
+    if v is None:
+        body = (f"<p>No report yet: the verdict is written when the comparison ends ({done} of {total} runs finished). "
+                f"<code>coevo compare --report-only --out {_e(c['dir'])}</code> writes one from the runs finished so "
+                "far.</p>" + (f"<p><i>{_e(c['caveat'])}</i></p>" if c.get("caveat") else ""))
+    else:
+        stale = (f" (the report covers {v['finished']} of {v['expected']} runs; {done} have finished since: "
+                 f"coevo compare --report-only --out {_e(c['dir'])} writes it again)" if v["finished"] < done else "")
+        body = "".join(f"<p>{_e(p)}</p>" for p in v["text"].split("\n\n")) + (f"<p><i>{stale}</i></p>" if stale else "")
+    return f"<h3 class='coevo'>Verdict</h3><div class='verdict' style='{box}'>{body}</div>"
+
+
+def regime_colour(view: View, group: str) -> str:
+    """A comparison group's colour: its place among the comparison's groups, as in the report's regimes.png."""
+    groups = list((view.comparison or {}).get("table1", {}))
+    i = groups.index(group) if group in groups else len(groups)
+    return REGIME_COLOURS[i % len(REGIME_COLOURS)]
+
+
+RUN_ALPHA, RUN_WIDTH = 0.3, 1.0  # a run: thin and faint under its regime's mean
+PICKED_ALPHA, PICKED_WIDTH = 0.95, 2.5  # a run picked in the run selector
+
+
+def regime_columns(panel: dict[str, Any], group: str, picked: set[str] | frozenset[str] = frozenset()
+                   ) -> tuple[dict[str, list[Any]], dict[str, list[Any]]]:
+    """One regime on one of a comparison's panels: (the band's columns: generation, mean, low, high, n; the runs'
+    lines: xs, ys, run, state, alpha, width, dash).  A finished run is solid, one not finished (running, or
+    failed) dotted; a picked run thick."""
+    g = panel["groups"].get(group) or {"lines": [], "band": None}
+    b = g["band"] or {"generation": [], "mean": [], "low": [], "high": [], "n": []}
+    band = {k: list(b[k]) for k in ("generation", "mean", "low", "high", "n")}
+    band["regime"] = [group] * len(band["generation"])
+    lines: dict[str, list[Any]] = {"xs": [], "ys": [], "run": [], "state": [], "alpha": [], "width": [], "dash": []}
+    for ln in g["lines"]:
+        on = ln["run"] in picked
+        lines["xs"].append(list(ln["generation"]))
+        lines["ys"].append(_clean(list(ln["value"])))
+        lines["run"].append(ln["run"])
+        lines["state"].append(ln["state"])
+        lines["alpha"].append(PICKED_ALPHA if on else RUN_ALPHA)
+        lines["width"].append(PICKED_WIDTH if on else RUN_WIDTH)
+        lines["dash"].append("solid" if ln["state"] == "done" else "dotted")
+    return band, lines
 
 
 def _executive_curve_html(curves: dict[str, dict]) -> str:
@@ -158,19 +237,20 @@ def _clean(values: list[float | None]) -> list[float]:
     return [math.nan if v is None or not math.isfinite(v) else float(v) for v in values]
 
 
-def _style(i: int) -> tuple[str, str]:
-    return PALETTE[i % len(PALETTE)], DASHES[(i // len(PALETTE)) % len(DASHES)]
+def _colour(i: int) -> str:
+    return PALETTE[i % len(PALETTE)]
 
 
 def curve_lines(view: View, behaviour: str, what: str = "fitness") -> dict[str, list[Any]]:
     """A multi-line plot's columns for ``behaviour``: per run, its generation's best fitness and the fitness of the
-    policy it publishes as its best (``fitness``), or each of the task's measures (``measures``); a colour per run.
+    policy it publishes as its best (``fitness``: thick the published best, thin the generation's), or each of the task's
+    measures (``measures``: a dash per measure); a colour per run, and only the colour says which run.
 
     The published best's fitness is the mean of all its re-evaluations (``GAConfig.best_candidates``), so it can go
     down as evidence comes in: it is not a running maximum, and is not labelled one."""
     cols: dict[str, list[Any]] = {"xs": [], "ys": [], "run": [], "line": [], "color": [], "dash": [], "width": []}
     for i, r in enumerate(view.runs):
-        colour, dash = _style(i)
+        colour = _colour(i)
         for wid, (b, c) in sorted(r.curves.items()):
             if b != behaviour or not len(c):
                 continue
@@ -186,7 +266,7 @@ def curve_lines(view: View, behaviour: str, what: str = "fitness") -> dict[str, 
                 cols["run"].append(r.run)
                 cols["line"].append(f"{wid} {name}")
                 cols["color"].append(colour)
-                cols["dash"].append(dash if what == "fitness" or j == 0 else DASHES[j % len(DASHES)])
+                cols["dash"].append("solid" if what == "fitness" else DASHES[j % len(DASHES)])  # a dash: a measure
                 cols["width"].append(width)
     return cols
 
@@ -197,13 +277,13 @@ def external_lines(view: View) -> dict[str, list[Any]]:
     for i, r in enumerate(view.runs):
         if r.external is None or not len(r.external):
             continue
-        colour, dash = _style(i)
+        colour = _colour(i)
         cols["xs"].append(list(r.external.generation))
         cols["ys"].append(_clean(list(r.external.best)))
         cols["run"].append(r.run)
         cols["line"].append("external performance")
         cols["color"].append(colour)
-        cols["dash"].append(dash)
+        cols["dash"].append("solid")
         cols["width"].append(2.0)
     return cols
 
@@ -212,10 +292,12 @@ ROBOT_RULES = 12  # rules listed per rule set: the strongest that fired
 
 
 def robot_html(view: View) -> str:
-    """The drawn robot of one run: its picture (an inline PNG) and each rule set's strongest rules that fired."""
+    """The drawn robot of one run: its picture (an inline PNG, shown at its own size: its smallest text is
+    robot.TEXT_PX) and each rule set's strongest rules that fired; or why there is none and how to have one."""
     pic = view.robot
     if pic is None:
-        return ""
+        return (_STYLE + '<h3 class="coevo">Robot</h3><p class="robot-note" style="font:13px sans-serif">'
+                f"{_e(view.robot_note)}</p>") if view.robot_note else ""
     versions = ", ".join(f"{_e(b)} v{v}" for b, v in pic.versions.items())
     head = f'<h3 class="coevo">Robot of {_e(pic.run)}' + (f": {versions}" if versions else "") + "</h3>"
     if not pic.png:

@@ -12,6 +12,7 @@ generation costs one drawing (0.1-0.7 s of CPU) per interval at most.
 from __future__ import annotations
 
 import base64
+import math
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -21,9 +22,19 @@ from typing import Any
 from coevo.dashboard.model import Tail
 from coevo.errors import CoevoError
 
-__all__ = ["EVERY", "RobotPicture", "RobotPanel"]
+__all__ = ["EVERY", "TEXT_PX", "DPI", "RobotPicture", "RobotPanel"]
 
 EVERY = 10.0  # seconds between two drawings of the robot, at least (a drawing: 0.1-0.7 s of CPU)
+TEXT_PX = 12  # the picture's smallest text, in pixels, shown at its own size (the page does not enlarge it)
+
+
+def _dpi() -> int:
+    from coevo.scene.draw import SMALLEST_TEXT
+
+    return math.ceil(TEXT_PX * 72 / SMALLEST_TEXT)
+
+
+DPI = _dpi()  # 116: a picture 1218 px wide, which a laptop's page shows at its size
 
 
 @dataclass
@@ -96,6 +107,6 @@ class RobotPanel:
         scene = task.show_scene(played, title=f"{run}: {shown_versions}, seed {self.seed}")
         with tempfile.TemporaryDirectory(prefix="coevo-dashboard-") as tmp:
             out = Path(tmp) / "robot.png"
-            draw_png(scene, out, dpi=64)
+            draw_png(scene, out, dpi=DPI)
             png = base64.b64encode(out.read_bytes()).decode("ascii")
         return RobotPicture(run, versions, png, list(task.show_rules(played)), int(played.episodes))

@@ -4,9 +4,10 @@ One :class:`~coevo.dashboard.model.Dashboard` is read by a polling thread for th
 each open page holds a Bokeh document whose periodic callback redraws only when the model's
 version moved (the fingerprint of what the page shows), so an idle page costs a comparison of two
 integers.  BokehJS is served by this server from the installed ``bokeh`` package
-(``resources = server``): the page fetches nothing from the internet.  The page has no widgets:
-nothing on it can reach a run (the Bokeh document's own state, e.g. a plot's zoom, stays in the
-page and this process).
+(``resources = server``): the page fetches nothing from the internet.  Its few widgets (a
+comparison's run selector, the buttons that fold its long tables, a legend that hides a regime)
+change only how this page draws: nothing on it can reach a run (the Bokeh document's own state,
+e.g. a plot's zoom or the runs picked, stays in the page and this process).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ class _Page:
         from bokeh.models import Div
 
         self.doc, self.dash, self.problems = doc, dash, problems
-        self.version = -1
+        self.version: Any = -1
         self.title = Div(text="", name="title", sizing_mode="stretch_width")
         self.banner = Div(text="", name="problems", sizing_mode="stretch_width")
         self.runs = Div(text="", name="runs", sizing_mode="stretch_width")
@@ -47,21 +48,29 @@ class _Page:
         self.plots: dict[tuple[str, str], Any] = {}  # (behaviour, what) -> ColumnDataSource
         self.figures: dict[tuple[str, str], Any] = {}
         doc.title = dash.title
-        doc.add_root(column(self.title, self.banner, self.runs, self.workers, self.fitness_row, self.measures_row,
-                            self.external_row, self.comparison, self.robot, sizing_mode="stretch_width"))
-        self.update()
+        if dash.kind == "comparison":
+            self.regimes = _Regimes(dash)
+            layout = column(self.title, self.banner, self.regimes.headline, self.regimes.controls, *self.regimes.rows,
+                            *_folded("replicates and the Executive curve's table", self.comparison),
+                            *_folded("runs and workers", column(self.runs, self.workers, sizing_mode="stretch_width")),
+                            self.robot, sizing_mode="stretch_width")
+        else:
+            self.regimes = None
+            layout = column(self.title, self.banner, self.runs, self.workers, self.fitness_row, self.measures_row,
+                            self.external_row, self.comparison, self.robot, sizing_mode="stretch_width")
+        self.update()  # before the layout is the document's: a change to a model held by a document costs a walk
+        doc.add_root(layout)  # over all of its models (seconds for a comparison's hundred), one here costs nothing
         doc.add_periodic_callback(self.update, REDRAW)
 
     def _figure(self, name: str, title: str, y_label: str) -> tuple[Any, Any]:
         from bokeh.models import ColumnDataSource, HoverTool
-        from bokeh.plotting import figure
 
         src = ColumnDataSource({"xs": [], "ys": [], "run": [], "line": [], "color": [], "dash": [], "width": []},
                                name=name)
-        fig = figure(title=title, height=260, sizing_mode="stretch_width", x_axis_label="generation",
-                     y_axis_label=y_label, tools="pan,wheel_zoom,box_zoom,reset,save", name=f"figure-{name}")
+        fig = _plain_figure(f"figure-{name}", title, y_label, height=260)
         fig.multi_line("xs", "ys", source=src, line_color="color", line_dash="dash", line_width="width")
-        fig.add_tools(HoverTool(tooltips=[("run", "@run"), ("line", "@line")]))
+        fig.add_tools(HoverTool(tooltips=[("run", "@run"), ("line", "@line"), ("generation", "$snap_x{0}"),
+                                          ("value", "$snap_y{0.000}")], line_policy="nearest"))
         return fig, src
 
     def _source(self, behaviour: str, what: str, title: str = "") -> Any:
@@ -70,7 +79,8 @@ class _Page:
             self.figures[key].title.text = title
         if key not in self.plots:
             if what == "fitness":
-                fig, src = self._figure(f"curve-{behaviour}", f"{behaviour}: best fitness (thick: the published best)", "fitness")
+                fig, src = self._figure(f"curve-{behaviour}", f"{behaviour}: best fitness (thick: the published best)",
+                                        "fitness")
                 self.fitness_row.children.append(fig)
             elif what == "measures":
                 fig, src = self._figure(f"measures-{behaviour}", title or f"{behaviour}: the task's measures", "%")
@@ -87,15 +97,23 @@ class _Page:
         if key == self.version:
             return
         self.version = key
+        with self.doc.models.freeze():  # the document's models walked once, after every change
+            self._draw(view)
+
+    def _draw(self, view: Any) -> None:
         n = len(view.runs)
         self.title.text = (f"<h2 style='font:bold 20px sans-serif;margin:4px 0'>{render._e(view.title)}</h2>"
                            f"<span style='font:12px sans-serif;color:#555'>{n} run{'s' * (n != 1)} · read-only: "
                            "nothing here can steer a run</span>")
         self.banner.text = render.problems_html(view, self.problems)
+        self.banner.visible = bool(self.banner.text)  # an empty one would still take a line
         self.runs.text = render.runs_html(view)
         self.workers.text = render.workers_html(view)
         self.comparison.text = render.comparison_html(view)
         self.robot.text = render.robot_html(view)
+        if self.regimes is not None:
+            self.regimes.update(view)
+            return
         for b in render.behaviours(view):
             self._source(b, "fitness").data = render.curve_lines(view, b, "fitness")
             lines = render.curve_lines(view, b, "measures")
@@ -104,6 +122,151 @@ class _Page:
         ext = render.external_lines(view)
         if ext["xs"] or ("", "external") in self.plots:
             self._source("", "external").data = ext
+
+
+def _plain_figure(name: str, title: str, y_label: str, *, height: int) -> Any:
+    """A figure of something per generation: whole-number generation ticks, and the page's tools."""
+    from bokeh.models import BasicTicker
+    from bokeh.plotting import figure
+
+    fig = figure(title=title, height=height, sizing_mode="stretch_width", x_axis_label="generation",
+                 y_axis_label=y_label, tools="pan,wheel_zoom,box_zoom,reset,save", name=name)
+    fig.xaxis.ticker = BasicTicker(min_interval=1)  # generations are whole: no 1.5 on a 3-generation run
+    return fig
+
+
+def _folded(label: str, body: Any) -> list[Any]:
+    """``body`` behind a button that shows and hides it, folded at first.  A button, not an HTML ``<details>``: the
+    tables are redrawn as the runs go on, and a ``<details>`` inside them would fold again at every redraw; the
+    button's state is the page's own."""
+    from bokeh.models import CustomJS, Toggle
+
+    body.visible = False
+    button = Toggle(label=f"▸ {label}", active=False, name=f"fold-{label.split()[0]}", button_type="light")
+    button.js_on_change("active", CustomJS(args={"body": body, "label": label}, code=(
+        "body.visible = cb_obj.active; cb_obj.label = (cb_obj.active ? '▾ ' : '▸ ') + label;")))
+    return [button, body]
+
+
+class _Regimes:
+    """A comparison's page: its headline (Table 1 so far beside the report's counts, the verdict), a run selector,
+    and the report's panels with a band, a mean and the runs' lines per regime; a legend in each panel hides a regime
+    in all of them."""
+
+    def __init__(self, dash: Dashboard) -> None:
+        from bokeh.layouts import row
+        from bokeh.models import Div, MultiChoice
+
+        from coevo.experiments.compare.plots import PANELS
+
+        self.dash = dash
+        self.table1 = Div(text="", name="table1", width=600)
+        self.verdict = Div(text="", name="verdict", sizing_mode="stretch_width")
+        self.headline = row(self.table1, self.verdict, sizing_mode="stretch_width")
+        self.picker = MultiChoice(title="Runs drawn thick (all runs are drawn thin; a legend entry hides its regime):",
+                                  options=[], value=[], name="run-selector", width=560)
+        self.picker.on_change("value", self._picked)
+        key = Div(text=("<p style='font:13px sans-serif;color:#333;margin:22px 0 0 12px'>Per regime: "
+                        "<b>thick line</b> the mean of its finished runs, <b>band</b> the 95 % bootstrap interval of "
+                        "that mean, <b>thin lines</b> its runs (<b>dotted</b>: not finished). Hover for values.</p>"),
+                  sizing_mode="stretch_width")
+        self.controls = row(self.picker, key, sizing_mode="stretch_width")
+        self.panels = list(PANELS)
+        self.figures: list[Any] = []
+        self.sources: dict[tuple[int, str], tuple[Any, Any]] = {}  # (panel, group) -> (band source, lines source)
+        self.renderers: dict[str, list[Any]] = {}  # group -> its renderers in every panel
+        self.items: list[tuple[int, str, Any]] = []  # (panel, group, its legend entry)
+        self.labels: dict[tuple[int, str], str] = {}  # ... and its text now
+        self.groups: list[str] = []
+        self.view: Any = None
+        figs = [_plain_figure(f"panel-{beh}-{col}", title, ylabel, height=270)
+                for title, beh, col, ylabel, _ in self.panels]
+        self.figures = figs
+        self.rows = [row(*figs[i:i + 3], sizing_mode="stretch_width") for i in range(0, len(figs), 3)]
+        view = dash.current()[1]
+        for g in (view.comparison or {}).get("regimes", []):
+            self.groups.append(g)
+            self._add_group(g, render.regime_colour(view, g))
+
+    def _add_group(self, group: str, colour: str) -> None:
+        """The band, mean and runs of a new group in every panel, with its legend entries."""
+        from bokeh.core.properties import value
+        from bokeh.models import (
+            ColumnDataSource,
+            CustomJS,
+            HoverTool,
+            Legend,
+            LegendItem,
+        )
+
+        mine = []
+        for i, fig in enumerate(self.figures):
+            band = ColumnDataSource({k: [] for k in ("generation", "mean", "low", "high", "n", "regime")},
+                                    name=f"band-{i}-{group}")
+            lines = ColumnDataSource({k: [] for k in ("xs", "ys", "run", "state", "alpha", "width", "dash")},
+                                     name=f"runs-{i}-{group}")
+            area = fig.varea("generation", "low", "high", source=band, fill_color=colour, fill_alpha=0.22,
+                             name=f"band-{group}")
+            runs = fig.multi_line("xs", "ys", source=lines, line_color=colour, line_alpha="alpha", line_width="width",
+                                  line_dash="dash", name=f"runs-{group}")
+            mean = fig.line("generation", "mean", source=band, line_color=colour, line_width=3.5, name=f"mean-{group}")
+            fig.add_tools(HoverTool(renderers=[runs], line_policy="nearest", tooltips=[
+                ("run", "@run (@state)"), ("generation", "$snap_x{0}"), ("value", "$snap_y{0.000}")]))
+            fig.add_tools(HoverTool(renderers=[mean], mode="vline", tooltips=[
+                ("regime", "@regime"), ("generation", "@generation"), ("mean", "@mean{0.000}"),
+                ("95 % interval", "@low{0.000} to @high{0.000}"), ("finished runs", "@n")]))
+            if not fig.legend:
+                fig.add_layout(Legend(click_policy="hide", location="top_left", orientation="horizontal",
+                                      name=f"legend-{i}", label_text_font_size="12px", padding=2, margin=0,
+                                      spacing=12, glyph_width=16, border_line_alpha=0), "above")
+            item = LegendItem(label=value(group), renderers=[mean, area, runs])
+            fig.legend[0].items.append(item)
+            self.items.append((i, group, item))
+            self.sources[(i, group)] = (band, lines)
+            mine += [area, mean, runs]
+        # a click on a legend entry hides the regime in its panel: the same in every panel
+        sync = CustomJS(args={"all": mine}, code="for (const r of all) { if (r.visible != cb_obj.visible) "
+                                                 "r.visible = cb_obj.visible; }")
+        for r in mine:
+            r.js_on_change("visible", sync)
+        self.renderers[group] = mine
+
+    def update(self, view: Any) -> None:
+        c = view.comparison
+        if not c:
+            return
+        self.view = view
+        self.table1.text = render.table1_html(view)
+        self.verdict.text = render.verdict_html(view)
+        runs = sorted({ln["run"] for p in c["panels"] for grp in p["groups"].values() for ln in grp["lines"]})
+        if runs != list(self.picker.options):
+            self.picker.options = runs
+        self._redraw()
+
+    def _picked(self, attr: str, old: list[str], new: list[str]) -> None:
+        """The run selector moved (in this page only): its panels drawn again, the document walked once."""
+        with self.picker.document.models.freeze():
+            self._redraw()
+
+    def _redraw(self) -> None:
+        from bokeh.core.properties import value
+
+        if self.view is None:
+            return
+        c = self.view.comparison
+        picked = set(self.picker.value)
+        for i, panel in enumerate(c["panels"]):
+            for g in self.groups:
+                band, lines = render.regime_columns(panel, g, picked)
+                src_band, src_lines = self.sources[(i, g)]
+                src_band.data, src_lines.data = band, lines
+        for i, g, item in self.items:
+            lines = c["panels"][i]["groups"].get(g, {"lines": []})["lines"]
+            done = sum(ln["state"] == "done" for ln in lines)
+            label = f"{g}, {done} runs" + (f" (+{len(lines) - done} going)" if done < len(lines) else "")
+            if self.labels.get((i, g)) != label:  # a legend redrawn only when its text changes
+                self.labels[(i, g)] = label
+                item.label = value(label)
 
 
 def make_document(dash: Dashboard, problems: list[str], built: Any = None) -> Any:

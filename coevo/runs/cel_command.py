@@ -41,7 +41,9 @@ def fail_arg(text: str) -> tuple[int, tuple[str, ...]]:
     if not sep or g < 0:
         raise argparse.ArgumentTypeError(f"invalid failure {text!r}: give GENERATION:SONAR,SONAR (e.g. "
                                          "50:front,front_right,right; 75: repairs them)")
-    return g, tuple(n.strip() for n in names.split(",") if n.strip())
+    from coevo.console import sonars_arg
+
+    return g, tuple(n for n in sonars_arg(names).split(",") if n)
 
 
 def _settings(args: argparse.Namespace) -> Any:
@@ -160,7 +162,8 @@ def add_cel_flags(p: argparse.ArgumentParser, *, schedules: list[str]) -> None:
                    help="figure3: front, front-right and right fail at generation 50 (default); cyclic: fail at 25, "
                         "repaired at 50, fail again at 75" + ("; none" if "none" in schedules else ""))
     p.add_argument("--fail", type=fail_arg, action="append", metavar="GEN:SONARS",
-                   help="a failure event instead of --schedule, e.g. 50:front,front_right,right (75: repairs; repeatable)")
+                   help="a failure event instead of --schedule, e.g. 50:front,front_right,right (75: repairs; "
+                        "repeatable; front-right, as the report writes it, is the same)")
     p.add_argument("--case-base", action="store_true",
                    help="restart from the case base's nearest earlier strategies (kept in the broker's store)")
     p.add_argument("--trials-per-generation", type=count_arg(1, 100_000),

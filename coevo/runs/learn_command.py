@@ -10,7 +10,17 @@ import json
 from pathlib import Path
 from typing import Any
 
-from coevo.console import ProgressBar, add_settings, count_arg, ga_settings, pairs, positive_float_arg, seed_arg
+from coevo.console import (
+    SONARS_HELP,
+    ProgressBar,
+    add_settings,
+    count_arg,
+    ga_settings,
+    pairs,
+    positive_float_arg,
+    seed_arg,
+    sonars_arg,
+)
 from coevo.errors import ConfigError
 from coevo.runs.command import GA_FLAGS, behaviour_names, refuse, task_names
 
@@ -33,8 +43,8 @@ def configure_learn(p: argparse.ArgumentParser) -> None:
     p.add_argument("--settings", metavar="RUN_JSON",
                    help="take the world, GA settings and the behaviour's seed from a run's settings (a run.json)")
     p.add_argument("--task", choices=task_names(), help="the task (default: the behaviour's; door: --behaviour door)")
-    p.add_argument("--fail", metavar="SONARS",
-                   help="door task: sonars that fail, e.g. front,front-right,right (the same as --world failed=...)")
+    p.add_argument("--fail", metavar="SONARS", type=sonars_arg,
+                   help=f"door task: sonars that fail, {SONARS_HELP} (the same as --world failed=...)")
     p.add_argument("--seed", type=seed_arg, help="default 0")
     p.add_argument("--out", help="run directory to create (default runs/learn-BEHAVIOUR-seedN-TIME)")
     p.add_argument("--tracking", help="Tracking rule file (for --behaviour executive)")

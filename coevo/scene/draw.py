@@ -23,11 +23,14 @@ import numpy as np
 from coevo.errors import ConfigError
 from coevo.scene.scene import Scene
 
-__all__ = ["draw_png", "animate", "check_out_path", "FORMATS", "ANIMATION_FORMATS"]
+__all__ = ["draw_png", "animate", "check_out_path", "FORMATS", "ANIMATION_FORMATS", "SMALLEST_TEXT"]
 
 FORMATS = (".png",)
 ANIMATION_FORMATS = (".gif", ".mp4")
 CATEGORY_COLOURS = ("tab:blue", "tab:orange", "tab:purple", "tab:cyan")
+#: Points of a picture's smallest text (legend, episode summaries, a block's label, the trace's ticks): a page that
+#: shows a picture at its own size chooses its dpi from this (coevo.dashboard.robot: 12 px at least)
+SMALLEST_TEXT = 7.5
 # kind -> (marker, colour, size, legend label)
 EVENT_STYLE = {
     "start": ("o", "black", 40, "episode start (* new epoch)"),
@@ -99,13 +102,31 @@ def _umask() -> int:
     return mask
 
 
-def _colour(cat: int) -> str:
-    return CATEGORY_COLOURS[cat % len(CATEGORY_COLOURS)]
+def _title(fig: Any, title: str, fontsize: float, *, below: float = 0.0) -> float:
+    """``title`` across the top of ``fig``, wrapped to its width (a long one was cut at both edges); returns the
+    figure fraction left under it, and under ``below`` points more (an axes' own title), for the panels."""
+    import textwrap
+
+    width_pt = fig.get_figwidth() * 72
+    chars = max(20, int(width_pt / (0.58 * fontsize)))  # DejaVu Sans: ~0.55 em a character on average
+    lines = textwrap.wrap(title, chars) or [""]
+    fig.suptitle("\n".join(lines), fontsize=fontsize, y=1 - 4 / (fig.get_figheight() * 72), va="top")
+    used = 4 + len(lines) * fontsize * 1.25 + below
+    return 1 - used / (fig.get_figheight() * 72)
 
 
-def _arena(ax: Any, scene: Scene) -> None:
+def _colour(cat: int, scene: Scene) -> str:
+    colours = scene.colours or CATEGORY_COLOURS
+    return colours[cat % len(colours)]
+
+
+def _arena(ax: Any, scene: Scene) -> list[tuple[int, Any]]:
+    """The statics; returns the artists of those that belong to a category, with it (an animation brings the
+    current one forward)."""
+    from matplotlib.colors import to_rgba
     from matplotlib.patches import Polygon
 
+    owned: list[tuple[int, Any]] = []
     x0, x1, y0, y1 = scene.extent
     for s in scene.statics:
         if s.role == "wall":
@@ -113,18 +134,27 @@ def _arena(ax: Any, scene: Scene) -> None:
                                  alpha=None if s.alpha == 1 else s.alpha))
         elif s.role in LINE_STYLE:
             ax.plot(s.points[:, 0], s.points[:, 1], alpha=s.alpha, zorder=2, **LINE_STYLE[s.role])
+        elif s.category is not None and s.kind == "polyline":  # a category's mark (e.g. one trial's door posts)
+            (line,) = ax.plot(s.points[:, 0], s.points[:, 1], color=_colour(s.category, scene), linewidth=2.2,
+                              alpha=s.alpha, zorder=3, solid_capstyle="butt")
+            owned.append((s.category, line))
+        elif s.category is not None:  # a category's block (e.g. one trial's wall): a faint fill in its colour
+            owned.append((s.category, ax.add_patch(Polygon(
+                s.points, closed=True, facecolor=to_rgba(_colour(s.category, scene), s.alpha), edgecolor="none",
+                zorder=1.5))))
         else:
             ax.add_patch(Polygon(s.points, closed=s.kind == "polygon", facecolor="0.55", edgecolor="black",
                                  alpha=None if s.alpha == 1 else s.alpha))
             if s.label:
                 cx, cy = s.points.mean(axis=0)
-                ax.annotate(s.label, (cx, cy), ha="center", va="center", fontsize=6, color="white")
+                ax.annotate(s.label, (cx, cy), ha="center", va="center", fontsize=SMALLEST_TEXT, color="white")
     pad = 0.03 * (x1 - x0)
     ax.set_xlim(x0 - pad, x1 + pad)
     ax.set_ylim(y0 - pad, y1 + pad)
     ax.set_aspect("equal")
     ax.set_xticks([])
     ax.set_yticks([])
+    return owned
 
 
 def _segments(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -158,7 +188,7 @@ def _legend(ax: Any, scene: Scene) -> None:
     from matplotlib.lines import Line2D
 
     used = {sp.category for sp in scene.spans}
-    handles = [Line2D([], [], color=_colour(i), linewidth=2.5, label=f"{scene.tracks[0].name}: {c}")
+    handles = [Line2D([], [], color=_colour(i, scene), linewidth=2.5, label=f"{scene.tracks[0].name}: {c}")
                for i, c in enumerate(scene.categories) if i in used]
     handles += [Line2D([], [], color="0.4", linestyle="--", linewidth=1, label=t.name) for t in scene.tracks[1:]]
     if scene.rings:
@@ -167,7 +197,7 @@ def _legend(ax: Any, scene: Scene) -> None:
     for kind, (marker, colour, size, label) in EVENT_STYLE.items():
         if kind in kinds:
             handles.append(Line2D([], [], marker=marker, color=colour, linestyle="", markersize=np.sqrt(size), label=label))
-    ax.legend(handles=handles, loc="upper left", fontsize=7.5, frameon=False)
+    ax.legend(handles=handles, loc="upper left", fontsize=SMALLEST_TEXT, frameon=False)
 
 
 def draw_png(scene: Scene, path: Path, *, trace: bool = False, dpi: int = 80) -> None:
@@ -177,8 +207,9 @@ def draw_png(scene: Scene, path: Path, *, trace: bool = False, dpi: int = 80) ->
     from matplotlib.colors import to_rgba
 
     fig = plt.figure(figsize=(10.5, 8.0 if trace else 6.4))
+    top = _title(fig, scene.title, 11, below=6)
     grid = fig.add_gridspec(2 if trace else 1, 2, width_ratios=(1.0, 0.72), height_ratios=(1.0, 0.3) if trace else None,
-                            left=0.02, right=0.99, top=0.93, bottom=0.07 if trace else 0.02, wspace=0.03, hspace=0.15)
+                            left=0.02, right=0.99, top=top, bottom=0.07 if trace else 0.02, wspace=0.03, hspace=0.15)
     ax = fig.add_subplot(grid[0, 0])
     side = fig.add_subplot(grid[0, 1])
     _arena(ax, scene)
@@ -192,7 +223,7 @@ def draw_png(scene: Scene, path: Path, *, trace: bool = False, dpi: int = 80) ->
     if len(segs):
         n = max(1, len(scene.spans) - 1)
         alpha = 0.35 + 0.65 * spans / n if len(scene.spans) > 1 else np.ones(len(spans))
-        colours = [to_rgba(_colour(c), a) for c, a in zip(cats, alpha, strict=True)]
+        colours = [to_rgba(_colour(c, scene), a) for c, a in zip(cats, alpha, strict=True)]
         ax.add_collection(LineCollection(list(segs), colors=colours, linewidths=2.0))
     for e in scene.events:
         marker, colour, size, _ = EVENT_STYLE.get(e.kind, ("o", "black", 30, e.kind))
@@ -204,10 +235,9 @@ def draw_png(scene: Scene, path: Path, *, trace: bool = False, dpi: int = 80) ->
     _legend(side, scene)
     lines = [s.summary for s in scene.spans]
     side.text(0.0, 0.52, "\n".join(lines[:24] + ([f"... {len(lines) - 24} more"] if len(lines) > 24 else [])),
-              va="top", ha="left", fontsize=7.5, family="monospace", transform=side.transAxes)
+              va="top", ha="left", fontsize=SMALLEST_TEXT, family="monospace", transform=side.transAxes)
     if trace and scene.rule is not None:
         _trace_panel(fig.add_subplot(grid[1, :]), scene)
-    fig.suptitle(scene.title, fontsize=11)
     try:
         _atomic(Path(path), lambda tmp: fig.savefig(tmp, dpi=dpi, format="png"))
     finally:
@@ -223,7 +253,7 @@ def _trace_panel(ax: Any, scene: Scene) -> None:
     fired = scene.rule > 0
     for c in np.unique(cat[fired]):
         sel = fired & (cat == c)
-        ax.scatter(frames[sel], scene.rule[sel], s=6, color=_colour(int(c)), marker="s", linewidths=0)
+        ax.scatter(frames[sel], scene.rule[sel], s=6, color=_colour(int(c), scene), marker="s", linewidths=0)
     for sp in scene.spans[1:]:
         ax.axvline(sp.first - 0.5, color="0.8", linewidth=0.8)
     ax.set_xlim(-0.5, scene.frames - 0.5)
@@ -231,7 +261,7 @@ def _trace_panel(ax: Any, scene: Scene) -> None:
     ax.set_ylim(0.3, top + 0.7)
     ax.set_ylabel("rule #", fontsize=8)
     ax.set_xlabel(f"step (all episodes in a row); {scene.rule_label}", fontsize=8)
-    ax.tick_params(labelsize=7)
+    ax.tick_params(labelsize=SMALLEST_TEXT)
     if top <= 16:
         ax.set_yticks(range(1, top + 1))
     ax.grid(axis="y", alpha=0.25)
@@ -257,8 +287,9 @@ def animate(scene: Scene, path: Path, *, fps: int = 12, max_frames: int = 150, d
         shown.append(scene.frames - 1)
 
     fig, ax = plt.subplots(figsize=(6.0, 6.4))
-    fig.subplots_adjust(left=0.02, right=0.98, top=0.9, bottom=0.02)
-    _arena(ax, scene)
+    fig.subplots_adjust(left=0.02, right=0.98, top=_title(fig, scene.title, 10, below=9 * 1.25 + 8), bottom=0.02)
+    owned = _arena(ax, scene)
+    alphas = [a.get_alpha() if a.get_alpha() is not None else a.get_facecolor()[3] for _, a in owned]
     segs, cats, _ = _segments(scene)
     seg_frame = np.concatenate([np.arange(sp.first + 1, sp.last + 1) for sp in scene.spans if sp.last > sp.first]) \
         if len(segs) else np.zeros(0, int)
@@ -274,8 +305,7 @@ def animate(scene: Scene, path: Path, *, fps: int = 12, max_frames: int = 150, d
     ring = _ring(ax, halo, scene, alpha=0.15) if halo is not None else None
     ring_track = scene.tracks[names.index(halo.around)] if halo is not None else None
     caption = ax.set_title("", fontsize=9)
-    fig.suptitle(scene.title, fontsize=10)
-    colours = np.array([_colour(int(c)) for c in cats]) if len(cats) else np.array([])
+    colours = np.array([_colour(int(c), scene) for c in cats]) if len(cats) else np.array([])
 
     def frame(i: int) -> None:
         upto = seg_frame <= i
@@ -290,6 +320,9 @@ def animate(scene: Scene, path: Path, *, fps: int = 12, max_frames: int = 150, d
         if ring is not None and ring_track is not None:
             ring.set_center(tuple(ring_track.xy[i]))
         caption.set_text(scene.captions[i])
+        now = robot.category[i] if robot.category is not None else -1
+        for (cat, artist), alpha in zip(owned, alphas, strict=True):  # the current episode's own statics forward
+            artist.set_alpha(min(1.0, alpha * 2.5) if cat == now else alpha * 0.5)
 
     anim = animation.FuncAnimation(fig, frame, frames=shown, interval=1000 / fps, blit=False)
     try:

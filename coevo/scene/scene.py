@@ -33,7 +33,8 @@ class Shape:
     points: np.ndarray
     role: str
     label: str | None = None
-    alpha: float = 1.0  # paler for what belongs to an older span (e.g. an earlier trial's wall)
+    alpha: float = 1.0  # paler for what belongs to an older span; with ``category``, its fill's opacity
+    category: int | None = None  # a block that belongs to a category (e.g. one trial's wall): drawn in its colour
 
 
 @dataclass(frozen=True)
@@ -96,6 +97,7 @@ class Scene:
     captions: tuple[str, ...]  # one per frame, shown by animations
     rule: np.ndarray | None = None  # (F,) rule number that fired at each frame (1-based, 0 none), for a trace panel
     rule_label: str = "rule"
+    colours: tuple[str, ...] = ()  # the categories' colours (matplotlib names), if the task chooses them
 
     @property
     def frames(self) -> int:

@@ -23,7 +23,7 @@ import numpy as np
 from scipy import stats
 
 __all__ = ["RankComparison", "compare_samples", "magnitude", "GroupComparison", "compare_groups", "MeanInterval",
-           "mean_interval"]
+           "mean_interval", "mean_intervals"]
 
 
 @dataclass(frozen=True)
@@ -150,7 +150,7 @@ class MeanInterval:
         return f"{self.mean:.{digits}f} [{self.low:.{digits}f}, {self.high:.{digits}f}] (n = {self.n})"
 
 
-def mean_interval(values: Sequence[float], *, seed: int = 0) -> MeanInterval:
+def mean_interval(values: Sequence[float] | np.ndarray, *, seed: int = 0) -> MeanInterval:
     """The mean of ``values`` (NaNs left out) and its 95 % bootstrap interval: 9,999 resamples from a fixed seed, so
     a report reads the same when it is written again.  The percentile method, not BCa: BCa fails on samples whose
     values are all equal, which small comparisons give."""
@@ -163,3 +163,29 @@ def mean_interval(values: Sequence[float], *, seed: int = 0) -> MeanInterval:
     ci = stats.bootstrap((x,), np.mean, confidence_level=0.95, method="percentile",
                          rng=np.random.default_rng(seed)).confidence_interval
     return MeanInterval(int(x.size), float(x.mean()), float(ci.low), float(ci.high))
+
+
+def mean_intervals(runs: np.ndarray, *, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per column of ``runs`` (runs x generations, NaN where a run has no value): the mean and the 95 % interval of
+    :func:`mean_interval`, (mean, low, high) arrays.  The columns without NaN are resampled together in one bootstrap
+    (whole runs drawn, the same draws for every generation: one call instead of one per generation, and a band that is
+    smooth along the generations); column j then equals ``mean_interval(runs[:, j], seed=seed)``, so a band ends where
+    the report's interval at the last generation is.  Columns with NaN go one at a time."""
+    x = np.asarray(runs, dtype=np.float64)
+    if x.ndim != 2:
+        raise ValueError(f"runs x generations expected, got shape {x.shape}")
+    n_cols = x.shape[1]
+    mean, low, high = np.full(n_cols, np.nan), np.full(n_cols, np.nan), np.full(n_cols, np.nan)
+    whole = ~np.isnan(x).any(axis=0)
+    if x.shape[0] >= 2 and whole.any():
+        w = x[:, whole]
+        ci = stats.bootstrap((w,), np.mean, axis=0, confidence_level=0.95, method="percentile",
+                             rng=np.random.default_rng(seed)).confidence_interval
+        lo, hi = np.asarray(ci.low, dtype=np.float64), np.asarray(ci.high, dtype=np.float64)
+        same = np.all(w == w[0], axis=0)  # every run equal: mean_interval's point interval, not scipy's NaN
+        lo[same], hi[same] = w[0, same], w[0, same]
+        mean[whole], low[whole], high[whole] = w.mean(axis=0), lo, hi
+    for j in np.flatnonzero(~whole if x.shape[0] >= 2 else np.ones(n_cols, bool)):
+        m = mean_interval(x[:, j], seed=seed)
+        mean[j], low[j], high[j] = m.mean, m.low, m.high
+    return mean, low, high

@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from coevo.console import ProgressBar, count_arg, seed_arg
+from coevo.console import SONARS_HELP, ProgressBar, count_arg, seed_arg, sonars_arg
 from coevo.errors import ConfigError, RunDirError
 from coevo.replicates.flags import add_backend_flags, backend_of, check_backend_flags
 
@@ -161,6 +161,7 @@ def configure_seeds(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ga", action="append", metavar="NAME=VALUE",
                    help="a GA setting, e.g. specialise_fraction=0.1 (repeatable)")
     door = p.add_argument_group("--task door")
-    door.add_argument("--fail", metavar="SONAR,SONAR", help="the sonars that fail (default front,front_right,right)")
+    door.add_argument("--fail", metavar="SONAR,SONAR", type=sonars_arg,
+                      help=f"the sonars that fail (default front,front_right,right), {SONARS_HELP}")
     add_backend_flags(p, jobs_help="runs at once on this machine (default 1: the timing target is per core)")
     p.set_defaults(func=cmd_seeds)

@@ -8,9 +8,11 @@ picture shows how the rules succeed; if none did, or with ``prefer_success=False
 (how rules fail, e.g. right after a sonar failure), the first trial.
 
 ``coevo show`` draws door trials as a task-agnostic :class:`~coevo.scene.Scene` instead
-(:func:`play_trials`, :func:`scene_of`): the room, each trial's wall with its opening (older
-trials paler), the goal and starting lines, the robot's path at every substep, the sonars at
-the last trial's start (failed ones as red stubs) and how each trial ended.
+(:func:`play_trials`, :func:`scene_of`): the room, each trial's wall faint and its opening's two
+posts solid in that trial's colour (its path's: a path crosses between its own trial's posts, and the
+walls of the other trials, which were not there, show through), the goal and starting lines, the robot's path
+at every substep, the sonars at the last trial's start (failed ones as red stubs) and how each trial
+ended.
 """
 
 from __future__ import annotations
@@ -114,6 +116,9 @@ def path_figure(path: Path, rules: RuleSet, cfg: DoorConfig, *, seed: int, title
 
 # ------------------------------------------------------------------ coevo show
 _ENDING = {GOAL: "reached goal", COLLISION: "collided", TIMEOUT: "ran out of time"}
+#: A trial's path and wall: none orange (a working sonar), red (a failed one, a collision) or green (the goal)
+TRIAL_COLOURS = ("tab:blue", "tab:purple", "tab:brown", "tab:cyan", "tab:pink", "tab:olive", "tab:gray", "navy")
+WALL_FILL = 0.25  # a trial's wall: its colour this opaque, so the walls of all trials read through one another
 
 
 @dataclass(frozen=True)
@@ -189,12 +194,16 @@ def scene_of(played: DoorPlay, *, title: str | None = None) -> Scene:
     cfg, K = played.robot.world, played.episodes
     W, D = cfg.room_width, cfg.room_depth
     statics = [Shape("polygon", _box(0, W, 0, D), "wall")]
-    for k in range(K):
+    post = max(3 * cfg.wall_thickness, 0.04 * D)  # how far a door post stands out of the wall, each side
+    for k in range(K):  # each trial's wall faint and its opening's posts solid, in its path's colour
         a = float(played.trials.opening[k])
-        alpha = 1.0 if k == K - 1 else 0.25 + 0.5 * (k + 1) / K
         for x0, x1 in ((0.0, a), (a + cfg.opening, W)):
             if x1 > x0:
-                statics.append(Shape("polygon", _box(x0, x1, cfg.wall_near, cfg.wall_far), "wall piece", alpha=alpha))
+                statics.append(Shape("polygon", _box(x0, x1, cfg.wall_near, cfg.wall_far), "wall piece",
+                                     alpha=WALL_FILL, category=k))
+        for x in (a, a + cfg.opening):
+            statics.append(Shape("polyline", np.array([[x, cfg.wall_near - post], [x, cfg.wall_far + post]]),
+                                 "door post", category=k))
     statics.append(Shape("polyline", np.array([[0, cfg.goal_line], [W, cfg.goal_line]], float), "goal"))
     statics.append(Shape("polyline", np.array([[0, cfg.start_line], [W, cfg.start_line]], float), "mark"))
     if K:
@@ -211,7 +220,7 @@ def scene_of(played: DoorPlay, *, title: str | None = None) -> Scene:
         rule.append(r)
         ending = _ENDING[int(played.outcome[k])]
         t = float(played.time[k])
-        spans.append(Span(first, last, 0, f"{k + 1:>2}. {ending}: {t:.0f} s, {len(fired)} decisions"))
+        spans.append(Span(first, last, k, f"{k + 1:>2}. {ending}: {t:.0f} s, {len(fired)} decisions"))
         events.append(Event(first, float(poses[0, 0]), float(poses[0, 1]), "start", str(k + 1)))
         events.append(Event(last, float(poses[-1, 0]), float(poses[-1, 1]), ending, str(k + 1)))
         captions += [f"trial {k + 1} at {j * cfg.decision_seconds / cfg.substeps:.1f} s"
@@ -223,12 +232,13 @@ def scene_of(played: DoorPlay, *, title: str | None = None) -> Scene:
                         f"{capability_label(cfg)}; {won} reached the goal"),
         extent=(0.0, W, 0.0, D),
         statics=tuple(statics),
-        categories=("door",),
+        categories=tuple(f"trial {k + 1}" for k in range(K)),
         tracks=(Track("robot", np.concatenate(xy) if xy else np.zeros((0, 2)),
                       np.concatenate(heading) if heading else np.zeros(0),
-                      np.zeros(first, np.int64), cfg.robot_radius),),
+                      np.repeat(np.arange(K), [len(p) for p in played.poses]).astype(np.int64), cfg.robot_radius),),
         rings=(), events=tuple(events), spans=tuple(spans), captions=tuple(captions),
         rule=np.concatenate(rule).astype(np.int64) if rule else None, rule_label="rule fired (R: door)",
+        colours=TRIAL_COLOURS,
     )
 
 
