@@ -32,7 +32,7 @@ class _Page:
 
     def __init__(self, doc: Any, dash: Dashboard, problems: list[str]) -> None:
         from bokeh.layouts import column, row
-        from bokeh.models import Div
+        from bokeh.models.widgets import Div  # (where the typed stubs see it; bokeh.models re-exports it)
 
         self.doc, self.dash, self.problems = doc, dash, problems
         self.version: Any = -1
@@ -139,7 +139,8 @@ def _folded(label: str, body: Any) -> list[Any]:
     """``body`` behind a button that shows and hides it, folded at first.  A button, not an HTML ``<details>``: the
     tables are redrawn as the runs go on, and a ``<details>`` inside them would fold again at every redraw; the
     button's state is the page's own."""
-    from bokeh.models import CustomJS, Toggle
+    from bokeh.models import CustomJS
+    from bokeh.models.widgets import Toggle
 
     body.visible = False
     button = Toggle(label=f"▸ {label}", active=False, name=f"fold-{label.split()[0]}", button_type="light")
@@ -155,7 +156,7 @@ class _Regimes:
 
     def __init__(self, dash: Dashboard) -> None:
         from bokeh.layouts import row
-        from bokeh.models import Div, MultiChoice
+        from bokeh.models.widgets import Div, MultiChoice
 
         from coevo.experiments.compare.plots import PANELS
 
@@ -191,13 +192,8 @@ class _Regimes:
     def _add_group(self, group: str, colour: str) -> None:
         """The band, mean and runs of a new group in every panel, with its legend entries."""
         from bokeh.core.properties import value
-        from bokeh.models import (
-            ColumnDataSource,
-            CustomJS,
-            HoverTool,
-            Legend,
-            LegendItem,
-        )
+        from bokeh.models import ColumnDataSource, CustomJS, HoverTool
+        from bokeh.models.annotations import Legend, LegendItem
 
         mine = []
         for i, fig in enumerate(self.figures):
