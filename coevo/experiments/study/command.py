@@ -134,8 +134,8 @@ def cmd_study(args: argparse.Namespace) -> int:
 
 def configure_study(p: argparse.ArgumentParser) -> None:
     """``coevo study``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
-    p.add_argument("declaration", nargs="?", metavar="STUDY.toml",
-                   help="the study's declaration (docs/studies.md); --factor and the settings flags add to it")
+    p.add_argument("declaration", nargs="?", metavar="STUDY_FILE",
+                   help="the study's declaration, a TOML file (docs/studies.md); --factor and the settings flags add to it")
     p.add_argument("--factor", action="append", metavar="NAME=V1,V2,...",
                    help="a factor and its levels (repeatable): regime, rate, max_lead, model, runs, measure_epochs, "
                         "ga.NAME, world.NAME; replaces the file's factor or setting of that name")
