@@ -5,10 +5,12 @@
    (``coevo.experiments.study``: the declaration checked, study.json and the cell's folder, its replicates renamed
    and interleaved, then the same runner), alternately, ``--repeats`` times each, side by side in this one process
    run, ``--jobs 1`` both.  Reports are left out: a comparison's and a study's are different reports.
+   Also, without running anything, what each adds around the runs, timed ``--repeats`` x 20 times: a comparison's
+   prepare and replicate list against a study's declaration, checks, folders and renamed, interleaved list.
 2. Scaling: ``coevo study`` (the command, report included) on a study of ``--cells`` cells with ``--jobs 1`` and
    ``--jobs 2``.
 
-    python benchmarks/study_overhead.py [--runs 2] [--repeats 2] [--generations 5] [--cells 2]
+    python benchmarks/study_overhead.py [--runs 2] [--repeats 2] [--generations 5] [--cells 2] [--bookkeeping-only]
 
 Figures: docs/studies.md.
 """
@@ -23,9 +25,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from coevo.experiments.compare.experiment import prepare, run_all
+from coevo.experiments.compare.experiment import jobs_of, prepare, run_all
 from coevo.experiments.study.declaration import cells, declare
-from coevo.experiments.study.experiment import prepare_study, run_study
+from coevo.experiments.study.experiment import prepare_study, run_study, study_jobs
 from coevo.replicates.backends import LocalBackend
 
 GA = ["--population", "6", "--episodes", "10", "--ga", "best_episodes=10", "--ga", "initial_rules=8",
@@ -56,6 +58,22 @@ def one_cell(kind: str, generations: int, runs: int, seed: int) -> float:
     return seconds
 
 
+def bookkeeping(kind: str, generations: int, runs: int, seed: int) -> float:
+    """Seconds a comparison or a one-cell study spends setting its runs up (nothing run)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / kind
+        t0 = time.perf_counter()
+        if kind == "compare":
+            spec = cells(declare(settings=_settings(generations, runs), seed=seed))[0].spec  # compare's flags, untimed
+            t0 = time.perf_counter()
+            prepare(out, spec, resume=False)
+            jobs_of(out, spec)
+        else:
+            the_cells = prepare_study(out, declare(settings=_settings(generations, runs), seed=seed), resume=False)
+            study_jobs(out, the_cells)
+        return time.perf_counter() - t0
+
+
 def study_command(jobs: int, generations: int, cells_n: int, runs: int) -> float:
     levels = ",".join(str(i + 1) for i in range(cells_n))
     with tempfile.TemporaryDirectory() as tmp:
@@ -76,8 +94,15 @@ def main() -> None:
     ap.add_argument("--generations", type=int, default=5)
     ap.add_argument("--cells", type=int, default=2, help="cells of the scaling study (max_lead 1..N)")
     ap.add_argument("--seed", type=int, default=9100)
+    ap.add_argument("--bookkeeping-only", action="store_true", help="only the set-up, no runs")
     args = ap.parse_args()
 
+    setup = {k: statistics.median(bookkeeping(k, args.generations, args.runs, args.seed) for _ in range(20 * args.repeats))
+             for k in ("compare", "study")}
+    print(f"set-up of one cell ({2 * args.runs} runs), median of {20 * args.repeats}: compare {1000 * setup['compare']:.1f} ms, "
+          f"study {1000 * setup['study']:.1f} ms (+{1000 * (setup['study'] - setup['compare']):.1f} ms per cell)")
+    if args.bookkeeping_only:
+        return
     times: dict[str, list[float]] = {"compare": [], "study": []}
     for i in range(args.repeats):
         order = ("compare", "study") if i % 2 == 0 else ("study", "compare")  # neither always first

@@ -316,3 +316,19 @@ def test_newcombe_difference_of_two_shares() -> None:
     assert d.high == pytest.approx(0.3339, abs=1e-4)
     same = share_difference("a", 0, 10, "b", 0, 10)  # both 0 of 10: not a point, a range either way
     assert same.low < -0.2 and same.high > 0.2
+
+
+def test_study_help_loads_no_statistics_or_plotting() -> None:
+    code = ("import sys\nfrom coevo.cli import main\ntry:\n    main(['study', '--help'])\nexcept SystemExit:\n    pass\n"
+            "print(' '.join(sorted(m for m in sys.modules)))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    loaded = set(out.strip().splitlines()[-1].split())
+    assert not {"matplotlib", "scipy", "zenoh", "coevo.experiments.study.report"} & loaded
+
+
+def test_progress_of_a_folder_that_holds_no_study_is_one_error(tmp_path: Path) -> None:
+    with pytest.raises(RunDirError, match="holds no study"):
+        study_progress(tmp_path)
+    (tmp_path / "study.json").write_text("{")
+    with pytest.raises(RunDirError, match="cannot be read"):
+        study_progress(tmp_path)
