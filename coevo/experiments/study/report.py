@@ -296,7 +296,8 @@ def _markdown(spec: StudySpec, the_cells: list[Cell], rows: list[dict[str, Any]]
         lines += ["## Factor tests", "",
                   "Kruskal–Wallis across the factor's levels, pooled over the other factors; p-values corrected "
                   f"together with Holm's method ({len(tests)} tests); *largest difference*: the farthest end of any "
-                  "two levels' 95 % bootstrap interval of their difference.", "",
+                  "two levels' 95 % interval of their difference (Newcombe's for shares, the bootstrap for means): "
+                  "a larger difference would very likely have been seen.", "",
                   "| factor | stratum | measure | levels (mean [95 %]) | H | p | Holm p | ε² | largest difference |",
                   "|---|---|---|---|---|---|---|---|---|"]
         for t in tests:
