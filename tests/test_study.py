@@ -83,6 +83,9 @@ def test_regime_and_rate_vary_inside_a_cell() -> None:
     (["max_lead=1,,2"], {}, "an empty level"),
     (["model=best", "model=recent"], {}, "given twice"),
     ([], {"ga.elite": 60}, "elite (60) must be smaller than population"),
+    ([f"ga.mutation_rate={','.join(str(i / 1000) for i in range(101))}",
+      f"ga.crossover_rate={','.join(str(i / 100) for i in range(101))}"],
+     {}, "the factors make 10201 cells (101 x 101); a study may have at most 10000"),
 ])
 def test_every_bad_factor_is_one_line_naming_it(factors: list[str], settings: dict[str, object], message: str) -> None:
     with pytest.raises(ConfigError, match=None) as exc:

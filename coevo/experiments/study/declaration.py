@@ -36,6 +36,7 @@ import difflib
 import hashlib
 import itertools
 import json
+import math
 import re
 import tomllib
 from collections.abc import Mapping, Sequence
@@ -63,6 +64,9 @@ DEFAULTS: dict[str, tuple[Any, ...]] = {"regime": ("mutual", "independent"), "ru
 _FLAG_TYPES: dict[str, Any] = {"rate": positive_float_arg(maximum=1e6), "max_lead": max_lead_arg,
                                "runs": count_arg(1, 1000), "measure_epochs": count_arg(1, 100_000)}
 _TOML_KEYS = ("name", "description", "seed", "settings", "factors")
+#: The most cells a study may have (each is a whole comparison): beyond it a declaration is a typo, not a study,
+#: and building and checking every cell would itself take minutes.
+MAX_CELLS = 10_000
 
 
 def _names_help() -> str:
@@ -272,7 +276,8 @@ class Cell:
 
 
 def cell_seed(base: int, levels: Mapping[str, Any]) -> int:
-    """The cell's base seed (module docstring): 48 bits of BLAKE2b-64 of ``"BASE|LEVELS"`` (below 2**53, so that a browser reading the JSON keeps it exact)."""
+    """The cell's base seed (module docstring): 48 bits of BLAKE2b-64 of ``"BASE|LEVELS"`` (below 2**53, so that a
+    browser reading the JSON keeps it exact)."""
     canonical = json.dumps(dict(levels), sort_keys=True, separators=(",", ":"))
     digest = hashlib.blake2b(f"{base}|{canonical}".encode(), digest_size=8).digest()
     return int.from_bytes(digest, "big") >> 16
@@ -290,6 +295,10 @@ def cells(spec: StudySpec) -> list[Cell]:
     """The cartesian product of the between-cell factors' levels, each built into a checked CompareSpec."""
     between = spec.between
     fixed = {k: v for k, v in spec.levels}
+    n = math.prod(len(v) for v in between.values())
+    if n > MAX_CELLS:
+        raise ConfigError(f"the factors make {n} cells ({' x '.join(str(len(v)) for v in between.values())}); a study "
+                          f"may have at most {MAX_CELLS}: split it, or vary fewer factors at once")
     out = []
     for i, combo in enumerate(itertools.product(*between.values())):
         levels = dict(zip(between, combo, strict=True))
