@@ -44,6 +44,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from pydantic import BaseModel
+
 from coevo.config import MODELS, DEFAULT_MAX_LEAD, GAConfig, build
 from coevo.console import Lead, count_arg, max_lead_arg, positive_float_arg, seed_arg
 from coevo.errors import ConfigError
@@ -78,7 +80,7 @@ def _check_name(name: str, where: str) -> None:
     if name in NAMES:
         return
     head, _, sub = name.partition(".")
-    models = {"ga": GAConfig, "world": WorldConfig}
+    models: dict[str, type[BaseModel]] = {"ga": GAConfig, "world": WorldConfig}
     if head in models and sub:
         fields = list(models[head].model_fields)
         if sub in fields:

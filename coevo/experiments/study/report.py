@@ -116,12 +116,12 @@ def _strata(spec: StudySpec, records: list[dict[str, Any]]) -> list[tuple[str, s
 
 def analyse(spec: StudySpec, records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Every factor test (module docstring), with Holm-adjusted p-values."""
-    tests = []
+    tests: list[dict[str, Any]] = []
     for factor, stratum, xs, levels in _strata(spec, records):
         by_level = {level_text(factor, lv): [x for x in xs if x["levels"].get(factor) == lv] for lv in levels}
         for measure, (_, value, share) in MEASURES.items():
             samples = {k: [v for v in (value(x) for x in rs) if not math.isnan(v)] for k, rs in by_level.items()}
-            present = {k: v for k, v in samples.items() if v}
+            present: dict[str, Sequence[float]] = {k: v for k, v in samples.items() if v}
             if len(present) < 2:
                 continue
             g = compare_groups(measure, present)
@@ -135,13 +135,13 @@ def analyse(spec: StudySpec, records: list[dict[str, Any]]) -> list[dict[str, An
                 "largest_difference": max(bounds) if bounds else float("nan"),
                 "differences": [d.as_dict() for d in diffs],
             })
-    for t, p in zip(tests, holm([t["p"] for t in tests]), strict=True):
+    for t, p in zip(tests, holm([float(t["p"]) for t in tests]), strict=True):
         t["p_holm"] = p
         t["detected"] = p < ALPHA
     return tests
 
 
-def _difference(a: str, xa: list[float], b: str, xb: list[float], share: bool) -> Difference:
+def _difference(a: str, xa: Sequence[float], b: str, xb: Sequence[float], share: bool) -> Difference:
     if share:
         return share_difference(a, int(sum(xa)), len(xa), b, int(sum(xb)), len(xb))
     return difference_interval(a, xa, b, xb, seed=7)
