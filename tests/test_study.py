@@ -165,8 +165,9 @@ def test_the_study_runs_every_cells_comparison_interleaved(tmp_path: Path) -> No
     spec = declare(factors=["max_lead=1,off", "regime=mutual"], settings={"runs": 2, "ga.generations": 2})
     the_cells = prepare_study(tmp_path / "s", spec, resume=False)
     jobs = study_jobs(tmp_path / "s", the_cells)
-    assert [j.name for j in jobs] == ["00-max_lead=1/mutual-00", "01-max_lead=off/mutual-00",
-                                      "00-max_lead=1/mutual-01", "01-max_lead=off/mutual-01"]
+    assert [j.name for j in jobs] == ["00-max_lead=1@mutual-00", "01-max_lead=off@mutual-00",
+                                      "00-max_lead=1@mutual-01", "01-max_lead=off@mutual-01"]
+    assert not any("/" in j.name for j in jobs)  # a name prefixes a Dask worker's temporary folder
     assert jobs[0].output == "cells/00-max_lead=1/runs/mutual-00"
     assert jobs[0].inputs == ("cells/00-max_lead=1/settings/mutual-00.json",)
     held = json.loads((tmp_path / "s" / "cells" / "01-max_lead=off" / "compare.json").read_text())["spec"]
@@ -335,3 +336,18 @@ def test_progress_of_a_folder_that_holds_no_study_is_one_error(tmp_path: Path) -
     (tmp_path / "study.json").write_text("{")
     with pytest.raises(RunDirError, match="cannot be read"):
         study_progress(tmp_path)
+
+
+@pytest.mark.service
+@pytest.mark.slow
+def test_a_tiny_study_runs_on_a_local_dask_cluster(tmp_path: Path) -> None:
+    """On Dask each replicate runs in a worker's temporary folder and comes back as a tar (no shared directory)."""
+    out = tmp_path / "dask"
+    r = coevo("study", "--out", str(out), "--quiet", "--factor", "regime=independent", "--factor", "max_lead=1,off",
+              "--runs", "1", "--generations", "2", "--population", "6", "--episodes", "10", "--ga", "best_episodes=10",
+              "--ga", "initial_rules=8", "--measure-epochs", "5", "--cluster", "local:2", timeout=400)
+    assert r.returncode == 0, r.stdout + r.stderr
+    p = study_progress(out)
+    assert p.complete and (p.cells_done, p.runs_done) == (2, 2)
+    assert sorted(f.name for f in (out / "logs").iterdir()) == ["00-max_lead=1@independent-00.log",
+                                                                "01-max_lead=off@independent-00.log"]

@@ -55,6 +55,7 @@ def _declaration(args: argparse.Namespace, out: Path | None) -> Any:
 def cmd_study(args: argparse.Namespace) -> int:
     from coevo.experiments.compare.experiment import default_jobs
     from coevo.experiments.study.experiment import (
+        SEP,
         held_declaration,
         mark_complete,
         prepare_study,
@@ -90,7 +91,7 @@ def cmd_study(args: argparse.Namespace) -> int:
         done = {j.name for j in jobs if j.finished(out)}
         print(f"study {spec.name} in {out}: {len(the_cells)} cells, {len(done)} of {len(jobs)} runs already done, "
               f"{len(jobs) - len(done)} to run, {backend.description}", flush=True)
-        cell_of = {j.name: j.name.split("/", 1)[0] for j in jobs}
+        cell_of = {j.name: j.name.split(SEP, 1)[0] for j in jobs}
         per_cell: dict[str, int] = {}
         for name in cell_of:
             per_cell[cell_of[name]] = per_cell.get(cell_of[name], 0) + 1

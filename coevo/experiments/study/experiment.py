@@ -6,7 +6,7 @@ The folder (``--out``)::
     cells/CELL/         one ``coevo compare`` folder per cell (compare.json, settings/, runs/): every cell's
                         replicates are exactly the comparison's, so ``coevo compare --report-only --out
                         cells/CELL`` writes a cell's full comparison report
-    logs/CELL/RUN.log   each replicate's log (the runner's)
+    logs/CELL@RUN.log   each replicate's log (the runner's)
     report.md, results.json, effect-FACTOR.png, cells.png    the study's report (:mod:`.report`)
     complete.json       written last, atomically, when every run finished and the report is written
 
@@ -38,11 +38,14 @@ from coevo.replicates.replicate import Replicate as Job
 from coevo.replicates.runner import Progress, run_replicates
 from coevo.rundir.layout import ensure_dir, write_json
 
-__all__ = ["MARKER", "COMPLETE", "prepare_study", "study_jobs", "run_study", "held_declaration", "mark_complete",
+__all__ = ["MARKER", "COMPLETE", "SEP", "prepare_study", "study_jobs", "run_study", "held_declaration", "mark_complete",
            "is_complete", "StudyProgress", "CellProgress", "study_progress", "cell_dir"]
 
 MARKER = "study.json"
 COMPLETE = "complete.json"
+#: Between a cell and a run in a replicate's name (``CELL@RUN``, its log ``logs/CELL@RUN.log``): a character no cell
+#: id or run id holds, and no "/", since the name also prefixes a Dask worker's temporary folder.
+SEP = "@"
 
 
 def cell_dir(out: Path, cell: Cell) -> Path:
@@ -109,16 +112,16 @@ def _in_cell(cell: str, fn: Callable[[Path], Any], root: Path) -> Any:
 
 def study_jobs(out: Path, the_cells: list[Cell]) -> list[Job]:
     """Every cell's comparison replicates (:func:`~coevo.experiments.compare.experiment.jobs_of`), renamed
-    ``CELL/RUN`` and pointed at ``cells/CELL``, interleaved by replicate index."""
+    ``CELL@RUN`` and pointed at ``cells/CELL``, interleaved by replicate index."""
     keyed: list[tuple[int, int, int, Job]] = []
     for ci, c in enumerate(the_cells):
         for k, (rep, job) in enumerate(zip(replicates(c.spec), jobs_of(cell_dir(out, c), c.spec), strict=True)):
             pre = f"cells/{c.id}/"
             keyed.append((rep.index, ci, k, Job(
-                name=f"{c.id}/{job.name}", output=pre + job.output, finished=partial(_in_cell, c.id, job.finished),
+                name=f"{c.id}{SEP}{job.name}", output=pre + job.output, finished=partial(_in_cell, c.id, job.finished),
                 command=None if job.command is None else partial(_in_cell, c.id, job.command),
                 function=job.function, kwargs=job.kwargs, inputs=tuple(pre + i for i in job.inputs),
-                after=tuple(f"{c.id}/{a}" for a in job.after), weight=job.weight, cost=job.cost,
+                after=tuple(f"{c.id}{SEP}{a}" for a in job.after), weight=job.weight, cost=job.cost,
                 progress=None if job.progress is None else partial(_in_cell, c.id, job.progress))))
     return [j for *_, j in sorted(keyed, key=lambda t: t[:3])]
 
