@@ -213,7 +213,7 @@ def write_report(out: Path, spec: StudySpec, *, elapsed: float | None = None) ->
                                            "settings": json.loads(c.spec.model_dump_json())} for c in the_cells],
         "runs_expected": expected, "runs_finished": len(records), "cell_rows": rows, "tests": tests,
         "verdict": verdict, "caveat": caveat, "elapsed_seconds": elapsed, "figures": figures,
-        "runs": [{k: x[k] for k in ("cell", "run", "group", "seed", "class", "measures", "levels")}
+        "runs": [{k: x[k] for k in ("cell", "run", "group", "seed", "class", "measures", "levels", "seconds")}
                  | {"executive_end": _executive_end(x)} for x in records],
     }
     write_json(out / "results.json", _finite(results))
