@@ -25,6 +25,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "learn": ("coevo.runs.learn_command", "one behaviour learns offline (no network)"),
     "compare": ("coevo.experiments.compare.command",
                 "many real runs per regime: Table 1, learning curves, rank tests, verdict"),
+    "study": ("coevo.experiments.study.command",
+              "factors × seeds, each cell a regime comparison: Table 1 with intervals, effect plots, tests, verdict"),
     "show": ("coevo.show.command", "draw a robot's episodes (PNG, GIF) and print its rules with how often they fired"),
     "status": ("coevo.runs.command", "follow a run's workers"),
     "dashboard": ("coevo.dashboard.command",

@@ -101,6 +101,7 @@ def _base(command: str, flag: str, places: dict[str, Path]) -> list[str]:
         "status": ["--run", "x", *NO_ROUTER, "--duration", "1"],
         "dashboard": ["--run=x", *NO_ROUTER],  # the first item is dropped when the positional directory is swept
         "compare": ["--out", fresh, "--runs", "1", *TINY, "--quiet"],
+        "study": ["--out", fresh, "--runs", "1", "--factor", "regime=independent", *TINY, "--quiet"],
         "evolvability": ["--landscapes", "1", "--runs", "1", "--generations", "1", "--population", "2", "--classes",
                          "gradual", "--rates", "0.1", "--models", "fm", "--quiet", "--out", fresh],
         "earl": ["--runs", "1", "--generations", "0", "--quiet", "--out", fresh],

@@ -1,0 +1,327 @@
+"""A study's declaration: its factors and fixed settings (a TOML file, then the command line); its cells and seeds.
+
+Factors and settings share one set of names; a name with one level is a fixed setting, one with several a factor:
+
+============== ======================================================== ===========================
+name           levels                                                   the flag it stands for
+============== ======================================================== ===========================
+regime         mutual, independent, independent-offline                 ``coevo compare --regimes``
+rate           rates of asynchrony of independent-offline (> 0)         ``--rates``
+max_lead       pacing bound: generations a worker may lead, or ``off``  ``--max-lead``
+model          partner model: best, current, recent                     ``--model``
+runs           runs per regime in a cell (1-1000)                       ``--runs``
+measure_epochs fresh epochs measuring each final robot                  ``--measure-epochs``
+ga.NAME        any GA setting                                           ``--ga NAME=VALUE``
+world.NAME     any world setting                                        ``--world NAME=VALUE``
+============== ======================================================== ===========================
+
+``regime`` and ``rate`` vary *inside* a cell: a cell is one ``coevo compare`` (its regimes paired by seed, its
+offline Executives learning at every rate on the same recorded live runs), so they cost no extra live runs.  Every
+other factor varies *between* cells: the cells are the cartesian product of those factors' levels, in the order
+they were declared.  Each level is read by the very argument type of its flag, and every cell's settings are then
+built and checked (``GAConfig``, ``WorldConfig``, ``CompareSpec``) before anything runs, so a bad name or value is
+one line naming it.
+
+Seeds: a cell's base seed is the first 48 bits of BLAKE2b-64 of ``"BASE|LEVELS"``, where BASE is the study's
+``--seed`` and LEVELS the cell's between-cell levels as canonical JSON (keys sorted, no spaces); replicate *i* of
+the cell then uses that seed + 1000 *i*, as ``coevo compare --seed CELL_SEED`` would.  So a cell's seeds depend
+only on the base seed and on what the cell is, not on the cell's place in the study or on the other cells: a
+level added to a factor leaves the other cells' seeds as they were.
+"""
+
+from __future__ import annotations
+
+import argparse
+import difflib
+import hashlib
+import itertools
+import json
+import math
+import re
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel
+
+from coevo.config import MODELS, DEFAULT_MAX_LEAD, GAConfig, build
+from coevo.console import Lead, count_arg, max_lead_arg, positive_float_arg, seed_arg
+from coevo.errors import ConfigError
+from coevo.experiments.compare.experiment import OFFLINE, REGIMES, CompareSpec
+from coevo.tasks.fuel.settings import WorldConfig
+
+__all__ = ["WITHIN_CELL", "NAMES", "StudySpec", "Cell", "declare", "parse_factor", "read_toml", "cells", "cell_seed",
+           "level_text"]
+
+#: Factors that vary inside a cell (one comparison): its regimes, and its offline Executive's rates.
+WITHIN_CELL = ("regime", "rate")
+#: The names that are not a GA or world setting, in the order the docs list them.
+NAMES = ("regime", "rate", "max_lead", "model", "runs", "measure_epochs")
+#: What each name is when nothing declares it: ``coevo compare``'s defaults (rate: its default rates, left to it).
+DEFAULTS: dict[str, tuple[Any, ...]] = {"regime": ("mutual", "independent"), "runs": (10,),
+                                        "max_lead": (DEFAULT_MAX_LEAD,), "model": ("best",), "measure_epochs": (100,)}
+#: The argument types of the flags these names stand for: a level is read as the flag reads its value.
+_FLAG_TYPES: dict[str, Any] = {"rate": positive_float_arg(maximum=1e6), "max_lead": max_lead_arg,
+                               "runs": count_arg(1, 1000), "measure_epochs": count_arg(1, 100_000)}
+_TOML_KEYS = ("name", "description", "seed", "settings", "factors")
+#: The most cells a study may have (each is a whole comparison): beyond it a declaration is a typo, not a study,
+#: and building and checking every cell would itself take minutes.
+MAX_CELLS = 10_000
+
+
+def _names_help() -> str:
+    return ", ".join(NAMES) + ", ga.NAME or world.NAME"
+
+
+def _check_name(name: str, where: str) -> None:
+    """A known factor or setting name, else one line with the names (and the nearest, for a typo)."""
+    if name in NAMES:
+        return
+    head, _, sub = name.partition(".")
+    models: dict[str, type[BaseModel]] = {"ga": GAConfig, "world": WorldConfig}
+    if head in models and sub:
+        fields = list(models[head].model_fields)
+        if sub in fields:
+            return
+        near = difflib.get_close_matches(sub, fields, n=1)
+        hint = f"; did you mean {head}.{near[0]}?" if near else f" (see coevo compare --{head} and docs/spec.md)"
+        raise ConfigError(f"{where}: unknown {'GA' if head == 'ga' else 'world'} setting {name!r}{hint}")
+    near = difflib.get_close_matches(name, [*NAMES, "ga.", "world."], n=1)
+    hint = f"; did you mean {near[0]}?" if near and not near[0].endswith(".") else ""
+    raise ConfigError(f"{where}: unknown factor {name!r}: use {_names_help()}{hint}")
+
+
+def _level(name: str, raw: Any, where: str) -> Any:
+    """One level of ``name`` as its flag would read it (``raw``: the command line's text or a TOML value); JSON."""
+    if isinstance(raw, (dict, list)) or raw is None:
+        raise ConfigError(f"{where}: {name} = {raw!r}: give a single value")
+    if name in _FLAG_TYPES:
+        if isinstance(raw, bool):
+            raise ConfigError(f"{where}: {name} = {raw!r}: give a number")
+        try:
+            v = _FLAG_TYPES[name](str(raw))
+        except argparse.ArgumentTypeError as exc:
+            raise ConfigError(f"{where}: {name}: {exc}") from None
+        return v.value if isinstance(v, Lead) else v
+    if name == "regime":
+        if raw not in (*REGIMES, OFFLINE):
+            raise ConfigError(f"{where}: unknown regime {raw!r} (use {', '.join((*REGIMES, OFFLINE))})")
+        return raw
+    if name == "model":
+        if raw not in MODELS:
+            raise ConfigError(f"{where}: unknown partner model {raw!r} (use {', '.join(MODELS)})")
+        return raw
+    if isinstance(raw, str):  # ga.NAME / world.NAME from the command line: JSON when it parses, as --ga does
+        try:
+            return json.loads(raw)
+        except json.JSONDecodeError:
+            return raw
+    return raw
+
+
+def _levels(name: str, raws: Sequence[Any], where: str) -> tuple[Any, ...]:
+    _check_name(name, where)
+    if not raws:
+        raise ConfigError(f"{where}: factor {name} has no levels: give at least one")
+    levels = tuple(_level(name, r, where) for r in raws)
+    seen = [json.dumps(v, sort_keys=True) for v in levels]
+    if len(set(seen)) != len(seen):
+        raise ConfigError(f"{where}: factor {name} repeats a level: {', '.join(level_text(name, v) for v in levels)}")
+    return levels
+
+
+def level_text(name: str, value: Any) -> str:
+    """A level as the report and the cell's folder name show it (``off`` for an unpaced max_lead)."""
+    if name == "max_lead" and value is None:
+        return "off"
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
+
+
+def parse_factor(text: str) -> tuple[str, list[str]]:
+    """``NAME=V1,V2,...`` (``--factor``) -> (name, level texts); an empty name or level is refused by name."""
+    name, eq, values = text.partition("=")
+    name = name.strip()
+    if not eq or not name:
+        raise ConfigError(f"--factor {text!r}: expected NAME=VALUE[,VALUE...], e.g. max_lead=1,2,4,off")
+    levels = [v.strip() for v in values.split(",")]
+    if any(not v for v in levels):
+        raise ConfigError(f"--factor {text!r}: an empty level (give NAME=VALUE[,VALUE...])")
+    return name, levels
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    """A study file's table, its top-level keys checked; a file that is missing or not TOML is one line."""
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except OSError as exc:
+        raise ConfigError(f"study file {str(path)!r}: {exc.strerror or exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"study file {str(path)!r} is not valid TOML: {exc}") from None
+    unknown = [k for k in data if k not in _TOML_KEYS]
+    if unknown:
+        raise ConfigError(f"study file {str(path)!r}: unknown key {unknown[0]!r} (use {', '.join(_TOML_KEYS)})")
+    for table in ("settings", "factors"):
+        if not isinstance(data.get(table, {}), dict):
+            raise ConfigError(f"study file {str(path)!r}: {table} must be a table ([{table}])")
+    return data
+
+
+def _flatten(table: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """TOML's nested ``ga = {mutation_rate = ...}`` or ``ga.mutation_rate = ...`` as the name ``ga.mutation_rate``."""
+    out: dict[str, Any] = {}
+    for k, v in table.items():
+        if isinstance(v, dict) and not prefix:
+            out.update(_flatten(v, f"{k}."))
+        else:
+            out[prefix + k] = v
+    return out
+
+
+@dataclass(frozen=True)
+class StudySpec:
+    """What makes two studies the same study: its name, base seed, and every name's levels in declared order."""
+
+    name: str
+    seed: int
+    levels: tuple[tuple[str, tuple[Any, ...]], ...]
+    description: str = ""
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "seed": self.seed, "description": self.description,
+                "levels": [[k, list(v)] for k, v in self.levels]}  # a list: the order makes the cells
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> StudySpec:
+        return cls(name=str(data["name"]), seed=int(data["seed"]), description=str(data.get("description", "")),
+                   levels=tuple((str(k), tuple(v)) for k, v in data["levels"]))
+
+    @property
+    def factors(self) -> dict[str, tuple[Any, ...]]:
+        """The names with more than one level."""
+        return {k: v for k, v in self.levels if len(v) > 1}
+
+    @property
+    def between(self) -> dict[str, tuple[Any, ...]]:
+        """The factors that make cells (all but regime and rate)."""
+        return {k: v for k, v in self.factors.items() if k not in WITHIN_CELL}
+
+    @property
+    def fixed(self) -> dict[str, Any]:
+        """The names with one level, and that level."""
+        return {k: v[0] for k, v in self.levels if len(v) == 1}
+
+
+def declare(*, toml: Mapping[str, Any] | None = None, source: str = "the study file", factors: Sequence[str] = (),
+            settings: Mapping[str, Any] | None = None, seed: int | None = None) -> StudySpec:
+    """The study from a TOML table (``source`` names it in messages), then the command line: its settings flags
+    (``settings``: name -> value, replacing the file's settings) and ``--factor`` texts (replacing the file's factor
+    or setting of that name).  Every cell is built and checked here (:func:`cells`); a ConfigError names what is bad."""
+    toml = dict(toml or {})
+    levels: dict[str, tuple[Any, ...]] = dict(DEFAULTS)
+    file_settings = _flatten(toml.get("settings", {}))
+    file_factors = _flatten(toml.get("factors", {}))
+    for name, v in file_settings.items():
+        where = f"{source}, [settings]"
+        if isinstance(v, list):
+            raise ConfigError(f"{where}: {name} = {v!r} is a list: put it under [factors]")
+        levels[name] = _levels(name, [v], where)
+    for name, v in file_factors.items():
+        where = f"{source}, [factors]"
+        if name in file_settings:
+            raise ConfigError(f"{where}: {name} is both a setting and a factor: keep one")
+        levels[name] = _levels(name, v if isinstance(v, list) else [v], where)
+    for name, v in (settings or {}).items():
+        if name in file_factors and len(levels[name]) > 1:
+            raise ConfigError(f"{name} is a factor in {source} and a setting on the command line: use --factor "
+                              f"{name}=... to replace its levels")
+        levels[name] = _levels(name, [v], "command line")
+    given: set[str] = set()
+    for text in factors:
+        name, raws = parse_factor(text)
+        if name in given:
+            raise ConfigError(f"--factor {name} is given twice: give all its levels in one --factor {name}=A,B")
+        given.add(name)
+        levels[name] = _levels(name, raws, f"--factor {text}")
+    if "seed" in toml and seed is None:
+        try:
+            seed = seed_arg(str(toml["seed"]))
+        except argparse.ArgumentTypeError as exc:
+            raise ConfigError(f"{source}: seed: {exc}") from None
+    name = str(toml.get("name", "study"))
+    if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}", name):
+        raise ConfigError(f"{source}: name {name!r}: use letters, digits, '.', '_' or '-' (at most 64)")
+    spec = StudySpec(name=name, seed=0 if seed is None else int(seed), levels=tuple(levels.items()),
+                     description=str(toml.get("description", "")))
+    cells(spec)  # every cell's settings checked now, before anything runs
+    return spec
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One cell: its folder's name, its between-cell levels, and the comparison it runs."""
+
+    id: str
+    levels: tuple[tuple[str, Any], ...]
+    spec: CompareSpec
+
+    def level(self, name: str) -> Any:
+        return dict(self.levels)[name]
+
+    @property
+    def label(self) -> str:
+        return ", ".join(f"{k} {level_text(k, v)}" for k, v in self.levels) or "(one cell)"
+
+
+def cell_seed(base: int, levels: Mapping[str, Any]) -> int:
+    """The cell's base seed (module docstring): 48 bits of BLAKE2b-64 of ``"BASE|LEVELS"`` (below 2**53, so that a
+    browser reading the JSON keeps it exact)."""
+    canonical = json.dumps(dict(levels), sort_keys=True, separators=(",", ":"))
+    digest = hashlib.blake2b(f"{base}|{canonical}".encode(), digest_size=8).digest()
+    return int.from_bytes(digest, "big") >> 16
+
+
+def _cell_id(index: int, levels: Mapping[str, Any]) -> str:
+    text = ",".join(f"{k}={level_text(k, v)}" for k, v in levels.items()) or "all"
+    text = re.sub(r"[^A-Za-z0-9.,=+_-]", "-", text)
+    if len(text) > 100:
+        text = text[:80] + "~" + hashlib.blake2b(text.encode(), digest_size=4).hexdigest()
+    return f"{index:02d}-{text}"
+
+
+def cells(spec: StudySpec) -> list[Cell]:
+    """The cartesian product of the between-cell factors' levels, each built into a checked CompareSpec."""
+    between = spec.between
+    fixed = {k: v for k, v in spec.levels}
+    n = math.prod(len(v) for v in between.values())
+    if n > MAX_CELLS:
+        raise ConfigError(f"the factors make {n} cells ({' x '.join(str(len(v)) for v in between.values())}); a study "
+                          f"may have at most {MAX_CELLS}: split it, or vary fewer factors at once")
+    out = []
+    for i, combo in enumerate(itertools.product(*between.values())):
+        levels = dict(zip(between, combo, strict=True))
+        one = {k: v[0] for k, v in fixed.items() if k not in WITHIN_CELL} | levels
+        cid = _cell_id(i, levels)
+        where = f"cell {cid}" if levels else "study settings"
+        try:
+            world = build(WorldConfig, {k[6:]: v for k, v in one.items() if k.startswith("world.")})
+            ga = build(GAConfig, {k[3:]: v for k, v in one.items() if k.startswith("ga.")})
+        except ConfigError as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+        regimes = tuple(fixed["regime"])
+        if "rate" in fixed and OFFLINE not in regimes:
+            raise ConfigError(f"rate: the rates of asynchrony are {OFFLINE}'s: add it to the regimes "
+                              f"(--factor regime=independent,{OFFLINE})")
+        rates = {"rates": tuple(fixed["rate"])} if "rate" in fixed else {}
+        try:
+            cs = CompareSpec.make(regimes=regimes, **rates, runs=one["runs"], model=one["model"],
+                                  max_lead=one["max_lead"], measure_epochs=one["measure_epochs"], world=world, ga=ga,
+                                  seed=cell_seed(spec.seed, levels))
+        except ConfigError as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+        out.append(Cell(cid, tuple(levels.items()), cs))
+    return out

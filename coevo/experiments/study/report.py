@@ -1,0 +1,313 @@
+"""A study's report: per cell Table 1 with intervals and the Executive's measures; per factor a test and a plot.
+
+Everything is computed from the cells' run files (each cell read by the comparison's own
+:func:`~coevo.experiments.compare.report.collect`), so the report can be rebuilt at any time (``--report-only``).
+
+Per cell and group (a regime, or independent-offline at one rate): the nine Table 1 classes and the three docking
+classes, each k of n with its 95 % Wilson interval (:mod:`.intervals`); the Executive curve's end (its best fitness
+at the last generation) and the Average Epoch Length (AEL), each a mean with its 95 % bootstrap interval
+(:func:`~coevo.experiments.compare.stats.mean_interval`).
+
+Per factor with two levels or more, and per stratum (a between-cell factor is tested within each group; ``regime``
+across the live regimes; ``rate`` across independent-offline's rates), on each of four measures (the Executive
+curve's end, AEL, and the shares of Good Docking and of No Docking runs): the Kruskal–Wallis test across the
+levels, pooled over the other factors' levels (on a 0/1 measure it is the χ² test of the 2 × k table, scaled by
+(N − 1)/N), its ε², and the largest difference between two levels that the data allow (:mod:`.intervals`).  The
+p-values of every test in the study are corrected together with Holm's method; the verdict reads the corrected ones.
+
+Files: ``results.json`` (everything), ``report.md``, ``effect-FACTOR.png``, ``cells.png``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from coevo.errors import RunDirError
+from coevo.experiments.common import below_report
+from coevo.experiments.compare.experiment import OFFLINE, groups, replicates
+from coevo.experiments.compare.report import collect
+from coevo.experiments.compare.stats import compare_groups, mean_interval
+from coevo.experiments.compare.table1 import CLASSES, DOCKING, REPORT_COUNTS
+from coevo.experiments.study import plots
+from coevo.experiments.study.declaration import Cell, StudySpec, cells, level_text
+from coevo.experiments.study.experiment import cell_dir
+from coevo.experiments.study.intervals import Difference, difference_interval, holm, share_difference, wilson
+from coevo.rundir.layout import write_json, write_text
+
+__all__ = ["MEASURES", "collect_study", "analyse", "write_report"]
+
+#: The measures every factor is tested on: name -> (title, value of a run record, is it a 0/1 share?).
+MEASURES: dict[str, tuple[str, Callable[[dict[str, Any]], float], bool]] = {
+    "executive_end": ("Executive curve's end (best fitness)", lambda r: _executive_end(r), False),
+    "average_epoch_length": ("Average Epoch Length (episodes)",
+                             lambda r: float(r["measures"]["average_epoch_length"]), False),
+    "good_docking": ("Good Docking (share of runs)", lambda r: float(r["class"].startswith("Good Docking")), True),
+    "no_docking": ("No Docking (share of runs)", lambda r: float(r["class"].startswith("No Docking")), True),
+}
+ALPHA = 0.05
+
+
+def _executive_end(record: dict[str, Any]) -> float:
+    curve = record["curves"].get("executive", {}).get("best_fitness", [])
+    return float(curve[-1]) if curve else float("nan")
+
+
+def collect_study(out: Path, spec: StudySpec) -> tuple[list[Cell], list[dict[str, Any]]]:
+    """The cells, and one record per finished run of any cell (the comparison's record, plus ``cell`` and the
+    run's level of every factor)."""
+    the_cells = cells(spec)
+    records = []
+    for c in the_cells:
+        for x in collect(cell_dir(out, c), c.spec):
+            x["cell"] = c.id
+            x["levels"] = {**dict(c.levels), "regime": x["regime"], "rate": x["rate"]}
+            records.append(x)
+    return the_cells, records
+
+
+def _summary(values: Sequence[float], share: bool) -> dict[str, Any]:
+    """Mean with its interval: Wilson for a 0/1 share, bootstrap for the rest."""
+    v = [x for x in values if not math.isnan(x)]
+    if share:
+        p = wilson(int(sum(v)), len(v))
+        return {"n": p.n, "mean": p.p, "low": p.low, "high": p.high}
+    return mean_interval(v).as_dict()
+
+
+def _cell_rows(the_cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    rows = []
+    for c in the_cells:
+        for g in groups(c.spec):
+            xs = [x for x in records if x["cell"] == c.id and x["group"] == g]
+            expected = sum(1 for r in replicates(c.spec) if r.group == g)
+            classes = [x["class"] for x in xs]
+            rows.append({
+                "cell": c.id, "levels": dict(c.levels), "group": g, "seed": c.spec.seed, "runs_expected": expected,
+                "n": len(xs),
+                "table1": {k: wilson(classes.count(k), len(xs)).as_dict() for k in CLASSES},
+                "docking": {d: wilson(sum(1 for k in classes if k.startswith(d)), len(xs)).as_dict() for d in DOCKING},
+                "good_docking": wilson(sum(1 for k in classes if k.startswith("Good Docking")), len(xs)).as_dict(),
+                "no_docking": wilson(sum(1 for k in classes if k.startswith("No Docking")), len(xs)).as_dict(),
+                "executive_end": mean_interval([_executive_end(x) for x in xs]).as_dict(),
+                "average_epoch_length": mean_interval([x["measures"]["average_epoch_length"] for x in xs]).as_dict(),
+            })
+    return rows
+
+
+def _strata(spec: StudySpec, records: list[dict[str, Any]]) -> list[tuple[str, str, list[dict[str, Any]], list[Any]]]:
+    """(factor, stratum, its records, the factor's levels) for every test the study makes."""
+    out = []
+    for name, levels in spec.between.items():
+        for g in dict.fromkeys(x["group"] for x in records):
+            out.append((name, g, [x for x in records if x["group"] == g], list(levels)))
+    factors = spec.factors
+    if "regime" in factors:
+        live = [r for r in factors["regime"] if r != OFFLINE]
+        if len(live) > 1:
+            out.append(("regime", "live regimes", [x for x in records if x["regime"] in live], live))
+    if "rate" in factors:
+        out.append(("rate", OFFLINE, [x for x in records if x["rate"] is not None], list(factors["rate"])))
+    return out
+
+
+def analyse(spec: StudySpec, records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Every factor test (module docstring), with Holm-adjusted p-values."""
+    tests: list[dict[str, Any]] = []
+    for factor, stratum, xs, levels in _strata(spec, records):
+        by_level = {level_text(factor, lv): [x for x in xs if x["levels"].get(factor) == lv] for lv in levels}
+        for measure, (_, value, share) in MEASURES.items():
+            samples = {k: [v for v in (value(x) for x in rs) if not math.isnan(v)] for k, rs in by_level.items()}
+            present: dict[str, Sequence[float]] = {k: v for k, v in samples.items() if v}
+            if len(present) < 2:
+                continue
+            g = compare_groups(measure, present)
+            names = list(present)
+            diffs = [_difference(a, present[a], b, present[b], share) for i, a in enumerate(names) for b in names[i + 1:]]
+            bounds = [d.bound for d in diffs if not math.isnan(d.bound)]
+            tests.append({
+                "factor": factor, "stratum": stratum, "measure": measure, "share": share,
+                "levels": [{"level": k, **_summary(samples[k], share)} for k in by_level],
+                "h": g.h, "p": g.p_value, "epsilon2": g.epsilon2, "magnitude": g.magnitude, "n": g.n,
+                "largest_difference": max(bounds) if bounds else float("nan"),
+                "differences": [d.as_dict() for d in diffs],
+            })
+    for t, p in zip(tests, holm([float(t["p"]) for t in tests]), strict=True):
+        t["p_holm"] = p
+        t["detected"] = p < ALPHA
+    return tests
+
+
+def _difference(a: str, xa: Sequence[float], b: str, xb: Sequence[float], share: bool) -> Difference:
+    if share:
+        return share_difference(a, int(sum(xa)), len(xa), b, int(sum(xb)), len(xb))
+    return difference_interval(a, xa, b, xb, seed=7)
+
+
+def _fmt_p(p: float) -> str:
+    return f"{p:.2g}" if p >= 0.001 else "< 0.001"
+
+
+def _fmt_mean(row: dict[str, Any], share: bool) -> str:
+    if row["n"] == 0:
+        return "–"
+    if share:
+        return f"{100 * row['mean']:.0f} % [{100 * row['low']:.0f}–{100 * row['high']:.0f}]"
+    if math.isnan(row["low"]):
+        return f"{row['mean']:.2f}"
+    return f"{row['mean']:.2f} [{row['low']:.2f}, {row['high']:.2f}]"
+
+
+def _unit(share: bool, x: float) -> str:
+    return f"{100 * x:.0f} percentage points" if share else f"{x:.2f}"
+
+
+def _verdict(spec: StudySpec, cell_rows: list[dict[str, Any]], tests: list[dict[str, Any]], finished: int,
+             expected: int) -> str:
+    parts = []
+    if finished < expected:
+        parts.append(f"**Partial**: {finished} of {expected} runs finished; the numbers below are from those.")
+    for t in sorted(tests, key=lambda t: not t["detected"]):
+        title = MEASURES[t["measure"]][0]
+        levels = "; ".join(f"{r['level']}: {_fmt_mean(r, t['share'])}" for r in t["levels"])
+        if t["detected"]:
+            parts.append(f"- **{t['factor']} changes {title.lower()}** in {t['stratum']} ({levels}; Kruskal–Wallis "
+                         f"H = {t['h']:.2f}, p = {_fmt_p(t['p'])}, Holm-adjusted {_fmt_p(t['p_holm'])}; ε² = "
+                         f"{t['epsilon2']:.2f}, {t['magnitude']}).")
+        else:
+            res = "" if math.isnan(t["largest_difference"]) else (
+                f"; a difference between two levels beyond {_unit(t['share'], t['largest_difference'])} is "
+                "excluded by every pair's 95 % interval")
+            parts.append(f"- No detectable effect of {t['factor']} on {title.lower()} in {t['stratum']} (Holm-adjusted "
+                         f"p = {_fmt_p(t['p_holm'])}; {levels}{res}).")
+    if not tests:
+        parts.append("No factor has two levels with finished runs: nothing to test; the cells' numbers are below.")
+    starved = [r for r in cell_rows if r["n"] and r["no_docking"]["k"] * 2 > r["n"]]
+    if starved:
+        parts.append("Docking starved (No Docking) in most runs of: " + "; ".join(
+            f"{r['cell']} · {r['group']} ({r['no_docking']['k']}/{r['n']}, 95 % "
+            f"{100 * r['no_docking']['low']:.0f}–{100 * r['no_docking']['high']:.0f} %)" for r in starved) + ".")
+    return "\n".join(p if p.startswith("- ") else f"\n{p}\n" for p in parts).strip()
+
+
+def write_report(out: Path, spec: StudySpec, *, elapsed: float | None = None) -> dict[str, Any]:
+    """Write results.json, report.md and the figures; returns the results.  A RunDirError when no run finished."""
+    out = Path(out)
+    the_cells, records = collect_study(out, spec)
+    if not records:
+        raise RunDirError(f"{out} holds no finished runs to report on")
+    expected = sum(len(replicates(c.spec)) for c in the_cells)
+    rows = _cell_rows(the_cells, records)
+    tests = analyse(spec, records)
+    verdict = _verdict(spec, rows, tests, len(records), expected)
+    ga = the_cells[0].spec.ga
+    runs = sorted({c.spec.runs for c in the_cells})
+    caveat = below_report({"generations": ga.generations, "population": ga.population, "episodes": ga.episodes,
+                           "runs a regime": min(runs)})
+    figures = _figures(out, spec, tests, rows)
+    results = {
+        "spec": spec.as_dict(), "cells": [{"id": c.id, "levels": dict(c.levels), "seed": c.spec.seed,
+                                           "settings": json.loads(c.spec.model_dump_json())} for c in the_cells],
+        "runs_expected": expected, "runs_finished": len(records), "cell_rows": rows, "tests": tests,
+        "verdict": verdict, "caveat": caveat, "elapsed_seconds": elapsed, "figures": figures,
+        "runs": [{k: x[k] for k in ("cell", "run", "group", "seed", "class", "measures", "levels", "seconds")}
+                 | {"executive_end": _executive_end(x)} for x in records],
+    }
+    write_json(out / "results.json", _finite(results))
+    write_text(out / "report.md", _markdown(spec, the_cells, rows, tests, verdict, caveat, figures, len(records),
+                                            expected, elapsed))
+    return results
+
+
+def _finite(x: Any) -> Any:
+    """NaN as null: results.json is strict JSON (a browser's JSON.parse refuses NaN)."""
+    if isinstance(x, float):
+        return None if math.isnan(x) or math.isinf(x) else x
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    return x
+
+
+def _figures(out: Path, spec: StudySpec, tests: list[dict[str, Any]], rows: list[dict[str, Any]]) -> list[str]:
+    files = []
+    for factor in dict.fromkeys(t["factor"] for t in tests):
+        mine = [t for t in tests if t["factor"] == factor]
+        levels = [r["level"] for r in mine[0]["levels"]]
+        panels: dict[str, dict[str, list[dict[str, Any]]]] = {}
+        for t in mine:
+            panels.setdefault(t["measure"], {})[t["stratum"]] = t["levels"]
+        name = f"effect-{factor}.png"
+        plots.effect_figure(factor, levels, panels, {m: v[0] for m, v in MEASURES.items()}, out / name)
+        files.append(name)
+    if any(r["n"] for r in rows):
+        plots.cells_figure([r for r in rows if r["n"]], out / "cells.png")
+        files.append("cells.png")
+    return files
+
+
+def _markdown(spec: StudySpec, the_cells: list[Cell], rows: list[dict[str, Any]], tests: list[dict[str, Any]],
+              verdict: str, caveat: str, figures: list[str], finished: int, expected: int,
+              elapsed: float | None) -> str:
+    c0 = the_cells[0].spec
+    fixed = ", ".join(f"{k} {level_text(k, v)}" for k, v in spec.fixed.items()) or "none"
+    factors = "; ".join(f"{k}: {', '.join(level_text(k, v) for v in lv)}" for k, lv in spec.factors.items()) or "none"
+    lines = [f"# Study `{spec.name}`", ""]
+    if spec.description:
+        lines += [spec.description, ""]
+    lines += [
+        f"{len(the_cells)} cells, {finished} of {expected} runs finished"
+        + (f", {elapsed / 60:.1f} min" if elapsed else "") + f"; base seed {spec.seed}.", "",
+        f"Factors: {factors}. Fixed: {fixed}. GA: {c0.ga.generations} generations, population {c0.ga.population}, "
+        f"{c0.ga.episodes} episodes per evaluation.", "",
+    ]
+    if caveat:
+        lines += [caveat, ""]
+    lines += ["## Verdict", "", verdict, "",
+              "## Cells", "",
+              "Shares are k/n with the 95 % Wilson interval; means with the 95 % bootstrap interval. Executive end: "
+              "the Executive's best fitness at the last generation (the report's learning curve's end); AEL: Average "
+              "Epoch Length in episodes.", "",
+              "| cell | group | cell seed | runs | Good Docking | No Docking | Executive end | AEL |",
+              "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['cell']} | {r['group']} | {r['seed']} | {r['n']}/{r['runs_expected']} | "
+                     f"{wilson(r['good_docking']['k'], r['n']).text()} | {wilson(r['no_docking']['k'], r['n']).text()} | "
+                     f"{_fmt_mean(r['executive_end'], False)} | {_fmt_mean(r['average_epoch_length'], False)} |")
+    lines += ["", "## Table 1 per cell, with 95 % Wilson intervals", ""]
+    for c in the_cells:
+        mine = [r for r in rows if r["cell"] == c.id and r["n"]]
+        if not mine:
+            continue
+        report = [g for g in (r["group"] for r in mine) if g in REPORT_COUNTS]
+        head = [f"{r['group']} (ours)" for r in mine] + [f"{g} (report, 10 runs)" for g in report]
+        lines += [f"**{c.id}** ({c.label})", "", "| class | " + " | ".join(head) + " |",
+                  "|---|" + "---|" * len(head)]
+        for k in CLASSES:
+            ours = [wilson(r["table1"][k]["k"], r["n"]).text() for r in mine]
+            theirs = [wilson(REPORT_COUNTS[g].get(k, 0), 10).text() for g in report]
+            lines.append(f"| {k} | " + " | ".join(ours + theirs) + " |")
+        lines.append("")
+    if tests:
+        lines += ["## Factor tests", "",
+                  "Kruskal–Wallis across the factor's levels, pooled over the other factors; p-values corrected "
+                  f"together with Holm's method ({len(tests)} tests); *largest difference*: the farthest end of any "
+                  "two levels' 95 % interval of their difference (Newcombe's for shares, the bootstrap for means): "
+                  "a larger difference would very likely have been seen.", "",
+                  "| factor | stratum | measure | levels (mean [95 %]) | H | p | Holm p | ε² | largest difference |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for t in tests:
+            levels = "; ".join(f"{r['level']}: {_fmt_mean(r, t['share'])}" for r in t["levels"])
+            big = "–" if math.isnan(t["largest_difference"]) else _unit(t["share"], t["largest_difference"])
+            lines.append(f"| {t['factor']} | {t['stratum']} | {MEASURES[t['measure']][0]} | {levels} | {t['h']:.2f} | "
+                         f"{_fmt_p(t['p'])} | {_fmt_p(t['p_holm'])} | {t['epsilon2']:.2f} ({t['magnitude']}) | {big} |")
+        lines.append("")
+    lines += ["## Figures", ""] + [f"![{f}]({f})" for f in figures]
+    lines += ["", "Files: `results.json` (everything above, and every run's measures), `study.json` (the declaration), "
+              "`cells/CELL/` (each cell a `coevo compare` folder: `coevo compare --report-only --out cells/CELL` "
+              "writes its full comparison report).", ""]
+    return "\n".join(lines)

@@ -1,0 +1,353 @@
+"""`coevo study`: declarations and every bad input, cells and seeds, the statistics, and a tiny real study killed
+with a signal and resumed."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from coevo.errors import ConfigError, RunDirError
+from coevo.experiments.study.declaration import cell_seed, cells, declare, parse_factor, read_toml
+from coevo.experiments.study.experiment import (
+    COMPLETE,
+    is_complete,
+    mark_complete,
+    prepare_study,
+    study_jobs,
+    study_progress,
+)
+from coevo.experiments.study.intervals import difference_interval, holm, share_difference, wilson
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def coevo(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "coevo", *args], capture_output=True, text=True, timeout=timeout,
+                          check=False)
+
+
+# ---------------------------------------------------------------- declarations
+def test_a_toml_declaration_and_the_command_line_combine(tmp_path: Path) -> None:
+    f = tmp_path / "s.toml"
+    f.write_text('name = "pace"\nseed = 11\n[settings]\nruns = 3\nga = { generations = 4 }\n'
+                 '[factors]\nmax_lead = [1, "off"]\nmodel = ["best", "recent"]\nga.mutation_rate = [0.05, 0.1]\n')
+    spec = declare(toml=read_toml(f), factors=["model=current,recent"], settings={"ga.population": 8})
+    assert spec.name == "pace" and spec.seed == 11
+    assert spec.factors == {"regime": ("mutual", "independent"), "max_lead": (1, None), "model": ("current", "recent"),
+                            "ga.mutation_rate": (0.05, 0.1)}  # regime: a comparison's default, inside each cell
+    assert spec.fixed["runs"] == 3 and spec.fixed["ga.generations"] == 4 and spec.fixed["ga.population"] == 8
+    cs = cells(spec)
+    assert len(cs) == 8  # 2 x 2 x 2, in declared order, the first factor slowest
+    assert [c.level("max_lead") for c in cs] == [1] * 4 + [None] * 4
+    assert cs[0].id == "00-max_lead=1,model=current,ga.mutation_rate=0.05" and cs[-1].id.startswith("07-max_lead=off")
+    assert all(c.spec.runs == 3 and c.spec.ga.generations == 4 and c.spec.ga.population == 8 for c in cs)
+    assert {c.spec.ga.mutation_rate for c in cs} == {0.05, 0.1}
+    assert declare(toml=read_toml(f), seed=99).seed == 99  # --seed wins over the file's
+
+
+def test_regime_and_rate_vary_inside_a_cell() -> None:
+    spec = declare(factors=["regime=independent,independent-offline", "rate=0.5,2"], settings={"runs": 2})
+    (c,) = cells(spec)
+    assert c.id == "00-all" and c.spec.regimes == ("independent", "independent-offline") and c.spec.rates == (0.5, 2.0)
+
+
+@pytest.mark.parametrize(("factors", "settings", "message"), [
+    (["pacing=1,2"], {}, "unknown factor 'pacing'"),
+    (["max_lead=1,-1"], {}, "invalid max lead -1"),
+    (["max_lead=1.5"], {}, "invalid max lead '1.5'"),
+    (["model=best,bset"], {}, "unknown partner model 'bset'"),
+    (["regime=mutual,cooperative"], {}, "unknown regime 'cooperative'"),
+    (["regime=mutual,mutual"], {}, "repeats a level"),
+    (["rate=0,1"], {}, "invalid number 0"),
+    (["rate=nan"], {}, "invalid number nan"),
+    (["rate=1,2"], {}, "add it to the regimes"),
+    (["regime=mutual,independent-offline"], {}, "add independent to the regimes"),
+    (["runs=0,10"], {}, "invalid number 0"),
+    (["ga.mutation_rat=0.1"], {}, "did you mean ga.mutation_rate?"),
+    (["world.nothing=1"], {}, "unknown world setting 'world.nothing'"),
+    (["ga.population=1,50"], {}, "population=1"),
+    (["ga.mutation_rate=2"], {}, "mutation_rate=2"),
+    (["world.target_speed=nan,2"], {}, "target_speed"),
+    (["max_lead"], {}, "expected NAME=VALUE"),
+    (["=1,2"], {}, "expected NAME=VALUE"),
+    (["max_lead=1,,2"], {}, "an empty level"),
+    (["model=best", "model=recent"], {}, "given twice"),
+    ([], {"ga.elite": 60}, "elite (60) must be smaller than population"),
+    ([f"ga.mutation_rate={','.join(str(i / 1000) for i in range(101))}",
+      f"ga.crossover_rate={','.join(str(i / 100) for i in range(101))}"],
+     {}, "the factors make 10201 cells (101 x 101); a study may have at most 10000"),
+])
+def test_every_bad_factor_is_one_line_naming_it(factors: list[str], settings: dict[str, object], message: str) -> None:
+    with pytest.raises(ConfigError, match=None) as exc:
+        declare(factors=factors, settings=settings)
+    assert message in str(exc.value) and "\n" not in str(exc.value)
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("[factors]\nmax_lead = [1, -2]\n", "invalid max lead -2"),
+    ("[factors]\nmax_lead = [1, true]\n", "max_lead = True: give a number"),
+    ("[settings]\nmodel = [\"best\", \"recent\"]\n", "is a list: put it under [factors]"),
+    ("[settings]\nruns = 5\n[factors]\nruns = [5, 10]\n", "both a setting and a factor"),
+    ("colour = 3\n", "unknown key 'colour'"),
+    ("factors = 3\n", "factors must be a table"),
+    ("[factors]\nmax_lead = [1, 2\n", "is not valid TOML"),
+    ("seed = -1\n", "invalid seed -1"),
+    ('name = "a b"\n', "name 'a b'"),
+    ("[factors]\nga = { populaton = [4, 8] }\n", "did you mean ga.population?"),
+])
+def test_a_bad_study_file_is_one_line_naming_it(tmp_path: Path, text: str, message: str) -> None:
+    f = tmp_path / "bad.toml"
+    f.write_text(text)
+    with pytest.raises(ConfigError) as exc:
+        declare(toml=read_toml(f), source=str(f))
+    assert message in str(exc.value)
+
+
+def test_parse_factor() -> None:
+    assert parse_factor("max_lead=1, 2 ,off") == ("max_lead", ["1", "2", "off"])
+    assert parse_factor("world.target_speed=3") == ("world.target_speed", ["3"])
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--factor", "max_lead=1,nope"], "invalid max lead 'nope'"),
+    (["--factor", "bogus=1"], "unknown factor 'bogus'"),
+    (["--runs", "0"], "--runs: invalid number 0"),
+    (["--max-lead", "-1"], "-1"),
+    (["--jobs", "0"], "--jobs: invalid number 0"),
+    (["--ga", "nonsense=1"], "unknown GA setting 'ga.nonsense'"),
+    (["--cluster", "local:zero"], "give a number of workers"),
+    (["/nonexistent/study.toml"], "No such file"),
+    (["--resume"], "need --out"),
+])
+def test_the_command_refuses_bad_input_before_anything_runs(tmp_path: Path, args: list[str], message: str) -> None:
+    out = tmp_path / "never"
+    r = coevo("study", "--out", str(out), "--quiet", *args) if "--resume" not in args else coevo("study", *args)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert message in r.stderr and "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_the_shipped_studies_are_valid_declarations() -> None:
+    files = sorted((ROOT / "studies").glob("*.toml"))
+    assert len(files) == 3
+    for f in files:
+        spec = declare(toml=read_toml(f), source=str(f))
+        assert cells(spec)
+
+
+# ---------------------------------------------------------------- cells and seeds
+def test_cell_seeds_depend_on_the_base_seed_and_the_cell_only() -> None:
+    a = {c.id.split("-", 1)[1]: c.spec.seed for c in cells(declare(factors=["max_lead=1,2"], seed=4))}
+    b = {c.id.split("-", 1)[1]: c.spec.seed for c in cells(declare(factors=["max_lead=2,1,4"], seed=4))}
+    assert a["max_lead=1"] == b["max_lead=1"] and a["max_lead=2"] == b["max_lead=2"]  # order, other levels: no matter
+    assert a["max_lead=1"] != a["max_lead=2"]
+    c = {c.id.split("-", 1)[1]: c.spec.seed for c in cells(declare(factors=["max_lead=1,2"], seed=5))}
+    assert c["max_lead=1"] != a["max_lead=1"]
+    # The documented rule, computed independently: 48 bits of BLAKE2b-64 of "BASE|LEVELS".
+    import hashlib
+
+    digest = hashlib.blake2b(b'4|{"max_lead":1}', digest_size=8).digest()
+    assert a["max_lead=1"] == int.from_bytes(digest, "big") >> 16 == cell_seed(4, {"max_lead": 1})
+    assert 0 <= a["max_lead=1"] < 2**53
+
+
+def test_the_study_runs_every_cells_comparison_interleaved(tmp_path: Path) -> None:
+    spec = declare(factors=["max_lead=1,off", "regime=mutual"], settings={"runs": 2, "ga.generations": 2})
+    the_cells = prepare_study(tmp_path / "s", spec, resume=False)
+    jobs = study_jobs(tmp_path / "s", the_cells)
+    assert [j.name for j in jobs] == ["00-max_lead=1@mutual-00", "01-max_lead=off@mutual-00",
+                                      "00-max_lead=1@mutual-01", "01-max_lead=off@mutual-01"]
+    assert not any("/" in j.name for j in jobs)  # a name prefixes a Dask worker's temporary folder
+    assert jobs[0].output == "cells/00-max_lead=1/runs/mutual-00"
+    assert jobs[0].inputs == ("cells/00-max_lead=1/settings/mutual-00.json",)
+    held = json.loads((tmp_path / "s" / "cells" / "01-max_lead=off" / "compare.json").read_text())["spec"]
+    assert held["max_lead"] is None and held["seed"] == the_cells[1].spec.seed
+    settings = json.loads((tmp_path / "s" / "cells" / "01-max_lead=off" / "settings" / "mutual-01.json").read_text())
+    assert settings["seed"] == the_cells[1].spec.seed + 1000
+    p = study_progress(tmp_path / "s")
+    assert (p.cells_total, p.cells_done, p.runs_total, p.runs_done, p.complete) == (2, 0, 4, 0, False)
+
+
+def test_a_study_folder_is_refused_unless_it_is_this_study(tmp_path: Path) -> None:
+    out = tmp_path / "s"
+    spec = declare(factors=["max_lead=1,2"], settings={"runs": 1})
+    prepare_study(out, spec, resume=False)
+    with pytest.raises(RunDirError, match="add --resume"):
+        prepare_study(out, spec, resume=False)
+    with pytest.raises(RunDirError, match=r"different study \(differs in: max_lead\)"):
+        prepare_study(out, declare(factors=["max_lead=1,4"], settings={"runs": 1}), resume=True)
+    with pytest.raises(RunDirError, match="differs in: seed"):
+        prepare_study(out, declare(factors=["max_lead=1,2"], settings={"runs": 1}, seed=3), resume=True)
+    prepare_study(out, spec, resume=True)
+    with pytest.raises(RunDirError, match="holds no study"):
+        prepare_study(tmp_path / "empty", spec, resume=True)
+    (tmp_path / "busy").mkdir()
+    (tmp_path / "busy" / "x").write_text("")
+    with pytest.raises(RunDirError, match="not empty; choose another"):
+        prepare_study(tmp_path / "busy", spec, resume=False)
+
+
+def test_the_completion_marker_names_its_declaration_and_a_resume_removes_it(tmp_path: Path) -> None:
+    out = tmp_path / "s"
+    spec = declare(factors=["max_lead=1,2"], settings={"runs": 1})
+    prepare_study(out, spec, resume=False)
+    assert not is_complete(out, spec)
+    mark_complete(out, spec, runs=4)
+    assert is_complete(out, spec) and study_progress(out).complete
+    # A marker copied from another study, or torn, does not make this one complete.
+    assert not is_complete(out, declare(factors=["max_lead=1,4"], settings={"runs": 1}))
+    (out / COMPLETE).write_text("{")
+    assert not is_complete(out, spec)
+    mark_complete(out, spec, runs=4)
+    prepare_study(out, spec, resume=True)  # anything that may run removes it first
+    assert not (out / COMPLETE).exists()
+
+
+# ---------------------------------------------------------------- statistics
+def test_wilson_against_known_values() -> None:
+    # Brown, Cai & DasGupta's formula, computed independently by scipy, and the textbook 9/10 = [0.5958, 0.9821].
+    for k, n in ((9, 10), (0, 10), (10, 10), (3, 50), (27, 50), (1, 1), (0, 1)):
+        ref = stats.binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+        ours = wilson(k, n)
+        assert ours.low == pytest.approx(ref.low, abs=1e-9) and ours.high == pytest.approx(ref.high, abs=1e-9)
+    assert wilson(9, 10).low == pytest.approx(0.5958, abs=1e-4) and wilson(9, 10).high == pytest.approx(0.9821, abs=1e-4)
+    assert wilson(10, 10).high == 1.0 and wilson(0, 10).low == 0.0
+    assert math.isnan(wilson(0, 0).low)
+    with pytest.raises(ValueError):
+        wilson(11, 10)
+
+
+def test_holm_against_its_definition() -> None:
+    p = [0.01, 0.04, 0.03, 0.005]
+    # sorted 0.005, 0.01, 0.03, 0.04 -> x4, x3, x2, x1 -> 0.02, 0.03, 0.06, 0.06 (monotone)
+    assert holm(p) == pytest.approx([0.03, 0.06, 0.06, 0.02])
+    assert holm([0.5, 0.9]) == pytest.approx([1.0, 1.0])
+    assert holm([]) == []
+
+
+def test_difference_interval_covers_the_difference_and_shrinks_with_n() -> None:
+    rng = np.random.default_rng(3)
+    small = difference_interval("a", rng.normal(0, 1, 10), "b", rng.normal(1, 1, 10))
+    big = difference_interval("a", rng.normal(0, 1, 400), "b", rng.normal(1, 1, 400))
+    assert big.low < 1 < big.high and big.high - big.low < small.high - small.low
+    assert abs(big.high - big.low - 2 * 1.96 * math.sqrt(2 / 400)) < 0.05  # the normal theory width, ~0.277
+    assert math.isnan(difference_interval("a", [1.0], "b", [2.0, 3.0]).low)
+
+
+# ---------------------------------------------------------------- a tiny real study, killed and resumed
+TINY = ["--factor", "max_lead=1,off", "--factor", "regime=mutual", "--runs", "2", "--generations", "3",
+        "--population", "6", "--episodes", "10", "--ga", "best_episodes=10", "--ga", "initial_rules=8",
+        "--measure-epochs", "5", "--jobs", "2", "--seed", "3"]
+
+
+def _summaries(out: Path) -> dict[str, bytes]:
+    return {str(f.relative_to(out)): f.read_bytes() for f in out.glob("cells/*/runs/*/summary.json")}
+
+
+@pytest.mark.service
+@pytest.mark.slow
+def test_a_tiny_study_killed_with_a_signal_resumes_and_reports(tmp_path: Path) -> None:
+    out = tmp_path / "study"
+    p = subprocess.Popen([sys.executable, "-m", "coevo", "study", "--out", str(out), "--quiet", *TINY],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    deadline = time.monotonic() + 300
+    while not _summaries(out) and time.monotonic() < deadline and p.poll() is None:
+        time.sleep(0.5)
+    assert p.poll() is None, p.communicate()
+    os.killpg(p.pid, signal.SIGKILL)  # the study and every run under it, as a crash or a lost host
+    p.wait()
+    kept = _summaries(out)
+    assert 1 <= len(kept) < 4
+    progress = study_progress(out)
+    assert not progress.complete and progress.runs_done == len(kept) and progress.runs_total == 4
+    assert not (out / COMPLETE).exists() and not (out / "report.md").exists()
+
+    again = coevo("study", "--out", str(out), "--quiet", *TINY, timeout=300)
+    assert again.returncode == 2 and "add --resume" in again.stderr
+    other = coevo("study", "--out", str(out), "--resume", "--quiet", *TINY[:-1], "4")
+    assert other.returncode == 2 and "differs in: seed" in other.stderr
+    r = coevo("study", "--out", str(out), "--resume", "--quiet", "--jobs", "2", timeout=400)  # its declaration, held
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert f"{len(kept)} of 4 runs already done, {4 - len(kept)} to run" in r.stdout
+    for name, body in kept.items():  # finished runs are not redone
+        assert (out / name).read_bytes() == body, name
+
+    progress = study_progress(out)
+    assert progress.complete and (progress.cells_done, progress.runs_done) == (2, 4)
+    res = json.loads((out / "results.json").read_text())
+    assert res["runs_finished"] == res["runs_expected"] == 4
+    assert {r["cell"] for r in res["cell_rows"]} == {"00-max_lead=1", "01-max_lead=off"}
+    for row in res["cell_rows"]:
+        assert row["n"] == 2 and sum(v["k"] for v in row["table1"].values()) == 2
+        nd = row["no_docking"]
+        ref = stats.binomtest(nd["k"], 2).proportion_ci(method="wilson")
+        assert nd["low"] == pytest.approx(ref.low) and nd["high"] == pytest.approx(ref.high)
+    tests = {(t["factor"], t["measure"]): t for t in res["tests"]}
+    assert ("max_lead", "executive_end") in tests
+    t = tests[("max_lead", "executive_end")]
+    xs = {lv: [x["executive_end"] for x in res["runs"] if x["levels"]["max_lead"] == v]
+          for lv, v in (("1", 1), ("off", None))}
+    if np.ptp(xs["1"] + xs["off"]) > 0:
+        assert t["p"] == pytest.approx(stats.kruskal(xs["1"], xs["off"]).pvalue)
+    assert t["p_holm"] >= t["p"]
+    md = (out / "report.md").read_text()
+    for part in ("# Study `study`", "## Verdict", "## Table 1 per cell, with 95 % Wilson intervals",
+                 "## Factor tests", "effect-max_lead.png", "cells.png"):
+        assert part in md, part
+    for png in ("effect-max_lead.png", "cells.png"):
+        assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    # --report-only rewrites the report and keeps the study complete.
+    r = coevo("study", "--out", str(out), "--report-only", "--quiet")
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert study_progress(out).complete
+
+
+def test_newcombe_difference_of_two_shares() -> None:
+    # Newcombe (1998), Table II, example (a): 56/70 - 48/80 = 0.2000, method 10: [0.0524, 0.3339].
+    d = share_difference("b", 48, 80, "a", 56, 70)
+    assert d.diff == pytest.approx(0.2) and d.low == pytest.approx(0.0524, abs=1e-4)
+    assert d.high == pytest.approx(0.3339, abs=1e-4)
+    same = share_difference("a", 0, 10, "b", 0, 10)  # both 0 of 10: not a point, a range either way
+    assert same.low < -0.2 and same.high > 0.2
+
+
+def test_study_help_loads_no_statistics_or_plotting() -> None:
+    code = ("import sys\nfrom coevo.cli import main\ntry:\n    main(['study', '--help'])\nexcept SystemExit:\n    pass\n"
+            "print(' '.join(sorted(m for m in sys.modules)))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    loaded = set(out.strip().splitlines()[-1].split())
+    assert not {"matplotlib", "scipy", "zenoh", "coevo.experiments.study.report"} & loaded
+
+
+def test_progress_of_a_folder_that_holds_no_study_is_one_error(tmp_path: Path) -> None:
+    with pytest.raises(RunDirError, match="holds no study"):
+        study_progress(tmp_path)
+    (tmp_path / "study.json").write_text("{")
+    with pytest.raises(RunDirError, match="cannot be read"):
+        study_progress(tmp_path)
+
+
+@pytest.mark.service
+@pytest.mark.slow
+def test_a_tiny_study_runs_on_a_local_dask_cluster(tmp_path: Path) -> None:
+    """On Dask each replicate runs in a worker's temporary folder and comes back as a tar (no shared directory)."""
+    out = tmp_path / "dask"
+    r = coevo("study", "--out", str(out), "--quiet", "--factor", "regime=independent", "--factor", "max_lead=1,off",
+              "--runs", "1", "--generations", "2", "--population", "6", "--episodes", "10", "--ga", "best_episodes=10",
+              "--ga", "initial_rules=8", "--measure-epochs", "5", "--cluster", "local:2", timeout=400)
+    assert r.returncode == 0, r.stdout + r.stderr
+    p = study_progress(out)
+    assert p.complete and (p.cells_done, p.runs_done) == (2, 2)
+    assert sorted(f.name for f in (out / "logs").iterdir()) == ["00-max_lead=1@independent-00.log",
+                                                                "01-max_lead=off@independent-00.log"]
