@@ -406,11 +406,9 @@ def test_the_page_in_headless_chromium_follows_a_real_run(tmp_path: Path) -> Non
         # its broker listening first: a broker that does not answer within 1 s sends the page to the files (tested
         # in test_a_run_is_followed_with_no_flags_and_a_gone_broker_is_said_at_once), which a loaded machine did here
         poll(lambda: answers(endpoint), 60, "the run's broker listening")
-        port = free_port()
-        dash = coevo_proc("dashboard", "--connect", endpoint, "--port", str(port), "--run", "watched", "--runs-dir",
-                          str(tmp_path / "runs"), log=tmp_path / "dashboard.log")
+        dash, port = _dashboard_proc("--connect", endpoint, "--run", "watched", "--runs-dir", str(tmp_path / "runs"),
+                                     log=tmp_path / "dashboard.log")
         procs.append(dash)
-        poll(lambda: "dashboard: http" in (tmp_path / "dashboard.log").read_text(), 60, "the dashboard's address")
         browser.get(f"http://127.0.0.1:{port}/")
         text = lambda: browser.execute_script(DEEP_TEXT)  # noqa: E731
         first = poll(lambda: (g := _generations(text())) and len(g) == 3 and g, 60,
@@ -489,6 +487,25 @@ TINY_COMPARISON = ["--runs", "10", "--generations", "3", "--population", "6", "-
                    "best_episodes=10", "--ga", "initial_rules=8", "--measure-epochs", "5", "--jobs", "2", "--quiet"]
 
 
+def _dashboard_proc(*args: str, log: Path) -> tuple[subprocess.Popen, int]:
+    """``coevo dashboard ARGS --port P`` serving, and P: a free port, tried again if another process of the
+    suite took it between its choice and the dashboard's bind (the test ran on, to a 60 s time-out, before)."""
+    from procs import coevo_proc, poll
+
+    from coevo.runs.local import free_port
+
+    for _ in range(5):
+        port = free_port()
+        dash = coevo_proc("dashboard", *args, "--port", str(port), log=log)
+        said = poll(lambda: (t := log.read_text()) and ("dashboard: http" in t or dash.poll() is not None) and t, 60,
+                    "the dashboard's address")
+        if "dashboard: http" in said:
+            return dash, port
+        if "Address already in use" not in said:
+            raise AssertionError(f"the dashboard did not start: {said}")
+    raise AssertionError("no free port for the dashboard after 5 tries")
+
+
 def _above_the_fold(box: list[float], viewport: list[int]) -> bool:
     left, top, right, bottom = box
     return 0 <= left < right <= viewport[0] and 0 <= top <= bottom <= viewport[1]
@@ -514,9 +531,7 @@ def test_a_20_run_comparison_opens_with_its_headline_above_the_fold_in_headless_
         assert made.returncode == 0, made.stdout + made.stderr
         results = json.loads((out / "results.json").read_text())
         assert results["runs_finished"] == 20
-        port = free_port()
-        dash = coevo_proc("dashboard", str(out), "--port", str(port), log=tmp_path / "dashboard.log")
-        poll(lambda: "dashboard: http" in (tmp_path / "dashboard.log").read_text(), 60, "the dashboard's address")
+        dash, port = _dashboard_proc(str(out), log=tmp_path / "dashboard.log")
         browser.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
                                 {"width": 1280, "height": 800, "deviceScaleFactor": 1, "mobile": False})
         browser.get(f"http://127.0.0.1:{port}/")
@@ -711,11 +726,9 @@ def test_200_page_loads_at_once_leave_it_answering_and_its_memory_bounded(tmp_pa
 
     from coevo.runs.local import free_port
 
-    port = free_port()
     log = tmp_path / "dashboard.log"
-    dash = coevo_proc("dashboard", str(_run_dir(tmp_path)), "--port", str(port), log=log)
+    dash, port = _dashboard_proc(str(_run_dir(tmp_path)), log=log)
     try:
-        poll(lambda: "dashboard: http" in log.read_text(), 60, "the dashboard's address")
         url = f"http://127.0.0.1:{port}"
         assert _get(url + "/") == 200
         assert _get(url + "/static/%00") == 400  # a path no file system holds
