@@ -46,6 +46,7 @@ from coevo.bus.auth import RunKey
 from coevo.bus.messages import PolicyUpdate, Status
 from coevo.bus.rejections import Rejections
 from coevo.bus.session import Config, Publisher, Session, open_session, sigterm_as_exit
+from coevo.bus.status import DONE_LINGER
 from coevo.config import SAVED_GA_BEFORE
 from coevo.errors import ConfigError, MessageError, ServiceError
 from coevo.ga import GA, GenerationReport
@@ -276,6 +277,7 @@ class Worker:
                 if finished:
                     outbox.final_sync(self.final_sync, inbox.stop, partial(self._heartbeat, done=False))
                 self._heartbeat(done=finished)
+                time.sleep(DONE_LINGER)  # the "done" on its way before the token's end (see DONE_LINGER)
             finally:
                 token.undeclare()
                 self._status_pub.undeclare()

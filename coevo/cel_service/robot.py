@@ -52,6 +52,7 @@ from coevo.bus.auth import RunKey
 from coevo.bus.messages import CapabilityUpdate, Control, ExecutionStatus, PolicyUpdate
 from coevo.bus.rejections import Rejections
 from coevo.bus.session import drain_messages, open_session, ring_subscriber, Session, sigterm_as_exit
+from coevo.bus.status import DONE_LINGER
 from coevo.cel.execution import CapabilityChange, ExecutionModule, Stretch
 from coevo.cel.monitor import Monitor
 from coevo.cel.settings import ROBOT_SEED_OFFSET
@@ -244,6 +245,7 @@ class Execution:
                 if self.stop.is_set():
                     log.info("%s stopping at trial %d", self.robot, self.module.trial)
                 self._beat(control, done=self.module.trial >= self.total)
+                time.sleep(DONE_LINGER)  # the "done" on its way before the token's end (see DONE_LINGER)
             finally:
                 token.undeclare()
                 for sub in (policies, control, *self._pubs.values()):
