@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -13,11 +14,21 @@ from coevo.bus import keys
 from coevo.bus.session import make_config, open_session
 from coevo.runs.local import end_processes, free_port, wait_until
 
-__all__ = ["SMALL", "poll", "coevo_proc", "stop", "broker"]
+__all__ = ["SMALL", "poll", "coevo_proc", "stop", "broker", "ctrl_c_heard"]
 
 SMALL = ["--population", "6", "--episodes", "10", "--ga", "best_episodes=10", "--ga", "initial_rules=8"]
 
 poll = wait_until  # fails the test with what it waited for
+
+
+def ctrl_c_heard() -> None:
+    """``preexec_fn`` for a child a test sends Ctrl-C (SIGINT): its default action, whatever the suite inherited.
+
+    A shell starts a background job (``pytest ... &`` in a script) with SIGINT ignored, the children inherit that,
+    and Python then installs no KeyboardInterrupt handler: the child never hears the test's Ctrl-C, as it should
+    not (a user's ``coevo run &`` in a script is meant to be deaf to the terminal's Ctrl-C).  Seen in a fresh-clone
+    run of the suite started in the background."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def coevo_proc(*args: str, log: Path) -> subprocess.Popen:

@@ -26,7 +26,7 @@ import msgpack
 import numpy as np
 import pytest
 import zenoh
-from procs import SMALL, coevo_proc, poll, stop
+from procs import SMALL, coevo_proc, ctrl_c_heard, poll, stop
 
 from coevo.agents.checkpoint import load_checkpoint, save_checkpoint
 from coevo.rundir.layout import WorkerPaths
@@ -613,7 +613,7 @@ def test_ctrl_c_to_the_whole_process_group_stops_in_order_and_the_run_resumes_ex
     with open(out, "wb") as f:
         p = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--run", "ci", "--root", str(tmp_path), *SMALL,
                               "--generations", "12", "--measure-epochs", "2", "--quiet"], stdout=f, stderr=subprocess.STDOUT,
-                             start_new_session=True)
+                             start_new_session=True, preexec_fn=ctrl_c_heard)
     run_dir = tmp_path / "ci"
     try:
         poll(lambda: _lines(run_dir / "workers" / "tracking" / "curve.jsonl") >= 3, 120, "three tracking generations")

@@ -24,7 +24,7 @@ import pytest
 import zenoh
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from procs import SMALL, coevo_proc, poll, stop
+from procs import SMALL, coevo_proc, ctrl_c_heard, poll, stop
 
 from coevo.bus import keys
 from coevo.bus.auth import RunKey, mac, mac2, seal
@@ -437,7 +437,7 @@ def test_genuine_messages_captured_and_replayed_from_outside_change_nothing_runn
     def coevo_run(*args: str, log: Path) -> subprocess.Popen:
         with open(log, "wb") as f:
             return subprocess.Popen([sys.executable, "-m", "coevo", "--log-level", "INFO", "run", *args], stdout=f,
-                                    stderr=subprocess.STDOUT)
+                                    stderr=subprocess.STDOUT, preexec_fn=ctrl_c_heard)
 
     run_dir = tmp_path / "rp"
     # Still going at the Ctrl-C below, some left to resume (checked on 2 cores: Tracking, the slowest, was at 12-14,
