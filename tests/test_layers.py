@@ -60,3 +60,22 @@ def test_help_loads_only_what_the_parser_needs(argv: list[str], absent: tuple[st
     out = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, check=True).stdout
     loaded = set(out.strip().splitlines()[-1].split())
     assert not [m for m in absent if m in loaded], f"coevo {' '.join(argv)} loads {[m for m in absent if m in loaded]}"
+
+
+#: The modules that serve every kind of learner and every task: they tell kinds apart through coevo.runs.kinds and
+#: name tasks through the registry (coevo.tasks), never by a literal name.
+GENERIC = ["coevo/runs/command.py", "coevo/runs/chaos.py", "coevo/runs/check.py", "coevo/runs/replay.py",
+           "coevo/runs/local.py", "coevo/rundir/settings.py", "coevo/agents", "coevo/broker", "coevo/ga"]
+NAMES = {"cel", "coevolution", "fuel", "door", "corridor"}
+
+
+def test_generic_modules_name_no_learner_kind_or_task() -> None:
+    """A new kind of learner is its package and an entry in coevo.runs.kinds, a new task its package and a registry
+    line: nothing here compares a setting with a kind's or a task's name (docs/architecture.md, "Adding things")."""
+    found = []
+    for entry in GENERIC:
+        for path in sorted((ROOT / entry).rglob("*.py")) if (ROOT / entry).is_dir() else [ROOT / entry]:
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in NAMES:
+                    found.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.value!r}")
+    assert not found, f"a kind's or a task's name in a generic module: {found}"

@@ -26,7 +26,8 @@ order does not matter); a resumed one waits ``patience``.
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Iterable
+from typing import Any, ClassVar
 
 from pydantic import Field, field_validator
 
@@ -72,6 +73,20 @@ class CelSettings(Settings):
         except ConfigError as exc:
             raise ValueError(str(exc).replace("trial", "generation")) from None
         return events
+
+    #: The tasks a CEL run learns: the door task's robot has the sonars that fail (report Appendix B).
+    TASKS: ClassVar[tuple[str, ...]] = ("door",)
+
+    def check_fits(self, *, task: str, generations: int, worker_ids: Iterable[str]) -> None:
+        """A ValueError unless these settings fit a run of ``task`` with ``generations`` and these worker ids."""
+        if task not in self.TASKS:
+            raise ValueError(f"a CEL run (cel settings) is a {' or '.join(self.TASKS)}-task run, not a {task!r} one")
+        last = max((g for g, _ in self.schedule), default=0)
+        if last > generations:
+            raise ValueError(f"the failure schedule's last event is at generation {last}, after the run's "
+                             f"{generations} generations")
+        if self.robot in set(worker_ids):
+            raise ValueError(f"the robot id {self.robot!r} is also a worker id of the roster")
 
     def failure_schedule(self) -> FailureSchedule:
         """The schedule in trials (the execution module's terms)."""

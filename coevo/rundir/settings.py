@@ -67,14 +67,9 @@ class RunSettings(Settings):
                 raise ValueError(f"roster names {sorted(self.roster)}; it must name each of {list(task.behaviours)}")
             for b, w in self.roster.items():
                 check_id(f"roster worker id for {b}", w)
-        if self.cel is not None and self.task != "door":
-            raise ValueError(f"a CEL run (cel settings) is a door-task run, not a {self.task!r} one")
-        last = max((g for g, _ in self.cel.schedule), default=0) if self.cel is not None else 0
-        if last > self.ga.generations:
-            raise ValueError(f"the failure schedule's last event is at generation {last}, after the run's "
-                             f"{self.ga.generations} generations")
-        if self.cel is not None and self.roster is not None and self.cel.robot in self.roster.values():
-            raise ValueError(f"the robot id {self.cel.robot!r} is also a worker id of the roster")
+        if self.cel is not None:  # a learner kind's own settings say what runs they fit (coevo.runs.kinds)
+            self.cel.check_fits(task=self.task, generations=self.ga.generations,
+                                worker_ids=(self.roster or {}).values())
         try:
             task.check_ga(self.ga)  # every worker's GA settings as the task fills them in, before a run starts
         except ConfigError as exc:

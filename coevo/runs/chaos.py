@@ -40,6 +40,7 @@ from coevo.bus.session import open_session, sigterm_as_exit
 from coevo.bus.status import StatusBoard
 from coevo.errors import ConfigError, RunDirError
 from coevo.runs.check import check_run
+from coevo.runs.kinds import kind_of_settings
 from coevo.rundir.layout import write_json
 from coevo.runs.local import LocalRun, end_processes, fetch_latest, wait_until
 from coevo.rundir.settings import RunSettings
@@ -87,12 +88,7 @@ def run_chaos(settings: RunSettings, *, root: Path, plan: ChaosPlan, measure_epo
     """A whole run of ``settings`` under ``root`` while ``plan``'s faults strike; then checked (chaos.json)."""
     if measure_epochs < 1:
         raise ConfigError(f"--measure-epochs must be at least 1, got {measure_epochs}")
-    if settings.cel is not None:
-        from coevo.runs.cel import CelRun
-
-        lr: LocalRun = CelRun(settings, root=root, log_level=log_level)
-    else:
-        lr = LocalRun(settings, root=root, log_level=log_level)
+    lr: LocalRun = kind_of_settings(settings).run()(settings, root=root, log_level=log_level)
     lr.create()
     run = lr.run
     rng = np.random.default_rng([plan.seed, 4242])

@@ -85,29 +85,30 @@ def configure_run(p: argparse.ArgumentParser) -> None:
 def cmd_run(args: argparse.Namespace) -> int:
     from coevo.bus.status import StatusDisplay
     from coevo.runs.discover import follow_hint
+    from coevo.runs.kinds import COEVOLUTION, kind_of_settings
     from coevo.runs.local import LocalRun, check_listen, default_run_id, run_local
     from coevo.rundir.settings import RunSettings
+    from coevo.tasks import DEFAULT_TASK
 
     listen = check_listen(args.listen) if args.listen else None
     if args.resume:
         refuse(args, (*RUN_FLAGS, "run", "settings"), "--resume takes every setting from the run's run.json")
         lr = LocalRun.resume(Path(args.resume), log_level=args.log_level, listen=listen)
-        if lr.settings.cel is not None:
-            raise ConfigError(f"{args.resume} is a CEL run: continue it with coevo cel --resume {args.resume}")
+        if (kind := kind_of_settings(lr.settings)) is not COEVOLUTION:
+            raise ConfigError(f"{args.resume} is {kind.label}: continue it with {kind.run().COMMAND} --resume {args.resume}")
     else:
         if args.settings:
             refuse(args, RUN_FLAGS, "--settings gives every run setting but the run id")
             settings = RunSettings.load(Path(args.settings)).fresh(args.run)  # a new run: its own endpoint and key
         else:
-            task = args.task or "fuel"
+            task = args.task or DEFAULT_TASK
             regime = args.regime or "independent"
             settings = RunSettings.make(run=args.run or default_run_id(regime), task=task, regime=regime,
                                         seed=args.seed or 0, model=args.model or "best",
                                         max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
                                         world=world_settings(args, task), ga=ga_settings(args))
-        if settings.cel is not None:
-            raise ConfigError(f"{args.settings} is a CEL run's settings: start it with coevo cel (its execution module "
-                              "is not a worker)")
+        if (kind := kind_of_settings(settings)) is not COEVOLUTION:
+            raise ConfigError(f"{args.settings} holds the settings of {kind.label}: start it with {kind.run().COMMAND}")
         lr = LocalRun(settings, root=Path(args.root), log_level=args.log_level, open_run=args.open, listen=listen)
         lr.create()
     print(f"run {lr.run}: its broker listens on {lr.endpoint}, its files are in {lr.dir}\n"
@@ -162,6 +163,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
     from coevo.rundir.layout import RunPaths
     from coevo.rundir.settings import RunSettings, find_run_key
     from coevo.runs.kinds import kind_of_settings
+    from coevo.tasks import DEFAULT_TASK
 
     if args.settings:
         refuse(args, ("task", "regime", "run", "model", "max_lead", *GA_FLAGS), "--settings gives every run setting")
@@ -171,7 +173,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
         base = None
         if args.run is None or args.regime is None:
             raise ConfigError("give --settings RUN/run.json (a run's settings), or --run and --regime")
-        task = args.task or "fuel"
+        task = args.task or DEFAULT_TASK
         settings = RunSettings.make(run=args.run, task=task, regime=args.regime, seed=args.seed or 0,
                                     model=args.model or "best", max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
                                     world=world_settings(args, task), ga=ga_settings(args))
@@ -236,23 +238,20 @@ def configure_chaos(p: argparse.ArgumentParser) -> None:
 
 def cmd_chaos(args: argparse.Namespace) -> int:
     from coevo.runs.chaos import CHAOS_REPORT, ChaosPlan, run_chaos, summary_lines
+    from coevo.runs.kinds import CEL, COEVOLUTION
+    from coevo.tasks import DEFAULT_TASK, get_task
     from coevo.runs.local import default_run_id
     from coevo.rundir.settings import RunSettings
 
     plan = ChaosPlan(faults=args.faults, kinds=tuple(args.kinds), gap=tuple(args.gap), down=tuple(args.down), seed=args.seed)
-    task = args.task or ("door" if args.cel else "fuel")
-    regime = args.regime or ("independent" if task == "door" else "mutual")
+    kind = CEL if args.cel else COEVOLUTION
+    task = args.task or kind.default_task or DEFAULT_TASK
+    regime = args.regime or ("mutual" if "mutual" in get_task(task).regimes else "independent")
     ga = ga_settings(args)
-    cel = None
-    if args.cel:  # a CEL run: the Figure 3 failure halfway through, the learner in lockstep with the robot
-        if task != "door":
-            raise ConfigError(f"--cel is a door-task run; drop --task {task}")
-        from coevo.cel.settings import FIGURE3_SCHEDULE
-
-        cel = {"schedule": [[ga.generations // 2, list(FIGURE3_SCHEDULE[0][1])]]}
-    settings = RunSettings.make(run=args.run or default_run_id(f"chaos-{'cel' if cel else regime}"), task=task,
-                                regime=regime, seed=args.seed, model=args.model, world=world_settings(args, task), ga=ga, cel=cel,
-                                **({"max_lead": 0} if cel else {}))
+    own = kind.chaos_settings(ga) if kind.chaos_settings is not None else {}  # the kind's own block, its pacing
+    settings = RunSettings.make(run=args.run or default_run_id(f"chaos-{kind.block or regime}"), task=task,
+                                regime=regime, seed=args.seed, model=args.model, world=world_settings(args, task), ga=ga,
+                                **own)
 
     def say(text: str) -> None:
         if not args.quiet:
