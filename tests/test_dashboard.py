@@ -483,8 +483,10 @@ for (const m of doc ? doc.all_models : []) {
 return out;
 """
 
-TINY_COMPARISON = ["--runs", "10", "--generations", "3", "--population", "6", "--episodes", "10", "--ga",
-                   "best_episodes=10", "--ga", "initial_rules=8", "--measure-epochs", "5", "--jobs", "2", "--quiet"]
+# 10 runs a regime as the report's Table 1, each as small as a run can be while its curves have 3 points: the page's
+# layout is what is tested.  Its cost is mostly start-ups: about 6 CPU-s a run, half of it its five processes starting.
+TINY_COMPARISON = ["--runs", "10", "--generations", "3", "--population", "4", "--episodes", "4", "--ga",
+                   "best_episodes=4", "--ga", "initial_rules=8", "--measure-epochs", "2", "--jobs", "2", "--quiet"]
 
 
 def _dashboard_proc(*args: str, log: Path) -> tuple[subprocess.Popen, int]:
@@ -514,7 +516,7 @@ def _above_the_fold(box: list[float], viewport: list[int]) -> bool:
 @pytest.mark.service
 @pytest.mark.slow
 def test_a_20_run_comparison_opens_with_its_headline_above_the_fold_in_headless_chromium(tmp_path: Path) -> None:
-    """A real 20-run Table 1 comparison (coevo compare, tiny settings: ~3 min on 2 cores) opened at a laptop's
+    """A real 20-run Table 1 comparison (coevo compare, tiny settings: ~2 min on 2 cores) opened at a laptop's
     1280 x 800: the legend, a band per regime and Table 1 with the report's counts are drawn inside the first screen,
     Table 1's counts are the report's (REPORT_COUNTS) and the runs' (results.json), and the verdict is the report's."""
     from procs import coevo_proc, poll, stop
