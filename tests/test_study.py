@@ -26,7 +26,8 @@ from coevo.experiments.study.experiment import (
     study_jobs,
     study_progress,
 )
-from coevo.experiments.study.intervals import difference_interval, holm, share_difference, wilson
+from coevo.experiments.compare.stats import holm
+from coevo.experiments.study.intervals import difference_interval, share_difference, wilson
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -38,6 +38,7 @@ from coevo.experiments.compare.stats import (
     RankComparison,
     compare_groups,
     compare_samples,
+    format_p,
     MeanInterval,
     mean_interval,
 )
@@ -137,10 +138,6 @@ def _number(v: Any) -> float:
     return float("nan") if v is None else float(v)
 
 
-def _fmt_p(p: float) -> str:
-    return f"{p:.2g}" if p >= 0.001 else "< 0.001"
-
-
 def _winner(t: RankComparison) -> tuple[str, str]:
     """(higher, lower) regime by the effect size: medians tie when most runs score 0, ranks do not."""
     return (t.b, t.a) if t.a12 > 0.5 else (t.a, t.b)
@@ -203,7 +200,7 @@ def _rates_sentence(tests: list[GroupComparison], which: str) -> str:
         name = t.measure.replace("_", " ")
         meds = ", ".join(f"{_rate_of(g):g}: {m:.3g}" for g, m in zip(t.groups, t.medians, strict=True))
         parts.append(f"{name} {'differs appreciably' if t.appreciable else 'does not differ appreciably'} "
-                     f"(medians by rate {meds}; Kruskal–Wallis H = {t.h:.2f}, p = {_fmt_p(t.p_value)}, "
+                     f"(medians by rate {meds}; Kruskal–Wallis H = {t.h:.2f}, p = {format_p(t.p_value)}, "
                      f"ε² = {t.epsilon2:.2f}, {t.magnitude})")
     held = not any(t.appreciable for t in tests)
     return (f" Across {which}: " + "; ".join(parts) + ": the report's \"no appreciable differences in the rate of "
@@ -233,10 +230,10 @@ def _verdict(spec: CompareSpec, records: list[dict[str, Any]], tests: list[RankC
             hi, lo = _winner(t)
             parts.append(f"{hi} beats {lo} on {name} (medians {med[hi]:.3g} vs {med[lo]:.3g}, "
                          f"means {mean[hi]:.3g} vs {mean[lo]:.3g}, "
-                         f"Mann–Whitney p = {_fmt_p(t.p_value)}, A = {t.a12:.2f}, {t.magnitude})")
+                         f"Mann–Whitney p = {format_p(t.p_value)}, A = {t.a12:.2f}, {t.magnitude})")
         else:
             parts.append(f"the regimes do not differ significantly on {name} "
-                         f"({t.b} median {t.median_b:.3g}, {t.a} median {t.median_a:.3g}, p = {_fmt_p(t.p_value)}, "
+                         f"({t.b} median {t.median_b:.3g}, {t.a} median {t.median_a:.3g}, p = {format_p(t.p_value)}, "
                          f"A = {t.a12:.2f})")
     text = "; ".join(parts) + "."
     text = text[0].upper() + text[1:]
@@ -434,7 +431,7 @@ def _markdown(spec: CompareSpec, records: list[dict[str, Any]], table: dict[str,
                   + " > " + tests[0].a + ") | effect |", "|---|---|---|---|---|---|---|"]
         for t in tests:
             lines.append(f"| {t.measure.replace('_', ' ')} | {t.median_a:.3g} | {t.median_b:.3g} | {t.u:.1f} | "
-                         f"{_fmt_p(t.p_value)} | {t.a12:.2f} | {t.magnitude} |")
+                         f"{format_p(t.p_value)} | {t.a12:.2f} | {t.magnitude} |")
         lines.append("")
     if rate_tests:
         lines += [f"## Rates of asynchrony ({OFFLINE})", "",
@@ -447,7 +444,7 @@ def _markdown(spec: CompareSpec, records: list[dict[str, Any]], table: dict[str,
         for g in rate_tests:
             rates = ", ".join(f"{_rate_of(x):g}" for x in g.groups)
             meds = ", ".join(f"{_rate_of(x):g}: {m:.3g}" for x, m in zip(g.groups, g.medians, strict=True))
-            lines.append(f"| {rates} | {g.measure.replace('_', ' ')} | {meds} | {g.h:.2f} | {_fmt_p(g.p_value)} | "
+            lines.append(f"| {rates} | {g.measure.replace('_', ' ')} | {meds} | {g.h:.2f} | {format_p(g.p_value)} | "
                          f"{g.epsilon2:.2f} | {g.magnitude} |")
         lines.append("")
     lines += ["## Runs", "",

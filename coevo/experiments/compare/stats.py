@@ -23,7 +23,7 @@ import numpy as np
 from scipy import stats
 
 __all__ = ["RankComparison", "compare_samples", "magnitude", "GroupComparison", "compare_groups", "MeanInterval",
-           "mean_interval", "mean_intervals"]
+           "mean_interval", "mean_intervals", "holm", "format_p"]
 
 
 @dataclass(frozen=True)
@@ -189,3 +189,21 @@ def mean_intervals(runs: np.ndarray, *, seed: int = 0) -> tuple[np.ndarray, np.n
         m = mean_interval(x[:, j], seed=seed)
         mean[j], low[j], high[j] = m.mean, m.low, m.high
     return mean, low, high
+
+
+def holm(p_values: Sequence[float]) -> list[float]:
+    """Holm–Bonferroni adjusted p-values, in the input's order: the i-th smallest of m is multiplied by (m − i + 1),
+    made monotone (never below the one before it) and capped at 1."""
+    m = len(p_values)
+    order = sorted(range(m), key=lambda i: p_values[i])
+    adjusted = [0.0] * m
+    running = 0.0
+    for rank, i in enumerate(order):
+        running = max(running, min(1.0, (m - rank) * float(p_values[i])))
+        adjusted[i] = running
+    return adjusted
+
+
+def format_p(p: float) -> str:
+    """A p-value as the reports print it: two significant digits, or "< 0.001"."""
+    return f"{p:.2g}" if p >= 0.001 else "< 0.001"

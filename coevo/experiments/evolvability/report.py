@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from coevo.experiments.compare.stats import holm
 from coevo.experiments.evolvability.experiment import GridResults
 
 __all__ = ["write_report", "shift_windows", "summarise"]
@@ -31,18 +32,6 @@ __all__ = ["write_report", "shift_windows", "summarise"]
 ALPHA = 0.05
 LABEL = {"fm": "FM", "gm": "GM", "fh": "FH", "gh": "GH"}
 STYLE = {"fm": ("tab:blue", "o"), "gm": ("tab:green", "v"), "fh": ("tab:red", "^"), "gh": ("tab:purple", "s")}
-
-
-def _holm(p: list[float]) -> list[float]:
-    """Holm-Bonferroni adjusted p-values."""
-    n = len(p)
-    order = np.argsort(p)
-    adj = np.empty(n)
-    running = 0.0
-    for rank, i in enumerate(order):
-        running = max(running, min(1.0, (n - rank) * p[i]))
-        adj[i] = running
-    return adj.tolist()
 
 
 def _verdict(ok: int, n: int) -> str:
@@ -122,7 +111,7 @@ def _ranking_claims(res: GridResults) -> list[dict[str, Any]]:
                         p = stats.mannwhitneyu(x, y, alternative="greater").pvalue if x.size > 1 else 1.0
                         tests.append({"class": c, "rate": r, "better": LABEL[h], "worse": LABEL[m],
                                       "diff": float(x.mean() - y.mean()), "p": float(p)})
-    for t, adj in zip(tests, _holm([t["p"] for t in tests])):
+    for t, adj in zip(tests, holm([t["p"] for t in tests])):
         t["p_holm"] = adj
         t["holds"] = bool(adj < ALPHA and t["diff"] > 0)
     ok = sum(t["holds"] for t in tests)
@@ -178,7 +167,7 @@ def _hypermutation_claim(res: GridResults, claims: list[dict[str, Any]]) -> dict
             hyper[str(r)] = {"after_shift": float(after.mean()), "before_next": float(before.mean()), "p": float(p)}
             tests.append({"rate": r, "after_shift": float(after.mean()), "before_next": float(before.mean()),
                           "p": float(p)})
-        for t, adj in zip(tests, _holm([t["p"] for t in tests])):
+        for t, adj in zip(tests, holm([t["p"] for t in tests])):
             t["p_holm"] = adj
             t["holds"] = bool(adj < ALPHA and t["after_shift"] > t["before_next"])
     ok = sum(t["holds"] for t in tests)
@@ -207,7 +196,7 @@ def _online_claim(res: GridResults, claims: list[dict[str, Any]]) -> None:
                     p = stats.mannwhitneyu(x, y, alternative="greater").pvalue if x.size > 1 else 1.0
                     tests.append({"class": c, "model": LABEL[m], "online_0.1": float(x.mean()),
                                   f"online_{high[-1]}": float(y.mean()), "p": float(p)})
-        for t, adj in zip(tests, _holm([t["p"] for t in tests])):
+        for t, adj in zip(tests, holm([t["p"] for t in tests])):
             t["p_holm"] = adj
             t["holds"] = bool(adj < ALPHA)
     ok = sum(t["holds"] for t in tests)

@@ -26,7 +26,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-__all__ = ["Z95", "Proportion", "wilson", "holm", "Difference", "difference_interval", "share_difference"]
+__all__ = ["Z95", "Proportion", "wilson", "Difference", "difference_interval", "share_difference"]
 
 #: The standard normal's 97.5 % quantile: a two-sided 95 % interval.
 Z95 = 1.959963984540054
@@ -68,19 +68,6 @@ def wilson(k: int, n: int, *, z: float = Z95) -> Proportion:
     low = 0.0 if k == 0 else max(0.0, centre - half)  # exactly 0 and 1 at the ends, not a rounding away from them
     high = 1.0 if k == n else min(1.0, centre + half)
     return Proportion(k, n, low, high)
-
-
-def holm(p_values: Sequence[float]) -> list[float]:
-    """Holm–Bonferroni adjusted p-values, in the input's order: the i-th smallest of m is multiplied by (m − i + 1),
-    made monotone (never below the one before it) and capped at 1."""
-    m = len(p_values)
-    order = sorted(range(m), key=lambda i: p_values[i])
-    adjusted = [0.0] * m
-    running = 0.0
-    for rank, i in enumerate(order):
-        running = max(running, min(1.0, (m - rank) * float(p_values[i])))
-        adjusted[i] = running
-    return adjusted
 
 
 @dataclass(frozen=True)

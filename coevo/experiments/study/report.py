@@ -30,12 +30,12 @@ from coevo.errors import RunDirError
 from coevo.experiments.common import below_report
 from coevo.experiments.compare.experiment import OFFLINE, groups, replicates
 from coevo.experiments.compare.report import collect
-from coevo.experiments.compare.stats import compare_groups, mean_interval
+from coevo.experiments.compare.stats import compare_groups, format_p, holm, mean_interval
 from coevo.experiments.compare.table1 import CLASSES, DOCKING, REPORT_COUNTS
 from coevo.experiments.study import plots
 from coevo.experiments.study.declaration import Cell, StudySpec, cells, level_text
 from coevo.experiments.study.experiment import cell_dir
-from coevo.experiments.study.intervals import Difference, difference_interval, holm, share_difference, wilson
+from coevo.experiments.study.intervals import Difference, difference_interval, share_difference, wilson
 from coevo.rundir.layout import write_json, write_text
 
 __all__ = ["MEASURES", "collect_study", "analyse", "write_report"]
@@ -147,10 +147,6 @@ def _difference(a: str, xa: Sequence[float], b: str, xb: Sequence[float], share:
     return difference_interval(a, xa, b, xb, seed=7)
 
 
-def _fmt_p(p: float) -> str:
-    return f"{p:.2g}" if p >= 0.001 else "< 0.001"
-
-
 def _fmt_mean(row: dict[str, Any], share: bool) -> str:
     if row["n"] == 0:
         return "–"
@@ -175,14 +171,14 @@ def _verdict(spec: StudySpec, cell_rows: list[dict[str, Any]], tests: list[dict[
         levels = "; ".join(f"{r['level']}: {_fmt_mean(r, t['share'])}" for r in t["levels"])
         if t["detected"]:
             parts.append(f"- **{t['factor']} changes {title.lower()}** in {t['stratum']} ({levels}; Kruskal–Wallis "
-                         f"H = {t['h']:.2f}, p = {_fmt_p(t['p'])}, Holm-adjusted {_fmt_p(t['p_holm'])}; ε² = "
+                         f"H = {t['h']:.2f}, p = {format_p(t['p'])}, Holm-adjusted {format_p(t['p_holm'])}; ε² = "
                          f"{t['epsilon2']:.2f}, {t['magnitude']}).")
         else:
             res = "" if math.isnan(t["largest_difference"]) else (
                 f"; a difference between two levels beyond {_unit(t['share'], t['largest_difference'])} is "
                 "excluded by every pair's 95 % interval")
             parts.append(f"- No detectable effect of {t['factor']} on {title.lower()} in {t['stratum']} (Holm-adjusted "
-                         f"p = {_fmt_p(t['p_holm'])}; {levels}{res}).")
+                         f"p = {format_p(t['p_holm'])}; {levels}{res}).")
     if not tests:
         parts.append("No factor has two levels with finished runs: nothing to test; the cells' numbers are below.")
     starved = [r for r in cell_rows if r["n"] and r["no_docking"]["k"] * 2 > r["n"]]
@@ -304,7 +300,7 @@ def _markdown(spec: StudySpec, the_cells: list[Cell], rows: list[dict[str, Any]]
             levels = "; ".join(f"{r['level']}: {_fmt_mean(r, t['share'])}" for r in t["levels"])
             big = "–" if math.isnan(t["largest_difference"]) else _unit(t["share"], t["largest_difference"])
             lines.append(f"| {t['factor']} | {t['stratum']} | {MEASURES[t['measure']][0]} | {levels} | {t['h']:.2f} | "
-                         f"{_fmt_p(t['p'])} | {_fmt_p(t['p_holm'])} | {t['epsilon2']:.2f} ({t['magnitude']}) | {big} |")
+                         f"{format_p(t['p'])} | {format_p(t['p_holm'])} | {t['epsilon2']:.2f} ({t['magnitude']}) | {big} |")
         lines.append("")
     lines += ["## Figures", ""] + [f"![{f}]({f})" for f in figures]
     lines += ["", "Files: `results.json` (everything above, and every run's measures), `study.json` (the declaration), "
