@@ -102,7 +102,8 @@ def _run(rep: Replicate, root: Path, log_file: Path) -> tuple[bool, int | None, 
                 fh.write(f"{type(exc).__name__}: {exc}\n")
                 return False, None, f"{type(exc).__name__}: {exc}"
         return (True, None, "") if rep.finished(root) else (False, None, "it returned without finishing its output")
-    assert rep.command is not None
+    if rep.command is None:
+        raise TypeError(f"replicate {rep.name} has neither a function nor a command to run")
     argv = rep.command(root)
     with open(log_file, "wb") as fh:
         p = subprocess.Popen(argv, stdout=fh, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, cwd=root,

@@ -109,7 +109,8 @@ def cmd_cel(args: argparse.Namespace) -> int:
             import_cases(lr.paths, cases, worker=lr.settings.roster["door"])  # type: ignore[index]
             print(f"case base: {len(cases)} cases from {args.cases_from}")
     cel = lr.settings.cel
-    assert cel is not None
+    if cel is None:  # refused above for a resume and made for a new run
+        raise ConfigError(f"{lr.dir} is not a CEL run (its run.json has no cel block); use coevo run --resume")
     if args.prepare:
         run_json = lr.paths.run_json
         print(f"CEL run {lr.run} prepared in {lr.dir} (run.json{', secret.key' if not lr.open else ''}); start its "

@@ -282,7 +282,8 @@ def _run_command(spec_json: dict[str, Any], rep: Replicate, root: Path) -> list[
     settings = root / "settings" / f"{rep.run_id}.json"
     epochs = str(spec_json["measure_epochs"])
     if rep.offline:  # the Executive learns with the seed it has in a live run (seed + its index)
-        assert rep.depends_on is not None, "an offline replicate learns on the history of a live one"
+        if rep.depends_on is None:
+            raise TypeError(f"offline replicate {rep.run_id} names no live run to learn on the history of")
         return [sys.executable, "-m", "coevo", "learn", "--quiet", "--behaviour", "executive",
                 "--settings", str(settings), "--history", str(run_dir(root, rep.depends_on)),
                 "--rate", repr(rep.rate), "--out", str(d), "--measure-epochs", epochs]

@@ -35,7 +35,8 @@ def measure_policy(task: str, policy: Policy, *, groups: int, trials: int, rng: 
         from coevo.tasks.fuel.settings import WorldConfig
 
         cfg = env.cfg
-        assert isinstance(cfg, WorldConfig), "Tracking plays in the fuel world"
+        if not isinstance(cfg, WorldConfig):
+            raise TypeError(f"Tracking plays in the fuel world, not in one of {type(cfg).__name__}")
         hit = ep["tracked"] >= QUALITY_FRACTION * cfg.episode_steps
     elif task == "docking":
         hit = ep["docked"].astype(bool)
