@@ -33,7 +33,6 @@ from coevo.rundir.layout import WorkerPaths
 
 CHECKPOINT = WorkerPaths(Path(".")).checkpoint.name
 from coevo.agents.models import PartnerModels
-from coevo.agents.worker import FAULT_HANG_ENV
 from coevo.bus import keys
 from coevo.bus.session import make_config, open_session
 from coevo.config import GAConfig
@@ -305,7 +304,9 @@ def test_a_whole_run_killed_at_once_continues_with_run_resume(tmp_path: Path) ->
 # ---------------------------------------------------------------------------- a hung worker
 def test_a_hung_worker_shows_stalled_within_five_seconds(broker, tmp_path: Path) -> None:
     endpoint, _ = broker
-    env = {**os.environ, FAULT_HANG_ENV: "2"}
+    inject = str(Path(__file__).parent / "inject")  # its sitecustomize hangs the worker after generation 2
+    env = {**os.environ, "COEVO_TEST_HANG_AFTER": "2",
+           "PYTHONPATH": os.pathsep.join(p for p in (inject, os.environ.get("PYTHONPATH")) if p)}
     log = tmp_path / "w.log"
     with open(log, "wb") as f:
         p = subprocess.Popen([sys.executable, "-m", "coevo", "worker", "--behaviour", "tracking", "--regime", "independent",

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import time
 from contextlib import ExitStack
 from functools import partial
@@ -57,14 +56,9 @@ from coevo.rundir.machine import machine
 from coevo.rundir.settings import RunSettings
 from coevo.tasks import DEFAULT_TASK
 
-__all__ = ["Worker", "run_worker", "INBOX", "FAULT_HANG_ENV"]
+__all__ = ["Worker", "run_worker", "INBOX"]
 
 log = logging.getLogger(__name__)
-
-#: Fault injection for tests and ``coevo chaos``: after this many generations the
-#: worker's main thread hangs (its Zenoh threads, and so its liveliness token, live on).
-FAULT_HANG_ENV = "COEVO_FAULT_HANG_AFTER"
-
 
 class Worker:
     def __init__(
@@ -255,7 +249,6 @@ class Worker:
             token = s.liveliness().declare_token(keys.alive(self.run_id, self.behaviour, self.worker_id))
             self._status_pub = s.declare_publisher(keys.status(self.run_id, self.behaviour, self.worker_id))
             pacer.waited = paced
-            hang_after = _fault_hang_after()
             try:
                 if not broker.wait(self.broker_wait, inbox.stop):
                     log.warning("%s: no coevo broker seen after %.0f s; going on without a store (publications are "
@@ -269,10 +262,7 @@ class Worker:
                     t_net = time.perf_counter()
                     self._take_in(inbox, g)
                     self.net_seconds += time.perf_counter() - t_net
-                    rep = self._one_generation(ga, inbox, outbox, pacer, curve_log)
-                    curve.append(rep)
-                    if hang_after is not None and rep.generation >= hang_after:
-                        _hang(self.worker_id, rep.generation)
+                    curve.append(self.one_generation(ga, inbox, outbox, pacer, curve_log))
                 finished = self._completed >= self.ga_cfg.generations
                 if finished:
                     outbox.final_sync(self.final_sync, inbox.stop, partial(self._heartbeat, done=False))
@@ -299,7 +289,7 @@ class Worker:
                                "give the broker and every worker the run's key (coevo keygen, --key-file)")
         return curve
 
-    def _one_generation(self, ga: GA, inbox: Inbox, outbox: Outbox, pacer: Pacer, curve_log: IO[str]) -> GenerationReport:
+    def one_generation(self, ga: GA, inbox: Inbox, outbox: Outbox, pacer: Pacer, curve_log: IO[str]) -> GenerationReport:
         """One generation and what follows it: the curve's line, the new best published (after the checkpoint),
         the current best, a heartbeat and the store sync."""
         p = self.paths
@@ -381,18 +371,3 @@ def run_worker(settings: RunSettings, *, behaviour: str, seed: int | None, worke
     print(f"{w.worker_id}: {len(curve)} generations, best so far {curve[-1].best_so_far if curve else float('nan'):.3f}")
     return 0
 
-
-def _fault_hang_after() -> int | None:
-    value = os.environ.get(FAULT_HANG_ENV)
-    if not value:
-        return None
-    try:
-        return int(value)
-    except ValueError:
-        raise ConfigError(f"${FAULT_HANG_ENV} must be a generation number, got {value!r}") from None
-
-
-def _hang(worker_id: str, generation: int) -> None:
-    log.warning("%s: hanging after generation %d (fault injection, $%s)", worker_id, generation, FAULT_HANG_ENV)
-    while True:
-        time.sleep(1.0)
