@@ -29,7 +29,6 @@ from __future__ import annotations
 import json
 import logging
 import time
-from contextlib import ExitStack
 from functools import partial
 from pathlib import Path
 from typing import IO, Any
@@ -44,8 +43,8 @@ from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.messages import PolicyUpdate, Status
 from coevo.bus.rejections import Rejections
-from coevo.bus.session import Config, Publisher, Session, open_session, sigterm_as_exit
-from coevo.bus.status import DONE_LINGER
+from coevo.bus.lifecycle import Lifecycle, main_of
+from coevo.bus.session import Config, Publisher, Session
 from coevo.config import SAVED_GA_BEFORE
 from coevo.errors import ConfigError, MessageError, ServiceError
 from coevo.ga import GA, GenerationReport
@@ -232,48 +231,43 @@ class Worker:
         if self.gate.open:
             log.warning("%s: run %s is OPEN: no key, so its messages are not authenticated and anyone who reaches the "
                         "bus can steer it (give --key-file, or let coevo run make the run)", self.worker_id, self.run_id)
-        with open_session(self.conf, what=f"{self.behaviour} worker session", gate=self.gate) as s, \
-                open(p.adoptions, "a", encoding="utf-8") as adopt_log, \
-                open(p.curve, "a", encoding="utf-8") as curve_log, \
-                BrokerWatch(s, self.run_id, self.gate) as broker, \
-                Inbox(s, broker, run=self.run_id, models=self.models, adoptions=adopt_log, reject=self._reject,
-                      store_timeout=self.store_timeout, gate=self.gate) as inbox, \
-                Outbox(s, broker, run=self.run_id, behaviour=self.behaviour, worker_id=self.worker_id,
-                       log_path=p.published, store_timeout=self.store_timeout,
-                       confirm_every=self.confirm_every, gate=self.gate) as outbox, \
-                self._pacer(s) as pacer, \
-                ExitStack() as more:
+        with Lifecycle(self.conf, what=f"{self.behaviour} worker session", gate=self.gate) as life:
+            s = life.session
+            adopt_log = life.enter(open(p.adoptions, "a", encoding="utf-8"))
+            curve_log = life.enter(open(p.curve, "a", encoding="utf-8"))
+            broker = life.enter(BrokerWatch(s, self.run_id, self.gate))
+            inbox = self._inbox = life.enter(Inbox(
+                s, broker, run=self.run_id, models=self.models, adoptions=adopt_log, reject=self._reject,
+                store_timeout=self.store_timeout, gate=self.gate))
+            outbox = self._outbox = life.enter(Outbox(
+                s, broker, run=self.run_id, behaviour=self.behaviour, worker_id=self.worker_id, log_path=p.published,
+                store_timeout=self.store_timeout, confirm_every=self.confirm_every, gate=self.gate))
+            pacer = life.enter(self._pacer(s))
             for service in self._services(s, broker):
-                more.enter_context(service)
-            self._inbox, self._outbox = inbox, outbox
-            token = s.liveliness().declare_token(keys.alive(self.run_id, self.behaviour, self.worker_id))
-            self._status_pub = s.declare_publisher(keys.status(self.run_id, self.behaviour, self.worker_id))
+                life.enter(service)
+            life.declare(s.liveliness().declare_token(keys.alive(self.run_id, self.behaviour, self.worker_id)))
+            self._status_pub = life.declare(s.declare_publisher(keys.status(self.run_id, self.behaviour,
+                                                                            self.worker_id)))
+            life.at_end(self._closing)
             pacer.waited = paced
-            try:
-                if not broker.wait(self.broker_wait, inbox.stop):
-                    log.warning("%s: no coevo broker seen after %.0f s; going on without a store (publications are "
-                                "kept and delivered when one appears)", self.worker_id, self.broker_wait)
-                inbox.refetch = True
-                for g in range(ga.generation_no, self.ga_cfg.generations):
-                    if inbox.stop_requested():
-                        log.info("%s stopping at generation %d", self.worker_id, g)
-                        break
-                    pacer.wait(g, inbox.stop, tick=partial(self._paced_tick, g))
-                    t_net = time.perf_counter()
-                    self._take_in(inbox, g)
-                    self.net_seconds += time.perf_counter() - t_net
-                    curve.append(self.one_generation(ga, inbox, outbox, pacer, curve_log))
-                finished = self._completed >= self.ga_cfg.generations
-                if finished:
-                    outbox.final_sync(self.final_sync, inbox.stop, partial(self._heartbeat, done=False))
-                self._heartbeat(done=finished)
-                time.sleep(DONE_LINGER)  # the "done" on its way before the token's end (see DONE_LINGER)
-            finally:
-                token.undeclare()
-                self._status_pub.undeclare()
-                self._status_pub = None
-                self._inbox = None
-                self.rejected.flush()
+            if not broker.wait(self.broker_wait, inbox.stop):
+                log.warning("%s: no coevo broker seen after %.0f s; going on without a store (publications are kept and "
+                            "delivered when one appears)", self.worker_id, self.broker_wait)
+            inbox.refetch = True
+            for g in range(ga.generation_no, self.ga_cfg.generations):
+                if inbox.stop_requested():
+                    log.info("%s stopping at generation %d", self.worker_id, g)
+                    break
+                pacer.wait(g, inbox.stop, tick=partial(self._paced_tick, g))
+                t_net = time.perf_counter()
+                self._take_in(inbox, g)
+                self.net_seconds += time.perf_counter() - t_net
+                curve.append(self.one_generation(ga, inbox, outbox, pacer, curve_log))
+            finished = self._completed >= self.ga_cfg.generations
+            if finished:
+                outbox.final_sync(self.final_sync, inbox.stop, partial(self._heartbeat, done=False))
+            self._heartbeat(done=finished)
+            life.linger()
         rows = read_jsonl(p.curve)
         write_json(p.done, {
             "generations": len(rows), "finished": len(rows) >= self.ga_cfg.generations,
@@ -288,6 +282,12 @@ class Worker:
                                f"{outbox.unconfirmed} are only in {p.published}; start the broker with --open, or "
                                "give the broker and every worker the run's key (coevo keygen, --key-file)")
         return curve
+
+    def _closing(self) -> None:
+        """As the worker's life ends (before its token and heartbeats' publisher go): nothing more is sent."""
+        self._status_pub = None
+        self._inbox = None
+        self.rejected.flush()
 
     def one_generation(self, ga: GA, inbox: Inbox, outbox: Outbox, pacer: Pacer, curve_log: IO[str]) -> GenerationReport:
         """One generation and what follows it: the curve's line, the new best published (after the checkpoint),
@@ -361,12 +361,10 @@ def run_worker(settings: RunSettings, *, behaviour: str, seed: int | None, worke
     """``coevo worker``: run one worker of ``kind`` (this class, or a learner plugged into its seam, e.g. the CEL
     learner) to its end (exit status 0), or until SIGINT/SIGTERM (130)."""
     out = out if out is not None else settings.paths(Path("runs")).worker(behaviour).dir
-    sigterm_as_exit()
     w = kind(settings, behaviour=behaviour, seed=seed, worker_id=worker_id, out_dir=out, conf=conf, resume=resume,
-               final_sync=final_sync, run_key=run_key)
-    try:
-        curve = w.run()
-    except KeyboardInterrupt:
+             final_sync=final_sync, run_key=run_key)
+    curve = main_of(w.run)
+    if curve is None:
         return 130
     print(f"{w.worker_id}: {len(curve)} generations, best so far {curve[-1].best_so_far if curve else float('nan'):.3f}")
     return 0

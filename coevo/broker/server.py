@@ -37,7 +37,6 @@ import queue
 import threading
 import time
 from pathlib import Path
-from typing import Any
 
 import msgpack
 
@@ -45,7 +44,8 @@ from coevo.broker.store import PolicyStore, Quota
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.messages import MAX_BYTES, BrokerStatus, CaseUpdate, PolicyUpdate
-from coevo.bus.session import Config, LivelinessToken, Query, Sample, SessionGone, config_from_args, open_session, sigterm_as_exit
+from coevo.bus.lifecycle import Lifecycle, main_of
+from coevo.bus.session import Config, LivelinessToken, Query, Sample, Session, SessionGone, config_from_args
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import CoevoError, MessageError
 from coevo.rundir.layout import RunPaths
@@ -118,6 +118,11 @@ class Keyring:
         return Gate(key=key)
 
 
+#: What a broker that is not open reads as its stop: set.
+_STOPPED = threading.Event()
+_STOPPED.set()
+
+
 class Broker:
     """Router + store; use as a context manager, or call :meth:`serve_forever`."""
 
@@ -131,37 +136,43 @@ class Broker:
         self._inbox: queue.Queue[tuple[str, bytes] | None] = queue.Queue()
         self._queued = 0  # bytes waiting in the inbox
         self._qlock = threading.Lock()
-        self._stop = threading.Event()
-        self._session_cm: Any = None
-        self._decls: list[Any] = []
-        self._threads: list[threading.Thread] = []
+        self._life: Lifecycle | None = None
         self._token: LivelinessToken | None = None
         self._token_key = ""
         self._token_lock = threading.Lock()
 
+    @property
+    def session(self) -> Session:
+        if self._life is None:
+            raise RuntimeError("the broker is not open (use it as a context manager)")
+        return self._life.session
+
     def __enter__(self) -> Broker:
-        self._session_cm = open_session(self.conf, what="router")
-        s = self._session_cm.__enter__()
-        self.session = s
-        self._threads = [threading.Thread(target=self._drain, name="coevo-store", daemon=True),
-                         threading.Thread(target=self._report, name="coevo-broker-status", daemon=True)]
-        for t in self._threads:
-            t.start()
-        self._decls.append(s.declare_subscriber(f"{keys.ROOT}/*/policy/*", self._on_policy))
-        self._decls.append(s.declare_subscriber(f"{keys.ROOT}/*/case/*", self._on_policy))  # a CEL run's case base
-        for topic in ("latest", "history", "versions", "cases"):
-            self._decls.append(s.declare_queryable(f"{keys.ROOT}/*/store/{topic}/*", self._on_query))
-        self._sync_token()  # last: the store is ready
+        life = self._life = Lifecycle(self.conf, what="router").__enter__()
+        try:
+            s = life.session
+            life.start(self._drain, name="coevo-store", wake=lambda: self._inbox.put(None))
+            life.start(self._report, name="coevo-broker-status")
+            life.declare(s.declare_subscriber(f"{keys.ROOT}/*/policy/*", self._on_policy))
+            life.declare(s.declare_subscriber(f"{keys.ROOT}/*/case/*", self._on_policy))  # a CEL run's case base
+            for topic in ("latest", "history", "versions", "cases"):
+                life.declare(s.declare_queryable(f"{keys.ROOT}/*/store/{topic}/*", self._on_query))
+            life.at_end(self._drop_token)  # its token ends first of all
+            self._sync_token()  # last: the store is ready
+        except BaseException:
+            self.close()
+            raise
         return self
 
     def _sync_token(self) -> None:
         """Hold ``coevo/_broker`` while the store writes, ``coevo/_broker/degraded`` while it cannot."""
         want = keys.BROKER_DEGRADED if self.store.degraded else keys.BROKER
         with self._token_lock:
-            if want == self._token_key or self._session_cm is None:
+            life = self._life
+            if want == self._token_key or life is None:  # unchanged, or closing
                 return
             try:
-                token = self.session.liveliness().declare_token(want)
+                token = life.session.liveliness().declare_token(want)
                 if self._token is not None:
                     self._token.undeclare()
             except SessionGone as exc:  # the session is closing
@@ -177,25 +188,28 @@ class Broker:
         self.close()
 
     def close(self) -> None:
-        if self._session_cm is None:
+        """Its token, subscribers and queryables end, then its threads (the store drains what was queued), then
+        the session; the store's log is flushed.  Idempotent."""
+        life, self._life = self._life, None
+        if life is None:
             return
+        try:
+            life.close()
+        finally:
+            self.store.flush_log()
+
+    def _drop_token(self) -> None:
         with self._token_lock:
-            if self._token is not None:
-                self._decls.append(self._token)
-                self._token, self._token_key = None, ""
-        for d in self._decls:
+            token, self._token, self._token_key = self._token, None, ""
+        if token is not None:
             try:
-                d.undeclare()
+                token.undeclare()
             except SessionGone as exc:  # already gone with the session
-                log.debug("undeclare after the session went: %s", exc)
-        self._decls.clear()
-        self._stop.set()
-        self._inbox.put(None)
-        for t in self._threads:
-            t.join(timeout=5)
-        self.store.flush_log()
-        cm, self._session_cm = self._session_cm, None
-        cm.__exit__(None, None, None)
+                log.debug("broker token: undeclare after the session went: %s", exc)
+
+    @property
+    def _stop(self) -> threading.Event:
+        return self._life.stop if self._life is not None else _STOPPED
 
     def serve_forever(self) -> None:
         # A wait with a timeout, so that a signal lands: an untimed wait blocks in C, and a SIGTERM that the kernel
@@ -306,16 +320,16 @@ def serve_broker(args: argparse.Namespace, *, data_dir: Path, inbox_bytes: int, 
     """``coevo broker``: serve until SIGINT/SIGTERM (a clean stop at any moment, even while the store loads)."""
     listen = _listen(args)
     conf = config_from_args(args)
-    sigterm_as_exit()
     if open_runs:
         log.warning("broker started with --open: runs it holds no key for are stored unauthenticated")
-    try:
+
+    def serve() -> None:
         with Broker(conf, data_dir, inbox_bytes=inbox_bytes, open_runs=open_runs, quota=quota) as broker:
             log.info("broker listening on %s, store in %s", listen, data_dir)
             print(f"coevo broker listening on {', '.join(listen)}; store in {data_dir}", flush=True)
             broker.serve_forever()
-    except KeyboardInterrupt:
-        pass
+
+    main_of(serve)  # it serves until stopped: a signal is its normal end (exit status 0)
     return 0
 
 
@@ -323,12 +337,12 @@ def serve_router(args: argparse.Namespace) -> int:
     """``coevo router``: a plain Zenoh router, no store: another site's meeting point, joined to the broker."""
     listen = _listen(args)
     conf = config_from_args(args)
-    sigterm_as_exit()
-    try:
-        with open_session(conf, what="router"):
+
+    def serve() -> None:
+        with Lifecycle(conf, what="router") as life:
             print(f"coevo router listening on {', '.join(listen)}; joined to {', '.join(args.connect or ['-'])}", flush=True)
-            while True:
-                time.sleep(3600)
-    except KeyboardInterrupt:
-        pass
+            while not life.stop.wait(0.25):  # a timed wait, so that a signal lands (Broker.serve_forever)
+                pass
+
+    main_of(serve)  # it serves until stopped: a signal is its normal end (exit status 0)
     return 0

@@ -39,16 +39,11 @@ from coevo.bus.messages import BrokerStatus, ExecutionStatus, Status
 from coevo.bus.session import drain_messages, is_put, ring_subscriber, Sample, Session, SessionGone
 from coevo.errors import MessageError
 
-__all__ = ["DEFAULT_STALL", "DONE_LINGER", "WorkerView", "RobotView", "StatusBoard", "status_table", "PlainStatus", "StatusDisplay", "follow"]
+__all__ = ["DEFAULT_STALL", "WorkerView", "RobotView", "StatusBoard", "status_table", "PlainStatus", "StatusDisplay", "follow"]
 
 log = logging.getLogger(__name__)
 
 DEFAULT_STALL = 3.0  # seconds without a heartbeat; workers send one about every second
-#: How long a process that ends normally keeps its liveliness token after its last heartbeat ("done").  The
-#: heartbeat is a sample and the token's end a declaration: zenoh may deliver the second first, and a board that
-#: saw the token go before the "done" would show the process "dead" for a moment (issue 40: seen at the end of a
-#: Quick start run).  A killed process has no such delay: its token goes at once.
-DONE_LINGER = 0.2
 BROKER_GRACE = 10.0  # seconds a broker never seen yet is "starting" (its store opens after its router), then "down"
 
 

@@ -51,8 +51,8 @@ from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.messages import CapabilityUpdate, Control, ExecutionStatus, PolicyUpdate
 from coevo.bus.rejections import Rejections
-from coevo.bus.session import drain_messages, open_session, ring_subscriber, Session, sigterm_as_exit
-from coevo.bus.status import DONE_LINGER
+from coevo.bus.lifecycle import Lifecycle, main_of
+from coevo.bus.session import drain_messages, ring_subscriber, Session
 from coevo.cel.execution import CapabilityChange, ExecutionModule, Stretch
 from coevo.cel.monitor import Monitor
 from coevo.cel.settings import ROBOT_SEED_OFFSET
@@ -207,49 +207,44 @@ class Execution:
         return done
 
     def _loop(self) -> None:
-        with open_session(self.conf, what="execution module session", gate=self.gate) as s, \
-                BrokerWatch(s) as broker, \
-                Pacer(s, self.run_id, (DOOR,), max_lead=0, wait_limit=math.inf, settle=self.cel.patience,
-                      grace=self.cel.patience if self.module.trial else math.inf) as clock:
-            self._session = s
-            policies = ring_subscriber(s, keys.policy(self.run_id, DOOR), 32)
-            control = ring_subscriber(s, keys.control(self.run_id), 16)
-            token = s.liveliness().declare_token(keys.robot_alive(self.run_id, self.robot))
-            self._pubs = {"caps": s.declare_publisher(keys.capabilities(self.run_id, self.robot)),
-                          "status": s.declare_publisher(keys.execution(self.run_id, self.robot))}
+        with Lifecycle(self.conf, what="execution module session", gate=self.gate) as life:
+            s = self._session = life.session
+            broker = life.enter(BrokerWatch(s))
+            clock = life.enter(Pacer(s, self.run_id, (DOOR,), max_lead=0, wait_limit=math.inf, settle=self.cel.patience,
+                                     grace=self.cel.patience if self.module.trial else math.inf))
+            policies = life.declare(ring_subscriber(s, keys.policy(self.run_id, DOOR), 32))
+            control = life.declare(ring_subscriber(s, keys.control(self.run_id), 16))
+            self._pubs = {"caps": life.declare(s.declare_publisher(keys.capabilities(self.run_id, self.robot))),
+                          "status": life.declare(s.declare_publisher(keys.execution(self.run_id, self.robot)))}
+            life.declare(s.liveliness().declare_token(keys.robot_alive(self.run_id, self.robot)))
             if self.gate.open:
                 log.warning("%s: run %s is OPEN: no key, its messages are not authenticated", self.robot, self.run_id)
-            try:
-                if not broker.wait(self.broker_wait, self.stop):
-                    log.warning("%s: no coevo broker seen after %.0f s; going on", self.robot, self.broker_wait)
-                self._put_capabilities()
-                while self.module.trial < self.total and not self._stop_asked(control):
-                    generation = self.module.trial // self.K
-                    clock.wait(generation, self.stop, tick=lambda: self._beat(control), tick_every=self.heartbeat_every,
-                               poll=0.002)
-                    if self.stop.is_set():
-                        break
-                    self._learner = max(self._learner, clock.progress(DOOR))
-                    if broker.back.is_set():
-                        broker.back.clear()
-                        self._fetch_latest()
-                    self._take([m for _, m in drain_messages(policies, 32, self._reject)])
-                    self._play(min(self.cel.chunk, self.K * (generation + 1) - self.module.trial))
-                    # Checkpoint before anything of the stretch leaves: a change put on the bus is always in a
-                    # checkpoint, so a resumed robot never numbers a different change the same (the learner skips it).
-                    self._checkpoint()
-                    for c in self._unsent:
-                        self._put_capabilities(c)
-                    self._unsent.clear()
-                    self._beat(control)
+            if not broker.wait(self.broker_wait, self.stop):
+                log.warning("%s: no coevo broker seen after %.0f s; going on", self.robot, self.broker_wait)
+            self._put_capabilities()
+            while self.module.trial < self.total and not self._stop_asked(control):
+                generation = self.module.trial // self.K
+                clock.wait(generation, self.stop, tick=lambda: self._beat(control), tick_every=self.heartbeat_every,
+                           poll=0.002)
                 if self.stop.is_set():
-                    log.info("%s stopping at trial %d", self.robot, self.module.trial)
-                self._beat(control, done=self.module.trial >= self.total)
-                time.sleep(DONE_LINGER)  # the "done" on its way before the token's end (see DONE_LINGER)
-            finally:
-                token.undeclare()
-                for sub in (policies, control, *self._pubs.values()):
-                    sub.undeclare()
+                    break
+                self._learner = max(self._learner, clock.progress(DOOR))
+                if broker.back.is_set():
+                    broker.back.clear()
+                    self._fetch_latest()
+                self._take([m for _, m in drain_messages(policies, 32, self._reject)])
+                self._play(min(self.cel.chunk, self.K * (generation + 1) - self.module.trial))
+                # Checkpoint before anything of the stretch leaves: a change put on the bus is always in a
+                # checkpoint, so a resumed robot never numbers a different change the same (the learner skips it).
+                self._checkpoint()
+                for c in self._unsent:
+                    self._put_capabilities(c)
+                self._unsent.clear()
+                self._beat(control)
+            if self.stop.is_set():
+                log.info("%s stopping at trial %d", self.robot, self.module.trial)
+            self._beat(control, done=self.module.trial >= self.total)
+            life.linger()
 
     def _stop_asked(self, control: Any) -> bool:
         for _, msg in drain_messages(control, 16, self._reject):
@@ -361,11 +356,9 @@ class Execution:
 
 def run_execution(settings: RunSettings, *, out: Path, conf: Any, resume: bool, run_key: RunKey | None = None) -> int:
     """``coevo execution``: run the robot to its last trial (exit 0), or until SIGINT/SIGTERM (130)."""
-    sigterm_as_exit()
     ex = Execution(settings, out_dir=out, conf=conf, resume=resume, run_key=run_key)
-    try:
-        done = ex.run()
-    except KeyboardInterrupt:
+    done = main_of(ex.run)
+    if done is None:
         return 130
     print(f"{ex.robot}: {done['trials']} trials, external performance {done['performance']:.0f} %, "
           f"{done['changes']} capability changes")
