@@ -45,9 +45,9 @@ def test_each_set_starts_from_a_direction_only_default_over_its_own_sensors(sens
 
 @pytest.mark.parametrize(("sensors", "target"), [("polar", False), ("dock-frame", False), ("both", False), ("both", True)])
 def test_a_docking_ga_conditions_only_on_its_sensor_set(sensors: str, target: bool) -> None:
-    ga_cfg = GAConfig(population=6, episodes=4, best_episodes=4, generations=2, docking_sensors=sensors,
-                      docking_target_sensors=target)
-    ga = GA(get_task("fuel"), "docking", world=WorldConfig(), ga=ga_cfg, seed=3)
+    ga_cfg = GAConfig(population=6, episodes=4, best_episodes=4, generations=2)
+    world = WorldConfig(docking_sensors=sensors, docking_target_sensors=target)
+    ga = GA(get_task("fuel"), "docking", world=world, ga=ga_cfg, seed=3)
     ga.generation({})
     ga.generation({})
     sch = schema("docking")
@@ -61,8 +61,8 @@ def test_a_docking_ga_conditions_only_on_its_sensor_set(sensors: str, target: bo
 
 
 def _ga(**kw: object) -> GA:
-    cfg = GAConfig(population=6, episodes=6, best_episodes=6, generations=3, docking_sensors="both", **kw)
-    return GA(get_task("fuel"), "docking", world=WorldConfig(), ga=cfg, seed=5)
+    cfg = GAConfig(population=6, episodes=6, best_episodes=6, generations=3, **kw)
+    return GA(get_task("fuel"), "docking", world=WorldConfig(docking_sensors="both"), ga=cfg, seed=5)
 
 
 def test_docking_keeps_the_policy_as_it_was_evaluated_by_default_the_others_do_not() -> None:

@@ -88,12 +88,12 @@ class GA:
         self.evaluator = task.evaluator(self.behaviour, world, ga)
         if ga.symmetric_rules:  # each rule also stands for its mirror image (coevo.ga.symmetry)
             self.evaluator = MirroredEvaluator(self.evaluator)
-        learnable = task.learnable_sensors(self.behaviour, ga)
+        learnable = task.learnable_sensors(self.behaviour, world)
         self._unusable = None if learnable is None or learnable.all() else ~learnable
         self._use = None if self._unusable is None else ~self._unusable  # operators draw only over these sensors
         self._full_hi = np.array([s.bins - 1 for s in schema(self.behaviour).sensors])
         if seed_policy is None and ga.initial == "default":
-            seed_policy = task.initial_rules(self.behaviour, ga)  # None where the behaviour starts random
+            seed_policy = task.initial_rules(self.behaviour, world)  # None where the behaviour starts random
         if seed_policy is not None:
             if seed_policy.behaviour != self.behaviour:
                 raise ConfigError(f"seed policy is a {seed_policy.behaviour} rule set, not {self.behaviour}")

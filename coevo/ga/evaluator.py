@@ -70,11 +70,11 @@ class Problem(Protocol):
         """``ga`` with the settings it leaves to the task (None) filled in for ``behaviour``; a ConfigError if they
         cannot go together in this task."""
 
-    def initial_rules(self, behaviour: str, ga: GAConfig) -> RuleSet | None:
-        """The rules a GA with settings ``ga`` starts from, or None where it starts random."""
+    def initial_rules(self, behaviour: str, world: BaseModel) -> RuleSet | None:
+        """The rules a GA in ``world`` starts from, or None where it starts random."""
 
-    def learnable_sensors(self, behaviour: str, ga: GAConfig) -> np.ndarray | None:
-        """(S,) bool: the sensors the GA may put conditions on (None: all)."""
+    def learnable_sensors(self, behaviour: str, world: BaseModel) -> np.ndarray | None:
+        """(S,) bool: the sensors the GA may put conditions on in ``world`` (None: all)."""
 
     def check_behaviour(self, behaviour: str) -> str:
         """``behaviour`` if the task has it, else a ConfigError naming it."""

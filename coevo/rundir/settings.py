@@ -21,10 +21,10 @@ from coevo.bus.auth import KEY_ENV, RunKey
 from coevo.bus.keys import check_id
 from coevo.bus.trust import Gate
 from coevo.cel.settings import CelSettings
-from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig, Settings, build, saved_ga
+from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig, Settings, build
 from coevo.errors import CoevoError, ConfigError, MessageError, RunDirError
 from coevo.rundir.layout import RunPaths, read_json, write_json
-from coevo.tasks import DEFAULT_TASK, Task, get_task
+from coevo.tasks import DEFAULT_TASK, Task, get_task, saved_settings
 
 __all__ = ["RunSettings", "SETTINGS_VERSION", "find_run_key"]
 
@@ -139,9 +139,8 @@ class RunSettings(Settings):
         """The settings in ``path`` (a run.json); anything wrong with it is a RunDirError naming it."""
         data = read_json(path, what="run directory (its run.json)")
         data.setdefault("settings_version", SETTINGS_VERSION)  # run.json of runs made before it was versioned
-        if isinstance(data.get("ga"), dict):  # a run saved before some GA setting existed learned without it
-            data["ga"] = saved_ga(data["ga"])
         try:
+            data = saved_settings(data)  # as the run learned: saved before some setting existed, or where it was
             return build(cls, data)
         except ConfigError as exc:
             raise RunDirError(f"{str(path)!r} does not hold valid run settings: {exc}") from None

@@ -104,7 +104,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             settings = RunSettings.make(run=args.run or default_run_id(regime), task=task, regime=regime,
                                         seed=args.seed or 0, model=args.model or "best",
                                         max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
-                                        world=world_settings(args, task), ga=ga_settings(args))
+                                        world=world_settings(args, task), ga=ga_settings(args, task))
         if settings.cel is not None:
             raise ConfigError(f"{args.settings} is a CEL run's settings: start it with coevo cel (its execution module "
                               "is not a worker)")
@@ -174,7 +174,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
         task = args.task or "fuel"
         settings = RunSettings.make(run=args.run, task=task, regime=args.regime, seed=args.seed or 0,
                                     model=args.model or "best", max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
-                                    world=world_settings(args, task), ga=ga_settings(args))
+                                    world=world_settings(args, task), ga=ga_settings(args, task))
     kind = kind_of_settings(settings).worker()  # a CEL run's learner (coevo cel) plugs into the worker's seam
     out = Path(args.out) if args.out else (RunPaths(base).worker(args.behaviour).dir if base else None)
     conf = config_from_args(args)
@@ -242,7 +242,7 @@ def cmd_chaos(args: argparse.Namespace) -> int:
     plan = ChaosPlan(faults=args.faults, kinds=tuple(args.kinds), gap=tuple(args.gap), down=tuple(args.down), seed=args.seed)
     task = args.task or ("door" if args.cel else "fuel")
     regime = args.regime or ("independent" if task == "door" else "mutual")
-    ga = ga_settings(args)
+    ga = ga_settings(args, task)
     cel = None
     if args.cel:  # a CEL run: the Figure 3 failure halfway through, the learner in lockstep with the robot
         if task != "door":

@@ -76,7 +76,7 @@ def learn(
         if not needed:
             raise ConfigError(f"--history feeds recorded partner policies to a behaviour that has partners; {behaviour} has none")
         feed = HistoryFeed(Path(history), rate, partners=needed)
-        models = PartnerModels(task, behaviour, "independent", seed, ga=ga)
+        models = PartnerModels(task, behaviour, "independent", seed, ga=ga, world=world)
         partners = dict(models.partners())
     elif set(partners) != set(needed):
         missing = [b for b in needed if b not in partners]

@@ -73,7 +73,7 @@ def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, unt
 def _rows(w: WorkerPaths, task: Task, behaviour: str, meta: dict[str, Any], world: BaseModel, ga_cfg: GAConfig,
           store: dict[tuple[str, str, int], RuleSet]) -> Iterator[dict[str, Any]]:
     """A co-evolution worker's curve, again: its GA fed the partner versions it adopted, when it adopted them."""
-    models = PartnerModels(task, behaviour, meta["regime"], meta["seed"], kind=meta["model"], ga=ga_cfg)
+    models = PartnerModels(task, behaviour, meta["regime"], meta["seed"], kind=meta["model"], ga=ga_cfg, world=world)
     ga = GA(task, behaviour, world=world, ga=ga_cfg, seed=meta["seed"])
     by_gen = by_generation(read_jsonl(w.adoptions, schema=AdoptionLine))
     g = 0

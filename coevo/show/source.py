@@ -28,7 +28,7 @@ from coevo.policy.rules import RuleSet
 from coevo.policy.text import read_rule_file
 from coevo.rundir.layout import LearnPaths, RunPaths, read_json
 from coevo.rundir.settings import SETTINGS_VERSION
-from coevo.tasks import DEFAULT_TASK, TASKS, Task, task_of
+from coevo.tasks import DEFAULT_TASK, TASKS, Task, saved_settings, task_of
 
 __all__ = ["Shown", "find_task", "task_names", "from_default", "from_path", "check_world"]
 
@@ -134,8 +134,13 @@ def _named_task(meta: Mapping[str, Any], f: Path, default: str) -> Task:
 
 
 def _run_world(task: Task, meta: Mapping[str, Any], f: Path, over: Mapping[str, Any], version: str) -> BaseModel:
-    """The world in ``f`` (a RunDirError naming it when it is not the task's), with ``over`` on top (a ConfigError)."""
-    values = meta.get("world", {})
+    """The world in ``f`` (a RunDirError naming it when it is not the task's), with ``over`` on top (a ConfigError);
+    a run saved before some world setting existed, or when it was a GA setting, as it learned
+    (:func:`~coevo.tasks.saved_settings`)."""
+    try:
+        values = saved_settings({**meta, "task": task.name}).get("world", {})
+    except ConfigError as exc:
+        raise RunDirError(f"{str(f)!r}: {exc}") from None
     if not isinstance(values, dict):
         raise RunDirError(f"{str(f)!r}: its world is not a JSON object of settings")
     try:

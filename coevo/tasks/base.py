@@ -79,12 +79,12 @@ class Task(ABC):
         """The behaviour's shipped initial rules, or None where it starts random."""
         return None
 
-    def initial_rules(self, behaviour: str, ga: GAConfig) -> RuleSet | None:
-        """The default rules a GA with settings ``ga`` starts from (the shipped ones unless a setting picks others)."""
+    def initial_rules(self, behaviour: str, world: BaseModel) -> RuleSet | None:
+        """The default rules a GA in ``world`` starts from (the shipped ones unless a world setting picks others)."""
         return self.default_rules(behaviour)
 
-    def learnable_sensors(self, behaviour: str, ga: GAConfig) -> np.ndarray | None:
-        """(S,) bool: the sensors a GA with settings ``ga`` may put conditions on (None: all of them)."""
+    def learnable_sensors(self, behaviour: str, world: BaseModel) -> np.ndarray | None:
+        """(S,) bool: the sensors a GA in ``world`` may put conditions on (None: all of them)."""
         return None
 
     def ga_choices(self, behaviour: str) -> dict[str, object]:
@@ -116,9 +116,9 @@ class Task(ABC):
             self.ga_settings(b, ga)
         return ga
 
-    def initial_model(self, behaviour: str, ga: GAConfig, rng: np.random.Generator) -> RuleSet:
+    def initial_model(self, behaviour: str, world: BaseModel, ga: GAConfig, rng: np.random.Generator) -> RuleSet:
         """How a partner that has not published yet is modelled: its initial behaviour."""
-        default = self.initial_rules(behaviour, ga) if ga.initial == "default" else None
+        default = self.initial_rules(behaviour, world) if ga.initial == "default" else None
         return default if default is not None else random_ruleset(behaviour, ga.initial_rules, rng)
 
     def partners_needed(self, behaviour: str, regime: str) -> tuple[str, ...]:

@@ -45,7 +45,7 @@ def check_task(task: Task, *, seed: int = 0, pictures: bool = True) -> list[str]
         return problems  # without its names and settings nothing else can be tried
     world = task.world_settings()
     for behaviour in task.behaviours:
-        _guard(say, f"{behaviour}: rules", partial(_rules, task, behaviour, say))
+        _guard(say, f"{behaviour}: rules", partial(_rules, task, behaviour, world, say))
         _guard(say, f"{behaviour}: GA settings", partial(_ga, task, behaviour, say))
         _guard(say, f"{behaviour}: partners", partial(_partners, task, behaviour, say))
         _guard(say, f"{behaviour}: evaluation", partial(_evaluation, task, behaviour, world, seed, say))
@@ -84,7 +84,7 @@ def _identity(task: Task, say: Callable[[str], None]) -> None:
         say("measure_labels: give a dict (measure -> short label), empty if none")
 
 
-def _rules(task: Task, behaviour: str, say: Callable[[str], None]) -> None:
+def _rules(task: Task, behaviour: str, world: BaseModel, say: Callable[[str], None]) -> None:
     sch = task.schema(behaviour)
     if sch is not schema(behaviour):
         say(f"{behaviour}: schema() is not the registered rule schema of {behaviour!r}")
@@ -94,9 +94,9 @@ def _rules(task: Task, behaviour: str, say: Callable[[str], None]) -> None:
     if default is not None:
         _is_ruleset(default, behaviour, "default_rules", say)
     ga = task.ga_settings(behaviour, build(GAConfig, TINY_GA))
-    model = task.initial_model(behaviour, ga, np.random.default_rng(0))
+    model = task.initial_model(behaviour, world, ga, np.random.default_rng(0))
     _is_ruleset(model, behaviour, "initial_model", say)
-    usable = task.learnable_sensors(behaviour, ga)
+    usable = task.learnable_sensors(behaviour, world)
     if usable is not None and (np.shape(usable) != (sch.n_sensors,) or np.asarray(usable).dtype != bool
                                or not np.asarray(usable).any()):
         say(f"{behaviour}: learnable_sensors must be None or {sch.n_sensors} booleans, some true")
@@ -128,15 +128,15 @@ def _partners(task: Task, behaviour: str, say: Callable[[str], None]) -> None:
             say(f"{behaviour} in {regime}: partners_needed names {strangers}, not other behaviours of the task")
 
 
-def _partner_models(task: Task, behaviour: str, ga: GAConfig) -> Partners:
+def _partner_models(task: Task, behaviour: str, world: BaseModel, ga: GAConfig) -> Partners:
     needed = {p for r in task.regimes for p in task.partners_needed(behaviour, r)}
-    return {p: task.initial_model(p, task.ga_settings(p, ga), np.random.default_rng(7)) for p in sorted(needed)}
+    return {p: task.initial_model(p, world, task.ga_settings(p, ga), np.random.default_rng(7)) for p in sorted(needed)}
 
 
 def _evaluation(task: Task, behaviour: str, world: BaseModel, seed: int, say: Callable[[str], None]) -> None:
     ga = task.ga_settings(behaviour, build(GAConfig, TINY_GA))
-    partners = _partner_models(task, behaviour, ga)
-    policies = [task.initial_model(behaviour, ga, np.random.default_rng(seed + k)) for k in range(2)]
+    partners = _partner_models(task, behaviour, world, ga)
+    policies = [task.initial_model(behaviour, world, ga, np.random.default_rng(seed + k)) for k in range(2)]
 
     def evaluate() -> Evaluation:
         return task.evaluator(behaviour, world, ga).evaluate(policies, partners, np.random.default_rng(seed))
@@ -174,7 +174,7 @@ def _numbers(values: Mapping[str, Any], what: str, say: Callable[[str], None], *
 
 def _pictures(task: Task, world: BaseModel, seed: int, say: Callable[[str], None]) -> None:
     ga = build(GAConfig, TINY_GA)
-    rules = {b: task.initial_model(b, task.ga_settings(b, ga), np.random.default_rng(seed)) for b in task.behaviours}
+    rules = {b: task.initial_model(b, world, task.ga_settings(b, ga), np.random.default_rng(seed)) for b in task.behaviours}
     try:
         robot = task.show_robot("checked", world, rules)
     except CoevoError:

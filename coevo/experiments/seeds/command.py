@@ -84,9 +84,9 @@ def _fuel_settings(args: argparse.Namespace) -> tuple[list[str], Any]:
     first (a bad one is a ConfigError naming it, before anything runs)."""
     from coevo.config import GAConfig, build
     from coevo.console import pairs
-    from coevo.tasks import get_task
+    from coevo.tasks import get_task, split_settings
 
-    world, ga = pairs(args.world, "world"), pairs(args.ga, "ga")
+    world, ga = split_settings(get_task("fuel"), pairs(args.world, "world"), pairs(args.ga, "ga"))
     build(get_task("fuel").world_settings, world)
     config = build(GAConfig, {**ga, **({} if args.generations is None else {"generations": args.generations})})
     get_task("fuel").check_ga(config)

@@ -88,19 +88,19 @@ class FuelTask(Task):
     def default_rules(self, behaviour: str) -> RuleSet | None:
         return default_ruleset(self.check_behaviour(behaviour))
 
-    def initial_rules(self, behaviour: str, ga: GAConfig) -> RuleSet | None:
-        """Docking starts from the direction-only default of its sensor set (``ga.docking_sensors``)."""
-        return default_ruleset(self.check_behaviour(behaviour), ga.docking_sensors)
+    def initial_rules(self, behaviour: str, world: WorldConfig) -> RuleSet | None:  # type: ignore[override]
+        """Docking starts from the direction-only default of its sensor set (``world.docking_sensors``)."""
+        return default_ruleset(self.check_behaviour(behaviour), world.docking_sensors)
 
-    def learnable_sensors(self, behaviour: str, ga: GAConfig) -> np.ndarray | None:
-        """Docking's rules condition on its chosen set of dock sensors (``ga.docking_sensors``), on range and bearing
-        to the nearest object, and on the Target's own sensors only if ``ga.docking_target_sensors``."""
+    def learnable_sensors(self, behaviour: str, world: WorldConfig) -> np.ndarray | None:  # type: ignore[override]
+        """Docking's rules condition on its chosen set of dock sensors (``world.docking_sensors``), on range and
+        bearing to the nearest object, and on the Target's own sensors only if ``world.docking_target_sensors``."""
         if Behaviour(self.check_behaviour(behaviour)) != Behaviour.DOCKING:
             return None
         from coevo.policy.schema import schema
 
-        left_out = DOCK_SENSORS - set(SENSOR_SETS[ga.docking_sensors])
-        if not ga.docking_target_sensors:
+        left_out = DOCK_SENSORS - set(SENSOR_SETS[world.docking_sensors])
+        if not world.docking_target_sensors:
             left_out |= TARGET_SENSORS
         return np.array([n not in left_out for n in schema(behaviour).sensor_names])
 
