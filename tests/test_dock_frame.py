@@ -9,6 +9,7 @@ from coevo.config import GAConfig
 from coevo.ga import GA
 from coevo.policy.schema import schema
 from coevo.tasks import get_task
+from coevo.tasks.base import ga_settings
 from coevo.tasks.fuel import default_ruleset
 from coevo.tasks.fuel.behaviours import TARGET_SENSORS
 from coevo.tasks.fuel.dock_frame import SENSOR_SETS
@@ -67,10 +68,10 @@ def _ga(**kw: object) -> GA:
 
 def test_docking_keeps_the_policy_as_it_was_evaluated_by_default_the_others_do_not() -> None:
     fuel = get_task("fuel")
-    docking, tracking = fuel.ga_settings("docking", GAConfig()), fuel.ga_settings("tracking", GAConfig())
+    docking, tracking = ga_settings(fuel, "docking", GAConfig()), ga_settings(fuel, "tracking", GAConfig())
     assert (docking.keep_evaluated, docking.best_candidates) == (True, 3)
     assert (tracking.keep_evaluated, tracking.best_candidates) == (False, 0)
-    told = fuel.ga_settings("docking", GAConfig(keep_evaluated=False, best_candidates=0))
+    told = ga_settings(fuel, "docking", GAConfig(keep_evaluated=False, best_candidates=0))
     assert (told.keep_evaluated, told.best_candidates) == (False, 0)
     ga = _ga()
     before = list(ga.population)

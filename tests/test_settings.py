@@ -13,6 +13,7 @@ from coevo.config import GAConfig
 from coevo.errors import ConfigError, RunDirError
 from coevo.rundir.settings import RunSettings
 from coevo.tasks import get_task
+from coevo.tasks.base import check_ga
 from coevo.tasks.fuel.settings import WorldConfig
 
 
@@ -68,7 +69,7 @@ def test_a_run_saved_before_a_ga_setting_existed_resumes_and_replays_as_it_learn
     then, now = RunSettings.load(tmp_path / "old.json"), RunSettings.load(tmp_path / "new.json")
     assert (then.ga.symmetric_rules, then.world_config().docking_target_sensors, then.ga.max_rules) == (False, True, 48)
     assert (now.ga.symmetric_rules, now.world_config().docking_target_sensors) == (None, False)  # None: the task's
-    get_task("fuel").check_ga(then.ga)  # plain 48-rule Docking, as it learned: no symmetric-rule refusal
+    check_ga(get_task("fuel"), then.ga)  # plain 48-rule Docking, as it learned: no symmetric-rule refusal
 
     w = WorkerPaths(tmp_path / "worker")
     w.dir.mkdir()

@@ -25,7 +25,7 @@ from coevo.config import GAConfig
 from coevo.errors import ConfigError
 from coevo.policy.rules import RuleSet
 from coevo.config import MODELS
-from coevo.tasks.base import Partners, Task
+from coevo.tasks.base import Partners, Task, initial_model
 
 __all__ = ["MODELS", "PartnerModels"]
 
@@ -35,7 +35,7 @@ __all__ = ["MODELS", "PartnerModels"]
 class PartnerModels:
     """The partner policies a worker evaluates against, with the versions in use."""
 
-    task: Task
+    task: Task[Any]
     behaviour: str
     regime: str
     seed: int
@@ -54,7 +54,7 @@ class PartnerModels:
         world = self.task.world_settings() if self.world is None else self.world
         for b in self.needed:
             rng = np.random.default_rng([self.seed, self.task.behaviours.index(b), 7])
-            self._bests[b] = [self.task.initial_model(b, world, self.ga, rng)]
+            self._bests[b] = [initial_model(self.task, b, world, self.ga, rng)]
             self.versions[b] = 0
         self._rng = np.random.default_rng([self.seed, 11])
 

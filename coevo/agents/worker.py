@@ -55,6 +55,7 @@ from coevo.rundir.layout import WorkerPaths, append_durably, read_jsonl, write_j
 from coevo.rundir.machine import machine
 from coevo.rundir.settings import RunSettings
 from coevo.tasks import DEFAULT_TASK, saved_settings
+from coevo.tasks.base import check_behaviour
 
 __all__ = ["Worker", "run_worker", "INBOX", "FAULT_HANG_ENV"]
 
@@ -95,7 +96,7 @@ class Worker:
         worker is open (and says so in its log and heartbeats)."""
         self.settings = settings
         self.task = settings.the_task
-        self.behaviour = self.task.check_behaviour(behaviour)
+        self.behaviour = check_behaviour(self.task, behaviour)
         self.regime = settings.regime
         self.run_id = settings.run
         self.seed = settings.worker_seed(self.behaviour) if seed is None else seed

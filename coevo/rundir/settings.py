@@ -25,6 +25,7 @@ from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig, Settings, build
 from coevo.errors import CoevoError, ConfigError, MessageError, RunDirError
 from coevo.rundir.layout import RunPaths, read_json, write_json
 from coevo.tasks import DEFAULT_TASK, Task, get_task, saved_settings
+from coevo.tasks.base import check_ga, check_regime
 
 __all__ = ["RunSettings", "SETTINGS_VERSION", "find_run_key"]
 
@@ -61,7 +62,7 @@ class RunSettings(Settings):
     @model_validator(mode="after")
     def _task_fits(self) -> RunSettings:
         task = get_task(self.task)
-        task.check_regime(self.regime)
+        check_regime(task, self.regime)
         if self.roster is not None:
             if set(self.roster) != set(task.behaviours):
                 raise ValueError(f"roster names {sorted(self.roster)}; it must name each of {list(task.behaviours)}")
@@ -76,7 +77,7 @@ class RunSettings(Settings):
         if self.cel is not None and self.roster is not None and self.cel.robot in self.roster.values():
             raise ValueError(f"the robot id {self.cel.robot!r} is also a worker id of the roster")
         try:
-            task.check_ga(self.ga)  # every worker's GA settings as the task fills them in, before a run starts
+            check_ga(task, self.ga)  # every worker's GA settings as the task fills them in, before a run starts
         except ConfigError as exc:
             raise ValueError(str(exc)) from None
         full = build(task.world_settings, self.world).model_dump(mode="json")

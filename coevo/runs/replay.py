@@ -31,6 +31,7 @@ from coevo.rundir.machine import differences
 from coevo.rundir.records import AdoptionLine, CurveLine
 from coevo.runs.kinds import kind_of_worker, run_kinds
 from coevo.tasks import DEFAULT_TASK, Task, get_task
+from coevo.tasks.base import check_behaviour
 
 __all__ = ["WorkerReplay", "replay"]
 
@@ -54,7 +55,7 @@ def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, unt
     w = WorkerPaths(Path(wdir))
     meta = w.meta()
     task = get_task(meta.get("task", DEFAULT_TASK))
-    behaviour = task.check_behaviour(meta["behaviour"])
+    behaviour = check_behaviour(task, meta["behaviour"])
     world = build(task.world_settings, meta["world"])
     ga_cfg = build(GAConfig, meta["ga"])
     curve = read_jsonl(w.curve, schema=CurveLine)

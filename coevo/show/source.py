@@ -85,18 +85,20 @@ def _partners_of(task: Task, partners: Mapping[str, RuleSet], what: str) -> None
 
 
 def from_default(behaviour: str, world_over: Mapping[str, Any], *, wanted: Task | None) -> Shown:
-    """A behaviour's shipped default rules, in a world of its task's defaults with ``world_over``."""
-    have = [b for t in TASKS.values() for b in t.behaviours if t.default_rules(b) is not None]
+    """A behaviour's shipped default rules, in a world of its task's defaults with ``world_over`` (the rules a GA
+    starts from there: :meth:`~coevo.tasks.base.Task.initial_rules`)."""
+    have = [b for t in TASKS.values() for b in t.behaviours if t.initial_rules(b, t.world_settings()) is not None]
     try:
         task = task_of(behaviour)
     except ConfigError:
         raise ConfigError(f"--default {behaviour!r}: only {', '.join(have)} have default rules") from None
     if wanted is not None and wanted is not task:
         raise ConfigError(f"--default {behaviour!r} is a {task.name!r} behaviour, not {wanted.name!r} (--task)")
-    rs = task.default_rules(behaviour)
+    world = _world(task, world_over)
+    rs = task.initial_rules(behaviour, world)
     if rs is None:
         raise ConfigError(f"--default {behaviour!r}: only {', '.join(have)} have default rules")
-    return Shown(task, task.show_robot(f"default-{behaviour}", _world(task, world_over), {behaviour: rs}))
+    return Shown(task, task.show_robot(f"default-{behaviour}", world, {behaviour: rs}))
 
 
 def from_path(path: Path, *, world_over: Mapping[str, Any], partners: Mapping[str, RuleSet],

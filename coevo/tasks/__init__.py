@@ -28,11 +28,11 @@ from coevo.tasks.fuel import FuelTask
 __all__ = ["Task", "Evaluator", "Evaluation", "Partners", "TASKS", "get_task", "task_of", "measure_labels", "DEFAULT_TASK",
            "split_settings", "saved_settings"]
 
-TASKS: dict[str, Task] = {t.name: t for t in (FuelTask(), CorridorTask(), DoorTask())}
+TASKS: dict[str, Task[Any]] = {t.name: t for t in (FuelTask(), CorridorTask(), DoorTask())}
 DEFAULT_TASK = "fuel"
 
 
-def get_task(name: str) -> Task:
+def get_task(name: str) -> Task[Any]:
     """The task called ``name``."""
     try:
         return TASKS[name]
@@ -45,7 +45,7 @@ def measure_labels() -> dict[str, str]:
     return {k: v for t in TASKS.values() for k, v in t.measure_labels.items()}
 
 
-def task_of(behaviour: str) -> Task:
+def task_of(behaviour: str) -> Task[Any]:
     """The task a behaviour belongs to (behaviour names are unique across tasks)."""
     for t in TASKS.values():
         if str(behaviour) in t.behaviours:
@@ -54,7 +54,7 @@ def task_of(behaviour: str) -> Task:
     raise ConfigError(f"unknown behaviour {str(behaviour)!r} (known: {known})")
 
 
-def split_settings(task: Task, world: Mapping[str, Any], ga: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+def split_settings(task: Task[Any], world: Mapping[str, Any], ga: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
     """The world and GA setting values given (``--world``, ``--ga``; dicts of names and values), with every GA value
     that names a setting of ``task``'s world and none of the GA's moved to the world: the fuel task's Docking
     settings (``docking_sensors``, ...) were GA settings until issue 41, and ``--ga docking_sensors=polar`` still

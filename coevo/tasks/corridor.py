@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from pydantic import BaseModel, Field
+from pydantic import Field
 
 from coevo.config import GAConfig, Settings
 from coevo.errors import ConfigError
@@ -25,7 +25,7 @@ from coevo.ga.operators import Experience
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.rules import RuleSet
 from coevo.policy.schema import Action, Schema, Sensor, register
-from coevo.tasks.base import ChildRng, Evaluation, Evaluator, Partners, Task, Tick
+from coevo.tasks.base import ChildRng, Evaluation, Evaluator, Partners, Task, Tick, check_behaviour
 
 if TYPE_CHECKING:
     from coevo.scene import Scene
@@ -179,33 +179,31 @@ def corridor_scene(played: WalkerPlay, *, title: str | None = None) -> Scene:
     )
 
 
-class CorridorTask(Task):
+class CorridorTask(Task[CorridorConfig]):
     name = "corridor"
     behaviours = (CORRIDOR,)
     world_settings = CorridorConfig
 
-    def evaluator(self, behaviour: str, world: BaseModel, ga: GAConfig) -> CorridorEvaluator:
-        self.check_behaviour(behaviour)
-        if not isinstance(world, CorridorConfig):
-            raise ConfigError(f"the corridor task needs CorridorConfig settings, got {type(world).__name__}")
+    def evaluator(self, behaviour: str, world: CorridorConfig, ga: GAConfig) -> CorridorEvaluator:
+        check_behaviour(self, behaviour)
         return CorridorEvaluator(world, ga)
 
     def status_measures(self, behaviour: str, measures: Mapping[str, float | None]) -> dict[str, float]:
         return {"arrived": float(measures["arrived"] or 0.0)}
 
-    def final_measures(self, behaviour: str, best: RuleSet, *, world: BaseModel, partners: Partners,
+    def final_measures(self, behaviour: str, best: RuleSet, *, world: CorridorConfig, partners: Partners,
                        epochs: int, seed: int) -> dict[str, float | int]:
         ev = self.evaluator(behaviour, world, GAConfig()).evaluate([best], {}, np.random.default_rng(seed), episodes=epochs)
         return {"arrived": float(100.0 * ev.details.mean()), "payoff": float(ev.fitness[0])}
 
-    def run_measures(self, policies: Mapping[str, RuleSet], *, world: BaseModel, epochs: int,
+    def run_measures(self, policies: Mapping[str, RuleSet], *, world: CorridorConfig, epochs: int,
                      seed: int) -> dict[str, float | int] | None:
         best = policies.get(CORRIDOR)
         return None if best is None else self.final_measures(CORRIDOR, best, world=world, partners={}, epochs=epochs, seed=seed)
 
     # coevo show
-    def show_robot(self, name: str, world: BaseModel, rules: Mapping[str, RuleSet]) -> Walker:
-        if set(rules) != {CORRIDOR} or not isinstance(world, CorridorConfig):
+    def show_robot(self, name: str, world: CorridorConfig, rules: Mapping[str, RuleSet]) -> Walker:
+        if set(rules) != {CORRIDOR}:
             raise ConfigError(f"{name}: the corridor task shows one {CORRIDOR} rule set, got {', '.join(sorted(rules)) or 'none'}")
         return Walker(name, world, rules[CORRIDOR])
 

@@ -48,6 +48,7 @@ from coevo.replicates.replicate import Replicate as Job
 from coevo.replicates.runner import Progress, run_replicates
 from coevo.rundir.settings import RunSettings
 from coevo.tasks import get_task, split_settings
+from coevo.tasks.base import check_ga
 from coevo.tasks.fuel import FuelTask
 
 REGIMES = FuelTask.regimes
@@ -118,7 +119,7 @@ class CompareSpec(BaseModel):
     @classmethod
     def _ga(cls, v: GAConfig) -> GAConfig:
         try:
-            return get_task(FuelTask.name).check_ga(v)  # before OUT is written to
+            return check_ga(get_task(FuelTask.name), v)  # before OUT is written to
         except ConfigError as exc:
             raise ValueError(str(exc)) from None
 

@@ -85,11 +85,12 @@ def _fuel_settings(args: argparse.Namespace) -> tuple[list[str], Any]:
     from coevo.config import GAConfig, build
     from coevo.console import pairs
     from coevo.tasks import get_task, split_settings
+    from coevo.tasks.base import check_ga
 
     world, ga = split_settings(get_task("fuel"), pairs(args.world, "world"), pairs(args.ga, "ga"))
     build(get_task("fuel").world_settings, world)
     config = build(GAConfig, {**ga, **({} if args.generations is None else {"generations": args.generations})})
-    get_task("fuel").check_ga(config)
+    check_ga(get_task("fuel"), config)
     out = [] if args.generations is None else [f"--generations={args.generations}"]
     return out + [f"--world={k}={v}" for k, v in world.items()] + [f"--ga={k}={v}" for k, v in ga.items()], config
 

@@ -19,13 +19,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-from pydantic import BaseModel
 
 from coevo.config import GAConfig
 from coevo.errors import ConfigError
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import parse_ruleset
-from coevo.tasks.base import Partners, Task
+from coevo.tasks.base import Partners, Task, check_behaviour
 from coevo.tasks.door.evaluate import DoorEvaluator, measure
 from coevo.tasks.door.sensors import DOOR
 from coevo.tasks.door.settings import DOOR_GA, SONARS, DoorConfig, capability_label, door_ga
@@ -50,52 +49,46 @@ def default_ruleset() -> RuleSet:
     return parse_ruleset(text, DOOR)
 
 
-def _door_world(world: BaseModel) -> DoorConfig:
-    if not isinstance(world, DoorConfig):
-        raise ConfigError(f"the door task needs DoorConfig settings, got {type(world).__name__}")
-    return world
-
-
-class DoorTask(Task):
+class DoorTask(Task[DoorConfig]):
     name = "door"
     behaviours = (DOOR,)
     regimes = ("independent",)
     world_settings = DoorConfig
 
-    def default_rules(self, behaviour: str) -> RuleSet:
-        self.check_behaviour(behaviour)
+    def initial_rules(self, behaviour: str, world: DoorConfig) -> RuleSet:
+        check_behaviour(self, behaviour)
         return default_ruleset()
 
     def default_ga(self, **overrides: object) -> GAConfig:
         """GAConfig for this task: its defaults with :data:`DOOR_GA` on top, then ``overrides``."""
         return door_ga(**overrides)
 
-    def evaluator(self, behaviour: str, world: BaseModel, ga: GAConfig) -> DoorEvaluator:
-        self.check_behaviour(behaviour)
-        return DoorEvaluator(_door_world(world), ga)
+    def evaluator(self, behaviour: str, world: DoorConfig, ga: GAConfig) -> DoorEvaluator:
+        check_behaviour(self, behaviour)
+        return DoorEvaluator(world, ga)
 
     def status_measures(self, behaviour: str, measures: Mapping[str, float | None]) -> dict[str, float]:
         return {"success": float(measures.get("success") or 0.0)}
 
-    def final_measures(self, behaviour: str, best: RuleSet, *, world: BaseModel, partners: Partners,
+    def final_measures(self, behaviour: str, best: RuleSet, *, world: DoorConfig, partners: Partners,
                        epochs: int, seed: int) -> Mapping[str, float | int | None]:
         """External performance (report §8.1): ``best`` on ``epochs`` fresh trials (100 in the report)."""
-        self.check_behaviour(behaviour)
-        return measure(best, _door_world(world), trials=epochs, seed=seed)
+        check_behaviour(self, behaviour)
+        return measure(best, world, trials=epochs, seed=seed)
 
-    def picture(self, path: Path, behaviour: str, best: RuleSet, *, world: BaseModel, partners: Partners, seed: int,
+    def picture(self, path: Path, behaviour: str, best: RuleSet, *, world: DoorConfig, partners: Partners, seed: int,
                 name: str) -> None:
         """best.png: a trial of the best rules, during the run and at its end (the report's Figures 4-5)."""
         from coevo.tasks.door.pictures import path_figure
 
-        cfg = _door_world(world)
-        path_figure(path, best, cfg, seed=seed, title=f"{name}: the best door rules ({capability_label(cfg)}), seed {seed}")
+        path_figure(path, best, world, seed=seed,
+                    title=f"{name}: the best door rules ({capability_label(world)}), seed {seed}")
 
     # coevo show: a Scene of trials (coevo.tasks.door.pictures)
-    def show_robot(self, name: str, world: BaseModel, rules: Mapping[str, RuleSet]) -> DoorRobot:
+    def show_robot(self, name: str, world: DoorConfig, rules: Mapping[str, RuleSet]) -> DoorRobot:
         from coevo.tasks.door.pictures import door_robot
 
-        return door_robot(name, _door_world(world), rules)
+        return door_robot(name, world, rules)
 
     def show_episodes(self, robot: DoorRobot) -> int | None:
         return SHOW_TRIALS

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 from coevo.config import GAConfig
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import parse_ruleset
-from coevo.tasks.base import Partners, Task
+from coevo.tasks.base import Partners, Task, check_behaviour, check_regime
 from coevo.tasks.fuel.behaviours import TARGET_SENSORS, Behaviour
 from coevo.tasks.fuel.dock_frame import DEFAULT_FILES, DOCK_SENSORS, SENSOR_SETS
 from coevo.tasks.fuel.evaluate import FuelEvaluator
@@ -73,7 +73,7 @@ def default_ruleset(behaviour: Behaviour | str, sensors: str = "polar") -> RuleS
     return parse_ruleset(text, behaviour)
 
 
-class FuelTask(Task):
+class FuelTask(Task[WorldConfig]):
     name = "fuel"
     behaviours = tuple(b.value for b in Behaviour)
     regimes = ("mutual", "independent")
@@ -85,17 +85,15 @@ class FuelTask(Task):
     measure_labels = {"quality_tracking": "QT", "docking_from_random": "docks", "dock_choice": "picks-D",
                       "docking_success_rate": "docked"}
 
-    def default_rules(self, behaviour: str) -> RuleSet | None:
-        return default_ruleset(self.check_behaviour(behaviour))
+    def initial_rules(self, behaviour: str, world: WorldConfig) -> RuleSet | None:
+        """Tracking's and Docking's shipped direction-only rules, Docking's in the terms of its sensor set
+        (``world.docking_sensors``); the Executive starts random."""
+        return default_ruleset(check_behaviour(self, behaviour), world.docking_sensors)
 
-    def initial_rules(self, behaviour: str, world: WorldConfig) -> RuleSet | None:  # type: ignore[override]
-        """Docking starts from the direction-only default of its sensor set (``world.docking_sensors``)."""
-        return default_ruleset(self.check_behaviour(behaviour), world.docking_sensors)
-
-    def learnable_sensors(self, behaviour: str, world: WorldConfig) -> np.ndarray | None:  # type: ignore[override]
+    def learnable_sensors(self, behaviour: str, world: WorldConfig) -> np.ndarray | None:
         """Docking's rules condition on its chosen set of dock sensors (``world.docking_sensors``), on range and
         bearing to the nearest object, and on the Target's own sensors only if ``world.docking_target_sensors``."""
-        if Behaviour(self.check_behaviour(behaviour)) != Behaviour.DOCKING:
+        if Behaviour(check_behaviour(self, behaviour)) != Behaviour.DOCKING:
             return None
         from coevo.policy.schema import schema
 
@@ -110,14 +108,14 @@ class FuelTask(Task):
         return dict(DOCKING_CHOICES) if Behaviour(behaviour) == Behaviour.DOCKING else {}
 
     def partners_needed(self, behaviour: str, regime: str) -> tuple[str, ...]:
-        b = Behaviour(self.check_behaviour(behaviour))
-        self.check_regime(regime)
+        b = Behaviour(check_behaviour(self, behaviour))
+        check_regime(self, regime)
         if b == Behaviour.EXECUTIVE or regime == "mutual":
             return tuple(o.value for o in Behaviour if o is not b)
         return ()
 
-    def evaluator(self, behaviour: str, world: WorldConfig, ga: GAConfig) -> FuelEvaluator:  # type: ignore[override]
-        return FuelEvaluator(self.check_behaviour(behaviour), world, ga)
+    def evaluator(self, behaviour: str, world: WorldConfig, ga: GAConfig) -> FuelEvaluator:
+        return FuelEvaluator(check_behaviour(self, behaviour), world, ga)
 
     def status_measures(self, behaviour: str, measures: Mapping[str, float | None]) -> dict[str, float]:
         """Docking's fitness alone misleads (docs/spec.md §1, "Where Docking learns"), so Docking shows the
@@ -130,16 +128,16 @@ class FuelTask(Task):
             keys = ("docking_from_random",)
         else:
             keys = ("dock_choice", "docking_success_rate")
-        return {k: float(measures[k]) for k in keys if measures.get(k) is not None}  # type: ignore[arg-type]
+        return {k: float(v) for k in keys if (v := measures.get(k)) is not None}
 
-    def final_measures(self, behaviour: str, best: RuleSet, *, world: WorldConfig, partners: Partners,  # type: ignore[override]
+    def final_measures(self, behaviour: str, best: RuleSet, *, world: WorldConfig, partners: Partners,
                        epochs: int, seed: int) -> dict[str, float | int]:
         from coevo.tasks.fuel.robot import measure_behaviour
 
         return measure_behaviour(Behaviour(behaviour), best, world=world, tracking=partners.get("tracking"),
                                  docking=partners.get("docking"), epochs=epochs, seed=seed)
 
-    def picture(self, path: Path, behaviour: str, best: RuleSet, *, world: WorldConfig, partners: Partners,  # type: ignore[override]
+    def picture(self, path: Path, behaviour: str, best: RuleSet, *, world: WorldConfig, partners: Partners,
                 seed: int, name: str) -> None:
         """best.png: the best policy playing a few episodes (or, for the Executive, one epoch); ~0.5 s."""
         from coevo.tasks.fuel.pictures import picture, robot_from_rules
@@ -149,7 +147,7 @@ class FuelTask(Task):
                 title=f"{name}: the best {behaviour} policy, seed {seed}")
 
     # coevo show: the pictures of coevo.tasks.fuel.pictures
-    def show_robot(self, name: str, world: WorldConfig, rules: Mapping[str, RuleSet]) -> Robot:  # type: ignore[override]
+    def show_robot(self, name: str, world: WorldConfig, rules: Mapping[str, RuleSet]) -> Robot:
         from coevo.tasks.fuel.pictures import robot_from_rules
 
         return robot_from_rules(name, world, rules)
@@ -178,7 +176,7 @@ class FuelTask(Task):
 
         return trace_lines(played)
 
-    def run_measures(self, policies: Mapping[str, RuleSet], *, world: WorldConfig, epochs: int,  # type: ignore[override]
+    def run_measures(self, policies: Mapping[str, RuleSet], *, world: WorldConfig, epochs: int,
                      seed: int) -> dict[str, float | int] | None:
         from coevo.tasks.fuel.robot import measure_robot
 
