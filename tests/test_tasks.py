@@ -85,6 +85,25 @@ def test_the_task_checker_names_what_a_broken_task_gets_wrong() -> None:
     assert check_task(CorridorTask()) == []  # the same checks pass the real one
 
 
+class _Blind(CorridorTask):
+    """A corridor without pictures."""
+
+    def display(self) -> None:
+        return None
+
+
+def test_a_task_without_pictures_says_so_and_still_passes_the_checker(tmp_path: Path) -> None:
+    from coevo.runs.learn import learn
+    from coevo.tasks.showing import display_of
+
+    with pytest.raises(ConfigError, match="task 'corridor' has no pictures: coevo show cannot draw it"):
+        display_of(_Blind())
+    assert check_task(_Blind()) == []
+    # the corridor's display draws no best.png (TaskDisplay.picture's default): coevo learn writes none
+    assert not (learn("corridor", world=CorridorConfig(), ga=CORRIDOR_GA.model_copy(update={"generations": 1}),
+                      seed=0, out_dir=tmp_path / "l", measure_epochs=2).out_dir / "best.png").exists()
+
+
 def test_a_corridor_rule_set_prints_and_parses_like_any_other() -> None:
     rs = random_ruleset("corridor", 5, np.random.default_rng(1))
     assert parse_ruleset(format_ruleset(rs)) == rs

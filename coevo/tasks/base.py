@@ -16,18 +16,19 @@ world's settings, and functions for what follows from that.
 * :class:`Task` ``[W]``: class attributes ``name``, ``behaviours``, ``regimes``, ``world_settings``
   (the model ``W``, a frozen pydantic model), ``aliases``, ``measure_labels``, ``mirror_symmetric``;
   methods ``initial_rules``, ``learnable_sensors``, ``ga_choices``, ``partners_needed``,
-  ``evaluator`` (the only abstract one), ``status_measures``, ``final_measures``, ``run_measures``.
-  Every method that takes a world takes a ``W``, so a task reads its own settings' fields and
-  names no other model.
+  ``evaluator`` (the only abstract one), ``status_measures``, ``final_measures``, ``run_measures``
+  and ``display``.  Every method that takes a world takes a ``W``, so a task reads its own
+  settings' fields and names no other model.
 * Functions every task shares and none overrides: :func:`check_behaviour`, :func:`ga_settings`
   (the GA settings left to the task, filled in), :func:`check_ga` and :func:`initial_model` live
   with the GA (:mod:`coevo.ga.problem`, which needs them too) and are re-exported here;
   :func:`check_regime` is here.  The GA (:mod:`coevo.ga.problem`'s ``Problem``) needs only part
   of :class:`Task`.
 
-``coevo show`` (generic: it names no task) finds a run's task and calls the task's show hooks
-(``show_robot``, ``show_episodes``, ``show_play``, ``show_scene``, ``show_rules``, ``show_trace``);
-a task draws with the task-agnostic :mod:`coevo.scene`.
+* Its pictures are behind their own interface: ``display()`` gives a
+  :class:`~coevo.tasks.showing.TaskDisplay` (``picture`` and the ``show_*`` hooks that ``coevo show``,
+  ``coevo learn``'s best.png and the dashboard call; names no task), or None for a task without
+  pictures.  A display draws with the task-agnostic :mod:`coevo.scene`.
 
 Settings: a task's world settings are a frozen pydantic model (its ``world_settings``: the
 physics and the task's own learning conditions, e.g. the fuel task's Docking sensors); the GA's
@@ -39,7 +40,6 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Generic, TypeVar
 
 import numpy as np
@@ -52,8 +52,7 @@ from coevo.ga.problem import TASK_CHOICE_OFF, check_behaviour, check_ga, ga_sett
 from coevo.policy.rules import RuleSet
 
 if TYPE_CHECKING:
-    from coevo.scene import Scene
-    from coevo.tasks.showing import RuleTable, ShowPlay, ShowRobot
+    from coevo.tasks.showing import TaskDisplay
 
 __all__ = ["Task", "W", "Evaluator", "Evaluation", "Partners", "Tick", "ChildRng", "TASK_CHOICE_OFF",
            "check_behaviour", "check_regime", "ga_settings", "check_ga", "initial_model"]
@@ -116,39 +115,10 @@ class Task(ABC, Generic[W]):
         """The measures of a whole run's final policies together (``coevo run``), or None if incomplete."""
         return None
 
-    def picture(self, path: Path, behaviour: str, best: RuleSet, *, world: W, partners: Partners, seed: int,
-                name: str) -> None:
-        """Draw the learned policy at work into ``path`` (a PNG), where the task knows how; else nothing."""
+    def display(self) -> TaskDisplay[W] | None:
+        """Its pictures (:class:`~coevo.tasks.showing.TaskDisplay`: ``coevo show``, ``coevo learn``'s best.png, the
+        dashboard's robot), or None: it has none."""
         return None
-
-    # ------------------------------------------------------------------ coevo show
-    def _cannot_show(self) -> ConfigError:
-        return ConfigError(f"task {self.name!r} has no pictures: coevo show cannot draw it")
-
-    def show_robot(self, name: str, world: W, rules: Mapping[str, RuleSet]) -> ShowRobot:
-        """The robot these rule sets (behaviour -> rules) make, to play in ``world``; a ConfigError naming
-        what is missing when they make none (e.g. an Executive without its partners)."""
-        raise self._cannot_show()
-
-    def show_episodes(self, robot: Any) -> int | None:
-        """Episodes ``coevo show`` plays unless told (None: one epoch)."""
-        return 3
-
-    def show_play(self, robot: Any, *, seed: int, episodes: int | None) -> ShowPlay:
-        """Play ``robot`` from ``seed`` with everything recorded: ``episodes`` in a row, or one epoch when None."""
-        raise self._cannot_show()
-
-    def show_scene(self, played: Any, *, title: str | None = None) -> Scene:
-        """A recorded play as a :class:`~coevo.scene.Scene` (what ``coevo show`` draws and animates)."""
-        raise self._cannot_show()
-
-    def show_rules(self, played: Any) -> list[RuleTable]:
-        """The robot's rule sets by strength, with how often each rule fired in ``played``."""
-        raise self._cannot_show()
-
-    def show_trace(self, played: Any) -> list[str]:
-        """Per episode, one line: the rules that fired in turn and how it ended."""
-        return []
 
 
 def check_regime(task: Task[Any], regime: str) -> str:

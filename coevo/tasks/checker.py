@@ -5,8 +5,9 @@ The GA, the workers, the broker, replay and check name no task; they rely on the
 where it breaks that interface: its names and settings, each behaviour's rule schema and default
 rules, the GA settings it fills in, the partners it asks for, an evaluation (shapes, payoffs in
 [0, 1], the same numbers from the same seed), its measures (the same keys every generation, numbers
-in the documented ranges) and, where it has them, its pictures.  The suite runs it on every task
-(``tests/test_tasks.py``); a new task runs it first (docs/architecture.md, "Adding a task").
+in the documented ranges) and, where ``display()`` gives them, its pictures (a robot played twice from one
+seed the same way, a scene, rule tables, a PNG).  The suite runs it on every task
+(``tests/test_tasks.py``); a new task runs it first (docs/architecture.md, "Adding things").
 
 After Gymnasium's ``utils/env_checker.py``: the interface as executable checks, not only as prose.
 """
@@ -24,11 +25,12 @@ import numpy as np
 from pydantic import BaseModel
 
 from coevo.config import GAConfig, build
-from coevo.errors import CoevoError, RuleSetError
+from coevo.errors import RuleSetError
 from coevo.ga.evaluator import Evaluation, Partners
 from coevo.policy.rules import RuleSet
 from coevo.policy.schema import schema
 from coevo.tasks.base import Task, check_behaviour, check_ga, ga_settings, initial_model
+from coevo.tasks.showing import TaskDisplay
 
 __all__ = ["check_task", "TINY_GA"]
 
@@ -176,25 +178,28 @@ def _numbers(values: Mapping[str, Any], what: str, say: Callable[[str], None], *
 
 
 def _pictures(task: Task[Any], world: BaseModel, seed: int, say: Callable[[str], None]) -> None:
-    ga = build(GAConfig, TINY_GA)
-    rules = {b: initial_model(task, b, world, ga_settings(task, b, ga), np.random.default_rng(seed)) for b in task.behaviours}
-    try:
-        robot = task.show_robot("checked", world, rules)
-    except CoevoError:
+    display = task.display()
+    if display is None:
         return  # a task without pictures says so (coevo show names it); nothing more to check
-    played = task.show_play(robot, seed=seed, episodes=1)
-    again = task.show_play(task.show_robot("checked", world, rules), seed=seed, episodes=1)
-    scene, replayed = task.show_scene(played), task.show_scene(again)
+    if not isinstance(display, TaskDisplay):
+        say(f"pictures: display() gave {type(display).__name__}, not a TaskDisplay (or None for no pictures)")
+        return
+    ga = build(GAConfig, TINY_GA)
+    rules = {b: initial_model(task, b, world, ga_settings(task, b, ga), np.random.default_rng(seed))
+             for b in task.behaviours}
+    played = display.show_play(display.show_robot("checked", world, rules), seed=seed, episodes=1)
+    again = display.show_play(display.show_robot("checked", world, rules), seed=seed, episodes=1)
+    scene, replayed = display.show_scene(played), display.show_scene(again)
     if not scene.frames or not scene.spans:
         say("pictures: show_scene drew no frames or no episode spans from one episode")
     if replayed.captions != scene.captions or len(replayed.tracks) != len(scene.tracks) or not all(
             np.array_equal(a.xy, b.xy) for a, b in zip(replayed.tracks, scene.tracks)):
         say("pictures: the same robot and seed played another way (show_play must be deterministic)")
-    if not task.show_rules(played):
+    if not display.show_rules(played):
         say("pictures: show_rules gave no rule tables")
     behaviour = task.behaviours[0]
     with tempfile.TemporaryDirectory() as tmp:
         png = Path(tmp) / "best.png"
-        task.picture(png, behaviour, rules[behaviour], world=world, partners={}, seed=seed, name="checked")
+        display.picture(png, behaviour, rules[behaviour], world=world, partners={}, seed=seed, name="checked")
         if png.exists() and png.read_bytes()[:8] != b"\x89PNG\r\n\x1a\n":
             say("pictures: picture() wrote a file that is not a PNG")

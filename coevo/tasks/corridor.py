@@ -6,8 +6,9 @@ payoff is 0 if it does not arrive, else ``1 - steps used / (steps + 1)``; its
 measure ``arrived`` is the share of episodes that reach the end.  Every episode
 starts on a random cell before the last.  Many lanes play at once on numpy arrays.
 
-``coevo show`` plays a walker episode by episode (:func:`play_walker`) and draws the
-corridor's cells with each episode's walk on a row of its own (:func:`corridor_scene`).
+Its display (:class:`CorridorDisplay`, the smallest :class:`~coevo.tasks.showing.TaskDisplay`): ``coevo
+show`` plays a walker episode by episode (:func:`play_walker`) and draws the corridor's cells with
+each episode's walk on a row of its own (:func:`corridor_scene`).
 """
 
 from __future__ import annotations
@@ -26,12 +27,12 @@ from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.rules import RuleSet
 from coevo.policy.schema import Action, Schema, Sensor, register
 from coevo.tasks.base import ChildRng, Evaluation, Evaluator, Partners, Task, Tick, check_behaviour
+from coevo.tasks.showing import RuleTable, TaskDisplay, rule_rows, run_lengths
 
 if TYPE_CHECKING:
     from coevo.scene import Scene
-    from coevo.tasks.showing import RuleTable
 
-__all__ = ["CorridorTask", "CorridorConfig", "CORRIDOR"]
+__all__ = ["CorridorTask", "CorridorDisplay", "CorridorConfig", "CORRIDOR"]
 
 CORRIDOR = "corridor"
 _MAX_CELLS = 16  # the cell sensor's bins: the longest corridor
@@ -201,7 +202,13 @@ class CorridorTask(Task[CorridorConfig]):
         best = policies.get(CORRIDOR)
         return None if best is None else self.final_measures(CORRIDOR, best, world=world, partners={}, epochs=epochs, seed=seed)
 
-    # coevo show
+    def display(self) -> CorridorDisplay:
+        return CorridorDisplay()
+
+
+class CorridorDisplay(TaskDisplay[CorridorConfig]):
+    """The corridor's pictures for ``coevo show``: a walker's episodes, a row each (it draws no best.png)."""
+
     def show_robot(self, name: str, world: CorridorConfig, rules: Mapping[str, RuleSet]) -> Walker:
         if set(rules) != {CORRIDOR}:
             raise ConfigError(f"{name}: the corridor task shows one {CORRIDOR} rule set, got {', '.join(sorted(rules)) or 'none'}")
@@ -215,15 +222,11 @@ class CorridorTask(Task[CorridorConfig]):
         return corridor_scene(played, title=title)
 
     def show_rules(self, played: WalkerPlay) -> list[RuleTable]:
-        from coevo.tasks.showing import RuleTable, rule_rows
-
         rs = played.robot.rules
         counts = np.bincount(np.concatenate(played.fired), minlength=len(rs))[: len(rs)]
         return [RuleTable(f"{CORRIDOR}: {len(rs)} rules by strength; fired = steps it decided in {played.episodes} "
                           "episodes", "C", tuple(rule_rows(rs, counts)))]
 
     def show_trace(self, played: WalkerPlay) -> list[str]:
-        from coevo.tasks.showing import run_lengths
-
         return [f"episode {k + 1}: {run_lengths(f, 'C')} -> {'reached the end' if played.arrived(k) else 'time up'}"
                 for k, f in enumerate(played.fired)]

@@ -6,7 +6,7 @@ a goal line beyond it, sensing with seven sonars that may fail.  One behaviour,
 ``door``, learns alone (regime ``independent``, no partners).  The world is in
 :mod:`.world` (batched, numpy ray casting), the settings with the sonar failures in
 :mod:`.settings`, the rule schema in :mod:`.sensors`, the evaluator and the external
-performance measure in :mod:`.evaluate`, the pictures in :mod:`.pictures`, and the
+performance measure in :mod:`.evaluate`, its display (pictures) in :mod:`.pictures`, and the
 restart on a change of capabilities (report §6) in :func:`restart`.
 """
 
@@ -15,7 +15,6 @@ from __future__ import annotations
 from collections.abc import Mapping
 from functools import cache
 from importlib import resources
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -31,12 +30,7 @@ from coevo.tasks.door.settings import DOOR_GA, SONARS, DoorConfig, capability_la
 
 if TYPE_CHECKING:
     from coevo.ga import GA
-    from coevo.scene import Scene
-    from coevo.tasks.door.pictures import DoorPlay, DoorRobot
-    from coevo.tasks.showing import RuleTable
-
-#: Trials ``coevo show`` plays unless told: one, like the report's figures (each trial has its own opening).
-SHOW_TRIALS = 1
+    from coevo.tasks.showing import TaskDisplay
 
 __all__ = ["DoorTask", "DoorConfig", "DOOR", "SONARS", "DOOR_GA", "door_ga", "default_ruleset", "restart",
            "capability_label"]
@@ -76,43 +70,11 @@ class DoorTask(Task[DoorConfig]):
         check_behaviour(self, behaviour)
         return measure(best, world, trials=epochs, seed=seed)
 
-    def picture(self, path: Path, behaviour: str, best: RuleSet, *, world: DoorConfig, partners: Partners, seed: int,
-                name: str) -> None:
-        """best.png: a trial of the best rules, during the run and at its end (the report's Figures 4-5)."""
-        from coevo.tasks.door.pictures import path_figure
+    def display(self) -> TaskDisplay[DoorConfig]:
+        """Its pictures (:mod:`coevo.tasks.door.pictures`), imported only when something is drawn."""
+        from coevo.tasks.door.pictures import DoorDisplay
 
-        path_figure(path, best, world, seed=seed,
-                    title=f"{name}: the best door rules ({capability_label(world)}), seed {seed}")
-
-    # coevo show: a Scene of trials (coevo.tasks.door.pictures)
-    def show_robot(self, name: str, world: DoorConfig, rules: Mapping[str, RuleSet]) -> DoorRobot:
-        from coevo.tasks.door.pictures import door_robot
-
-        return door_robot(name, world, rules)
-
-    def show_episodes(self, robot: DoorRobot) -> int | None:
-        return SHOW_TRIALS
-
-    def show_play(self, robot: DoorRobot, *, seed: int, episodes: int | None) -> DoorPlay:
-        """``episodes`` trials (None, one epoch: :data:`SHOW_TRIALS`; the door task has no epochs)."""
-        from coevo.tasks.door.pictures import play_trials
-
-        return play_trials(robot, seed=seed, trials=episodes or SHOW_TRIALS)
-
-    def show_scene(self, played: DoorPlay, *, title: str | None = None) -> Scene:
-        from coevo.tasks.door.pictures import scene_of
-
-        return scene_of(played, title=title)
-
-    def show_rules(self, played: DoorPlay) -> list[RuleTable]:
-        from coevo.tasks.door.pictures import rule_tables
-
-        return rule_tables(played)
-
-    def show_trace(self, played: DoorPlay) -> list[str]:
-        from coevo.tasks.door.pictures import trace_lines
-
-        return trace_lines(played)
+        return DoorDisplay()
 
 
 def restart(ga: GA, world: DoorConfig, *, keep: float = 0.5) -> None:

@@ -16,11 +16,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from functools import cache
+from importlib import resources
+from typing import TYPE_CHECKING
 
 import numpy as np
-from importlib import resources
-from pathlib import Path
-from typing import TYPE_CHECKING
 
 from coevo.config import GAConfig
 from coevo.policy.rules import RuleSet
@@ -32,9 +31,7 @@ from coevo.tasks.fuel.evaluate import FuelEvaluator
 from coevo.tasks.fuel.settings import WorldConfig
 
 if TYPE_CHECKING:
-    from coevo.scene import Scene
-    from coevo.tasks.fuel.pictures import Played, Robot
-    from coevo.tasks.showing import RuleTable
+    from coevo.tasks.showing import TaskDisplay
 
 __all__ = ["FuelTask", "Behaviour", "default_ruleset", "HAS_DEFAULT"]
 
@@ -52,7 +49,6 @@ HAS_DEFAULT = (Behaviour.TRACKING, Behaviour.DOCKING)
 #:   and its mirror images fill the matcher's 64.
 DOCKING_CHOICES = {"keep_evaluated": True, "best_candidates": 3, "split_rate": 0.5, "symmetric_rules": True,
                    "max_rules": 32}
-PICTURE_EPISODES = 3  # Tracking or Docking alone in a learned policy's picture; an Executive's is one epoch
 
 
 @cache
@@ -137,45 +133,6 @@ class FuelTask(Task[WorldConfig]):
         return measure_behaviour(Behaviour(behaviour), best, world=world, tracking=partners.get("tracking"),
                                  docking=partners.get("docking"), epochs=epochs, seed=seed)
 
-    def picture(self, path: Path, behaviour: str, best: RuleSet, *, world: WorldConfig, partners: Partners,
-                seed: int, name: str) -> None:
-        """best.png: the best policy playing a few episodes (or, for the Executive, one epoch); ~0.5 s."""
-        from coevo.tasks.fuel.pictures import picture, robot_from_rules
-
-        robot = robot_from_rules(name, world, {**partners, behaviour: best})
-        picture(robot, path, seed=seed, episodes=None if robot.combined else PICTURE_EPISODES,
-                title=f"{name}: the best {behaviour} policy, seed {seed}")
-
-    # coevo show: the pictures of coevo.tasks.fuel.pictures
-    def show_robot(self, name: str, world: WorldConfig, rules: Mapping[str, RuleSet]) -> Robot:
-        from coevo.tasks.fuel.pictures import robot_from_rules
-
-        return robot_from_rules(name, world, rules)
-
-    def show_episodes(self, robot: Robot) -> int | None:
-        """One epoch for a combined robot; a few episodes for Tracking or Docking alone."""
-        return None if robot.combined else PICTURE_EPISODES
-
-    def show_play(self, robot: Robot, *, seed: int, episodes: int | None) -> Played:
-        from coevo.tasks.fuel.pictures import play
-
-        return play(robot, seed=seed, episodes=episodes)
-
-    def show_scene(self, played: Played, *, title: str | None = None) -> Scene:
-        from coevo.tasks.fuel.pictures import scene_for
-
-        return scene_for(played, title=title)
-
-    def show_rules(self, played: Played) -> list[RuleTable]:
-        from coevo.tasks.fuel.pictures.rules_view import rule_tables
-
-        return rule_tables(played)
-
-    def show_trace(self, played: Played) -> list[str]:
-        from coevo.tasks.fuel.pictures.rules_view import trace_lines
-
-        return trace_lines(played)
-
     def run_measures(self, policies: Mapping[str, RuleSet], *, world: WorldConfig, epochs: int,
                      seed: int) -> dict[str, float | int] | None:
         from coevo.tasks.fuel.robot import measure_robot
@@ -184,3 +141,9 @@ class FuelTask(Task[WorldConfig]):
             return None
         return measure_robot(world, executive=policies["executive"], tracking=policies["tracking"],
                              docking=policies["docking"], epochs=epochs, seed=seed).as_dict()
+
+    def display(self) -> TaskDisplay[WorldConfig]:
+        """Its pictures (:mod:`coevo.tasks.fuel.pictures`), imported only when something is drawn."""
+        from coevo.tasks.fuel.pictures import FuelDisplay
+
+        return FuelDisplay()
