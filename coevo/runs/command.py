@@ -87,6 +87,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from coevo.runs.discover import follow_hint
     from coevo.runs.local import LocalRun, check_listen, default_run_id, run_local
     from coevo.rundir.settings import RunSettings
+    from coevo.tasks import DEFAULT_TASK
 
     listen = check_listen(args.listen) if args.listen else None
     if args.resume:
@@ -99,7 +100,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             refuse(args, RUN_FLAGS, "--settings gives every run setting but the run id")
             settings = RunSettings.load(Path(args.settings)).fresh(args.run)  # a new run: its own endpoint and key
         else:
-            task = args.task or "fuel"
+            task = args.task or DEFAULT_TASK
             regime = args.regime or "independent"
             settings = RunSettings.make(run=args.run or default_run_id(regime), task=task, regime=regime,
                                         seed=args.seed or 0, model=args.model or "best",
@@ -162,6 +163,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
     from coevo.rundir.layout import RunPaths
     from coevo.rundir.settings import RunSettings, find_run_key
     from coevo.runs.kinds import kind_of_settings
+    from coevo.tasks import DEFAULT_TASK
 
     if args.settings:
         refuse(args, ("task", "regime", "run", "model", "max_lead", *GA_FLAGS), "--settings gives every run setting")
@@ -171,7 +173,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
         base = None
         if args.run is None or args.regime is None:
             raise ConfigError("give --settings RUN/run.json (a run's settings), or --run and --regime")
-        task = args.task or "fuel"
+        task = args.task or DEFAULT_TASK
         settings = RunSettings.make(run=args.run, task=task, regime=args.regime, seed=args.seed or 0,
                                     model=args.model or "best", max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
                                     world=world_settings(args, task), ga=ga_settings(args, task))
@@ -238,9 +240,10 @@ def cmd_chaos(args: argparse.Namespace) -> int:
     from coevo.runs.chaos import CHAOS_REPORT, ChaosPlan, run_chaos, summary_lines
     from coevo.runs.local import default_run_id
     from coevo.rundir.settings import RunSettings
+    from coevo.tasks import DEFAULT_TASK
 
     plan = ChaosPlan(faults=args.faults, kinds=tuple(args.kinds), gap=tuple(args.gap), down=tuple(args.down), seed=args.seed)
-    task = args.task or ("door" if args.cel else "fuel")
+    task = args.task or ("door" if args.cel else DEFAULT_TASK)
     regime = args.regime or ("independent" if task == "door" else "mutual")
     ga = ga_settings(args, task)
     cel = None
