@@ -24,7 +24,6 @@ world's settings, and functions for what follows from that.
   with the GA (:mod:`coevo.ga.problem`, which needs them too) and are re-exported here;
   :func:`check_regime` is here.  The GA (:mod:`coevo.ga.problem`'s ``Problem``) needs only part
   of :class:`Task`.
-
 * Its pictures are behind their own interface: ``display()`` gives a
   :class:`~coevo.tasks.showing.TaskDisplay` (``picture`` and the ``show_*`` hooks that ``coevo show``,
   ``coevo learn``'s best.png and the dashboard call; names no task), or None for a task without
