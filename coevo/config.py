@@ -106,6 +106,9 @@ class Settings(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
     physical: ClassVar[bool] = False
+    #: Settings added after runs had been saved, each with what a saved run's settings (run.json, worker.json) mean
+    #: by leaving it out: how that run learned (read by :func:`saved_ga` and :func:`coevo.tasks.saved_settings`).
+    saved_before: ClassVar[Mapping[str, Any]] = {}
 
     @model_validator(mode="after")
     def _physical(self) -> Settings:
@@ -122,6 +125,8 @@ class GAConfig(Settings):
     """The generational GA (report Appendix A §6.2; operators after SAMUEL, Appendix C §7)."""
 
     physical: ClassVar[bool] = True
+    #: Docking's rules became symmetric in Round 6 (docs/docking-learning.md); runs saved before learned without.
+    saved_before: ClassVar[Mapping[str, Any]] = {"symmetric_rules": False}
 
     generations: int = Field(50, ge=1, le=100_000)
     population: int = Field(50, ge=2, le=10_000)
@@ -173,13 +178,6 @@ class GAConfig(Settings):
         "(coevo/tasks/fuel/defaults/; the report lists 'initial behaviors of the agents' among its settings and SAMUEL "
         "starts from default rules, Appendix B), 'random' from random rule sets; the Executive always starts random",
     )
-    docking_fresh_starts: bool = Field(
-        True,
-        description="(ours) with the trivial always-Dock Executive (Independent, coevo learn), every Docking training "
-        "episode starts from a fresh random placement, where an Executive would call Docking, instead of in front "
-        "of the dock where the last docking left the robot (measured: 85 % of a Docking learner's fitness came from "
-        "such re-docking episodes, and docking from random starts stayed at 4-7 %)",
-    )
     conflict: Literal["strongest", "proportional"] = Field(
         "strongest", description="(ours) conflict resolution: highest strength, or strength-proportional draw"
     )
@@ -214,21 +212,6 @@ class GAConfig(Settings):
         "for Docking, whose re-evaluations are one 60-step round of fresh starts; 0 for the others, where each costs "
         "an epoch's ten episodes: Tracking's runs took 38-59 s instead of 21-41 s)"
     )
-    docking_sensors: Literal["polar", "dock-frame", "both"] = Field(
-        "both", description="(ours) the dock sensors Docking's rules may condition on (coevo/tasks/fuel/dock_frame.py): "
-        "'polar' dock_range, dock_bearing, dock_orientation; 'dock-frame' dock_axis, dock_offset (the robot's place "
-        "in the dock's frame) and dock_orientation; 'both' all five.  Each starts from the direction-only default "
-        "written in its own terms ('both' from the polar one).  Docking from random starts, median of seeds 0-9 with "
-        "Docking's keep_evaluated and best_candidates: both 50.1 %, polar 43.5 %, dock-frame (0-4) 40.4 %; polar "
-        "without them 45.0 % (the defaults before)"
-    )
-    docking_target_sensors: bool = Field(
-        False, description="(ours) may Docking's rules condition on the Target's own sensors (heading, target_range, "
-        "target_bearing)?  range and bearing to the nearest object, which may be the Target, stay either way.  "
-        "Docking from random starts (docs/docking-learning.md, Round 7): development seeds 0-19, median 79.1 % without "
-        "them against 71.1 % with them (paired +8.9 +- 2.2, 15 wins of 20); held-out seeds 1300-1319, run once after "
-        "the choice, 79.7 % against 74.2 % (+8.8 +- 3.2, 14 wins of 20, one-sided Wilcoxon p = 0.008)"
-    )
     seed_random_share: float = Field(
         0.0, ge=0, le=1, description="(ours) share of the initial population that is random rule sets even with a seed policy"
     )
@@ -244,16 +227,16 @@ class GAConfig(Settings):
         return self
 
 
-#: GA settings added after runs had been saved, each with what a saved run's settings (run.json, worker.json) mean
-#: by leaving it out: how that run learned.  Docking's rules became symmetric in Round 6 and left the Target's
-#: sensors out in Round 7 (docs/docking-learning.md); runs saved before either learned without.
-SAVED_GA_BEFORE: dict[str, Any] = {"symmetric_rules": False, "docking_target_sensors": True}
+#: GA settings added after runs had been saved, with what a saved run meant by leaving each out
+#: (:attr:`GAConfig.saved_before`).  A task's own settings added since are its world model's ``saved_before``.
+SAVED_GA_BEFORE: Mapping[str, Any] = GAConfig.saved_before
 
 
 def saved_ga(data: Mapping[str, Any]) -> dict[str, Any]:
     """A saved run's GA settings (a dict read from its files) as the run learned with them: every setting added
     since is filled in with its value from before (:data:`SAVED_GA_BEFORE`), so that such a run resumes and replays
-    as it was, rather than under today's defaults."""
+    as it was, rather than under today's defaults.  (GA values that are now its task's world settings are moved
+    there by :func:`coevo.tasks.saved_settings`, which calls this.)"""
     return {**SAVED_GA_BEFORE, **data}
 
 

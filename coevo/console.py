@@ -17,7 +17,7 @@ from typing import Any
 from coevo.config import Bounded, GAConfig
 from coevo.errors import ConfigError
 
-__all__ = ["Bounded", "Lead", "max_lead_of", "ProgressBar", "seed_arg", "count_arg", "positive_float_arg", "pairs", "ga_settings", "world_settings",
+__all__ = ["Bounded", "Lead", "max_lead_of", "ProgressBar", "seed_arg", "count_arg", "positive_float_arg", "pairs", "given_settings", "ga_settings", "world_settings",
            "add_settings", "add_max_lead", "max_lead_arg"]
 
 
@@ -113,14 +113,24 @@ def pairs(values: list[str] | None, flag: str) -> dict[str, Any]:
     return out
 
 
-def ga_settings(args: argparse.Namespace) -> GAConfig:
-    from coevo.config import build
+def given_settings(args: argparse.Namespace, task: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The world and GA values the flags give (``--world``, ``--ga``, ``--generations``, ``--population``,
+    ``--episodes``) for ``task``, unchecked; a ``--ga`` value that names a setting of the task's world is one
+    (``--ga docking_sensors=polar`` of the fuel task: :func:`coevo.tasks.split_settings`)."""
+    from coevo.tasks import get_task, split_settings
 
     over = pairs(args.ga, "ga")
     for name in ("generations", "population", "episodes"):
         if getattr(args, name, None) is not None:
             over[name] = getattr(args, name)
-    return build(GAConfig, over)
+    return split_settings(get_task(task), pairs(getattr(args, "world", None), "world"), over)
+
+
+def ga_settings(args: argparse.Namespace, task: str) -> GAConfig:
+    """The GA settings given for ``task``, checked (:func:`given_settings`)."""
+    from coevo.config import build
+
+    return build(GAConfig, given_settings(args, task)[1])
 
 
 def world_settings(args: argparse.Namespace, task: str) -> dict[str, Any]:
@@ -128,8 +138,7 @@ def world_settings(args: argparse.Namespace, task: str) -> dict[str, Any]:
     from coevo.config import build
     from coevo.tasks import get_task
 
-    values = pairs(args.world, "world")
-    return build(get_task(task).world_settings, values).model_dump(mode="json")
+    return build(get_task(task).world_settings, given_settings(args, task)[0]).model_dump(mode="json")
 
 
 #: What ``--initial`` means in each command that offers it (the fuel task: Tracking and Docking start from their

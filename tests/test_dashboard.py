@@ -597,8 +597,8 @@ def test_the_robot_is_drawn_from_the_newest_policies_once_every_agent_published_
     d = _run_dir(tmp_path)
     panel = RobotPanel(d, every=10.0)
     assert not panel.update(now=0.0) and "waiting" in panel.picture.note  # nothing published yet
-    _publish(d, "tracking", 1, task.default_rules("tracking"))
-    _publish(d, "docking", 1, task.default_rules("docking"))
+    _publish(d, "tracking", 1, task.initial_rules("tracking", task.world_settings()))
+    _publish(d, "docking", 1, task.initial_rules("docking", task.world_settings()))
     assert panel.update(now=1.0) and not panel.picture.png  # the Executive has not published: said, not drawn
     assert "no robot yet" in panel.picture.note and "executive" in panel.picture.note
     _publish(d, "executive", 1, random_ruleset("executive", 4, np.random.default_rng(0)))
@@ -616,7 +616,7 @@ def test_the_robot_is_drawn_from_the_newest_policies_once_every_agent_published_
     assert SMALLEST_TEXT * DPI / 72 >= TEXT_PX >= 12  # the smallest text, at the picture's own size
     assert width == pytest.approx(10.5 * DPI, abs=2) and width <= 1240  # its own size fits a laptop's page
     assert not panel.update(now=30.0)  # nothing newer: not drawn again
-    _publish(d, "tracking", 2, task.default_rules("tracking"))
+    _publish(d, "tracking", 2, task.initial_rules("tracking", task.world_settings()))
     assert panel.update(now=31.0) and panel.picture.versions["tracking"] == 2
 
 

@@ -9,6 +9,7 @@ from coevo.config import GAConfig
 from coevo.ga import GA
 from coevo.policy.schema import schema
 from coevo.tasks import get_task
+from coevo.tasks.base import ga_settings
 from coevo.tasks.fuel import default_ruleset
 from coevo.tasks.fuel.behaviours import TARGET_SENSORS
 from coevo.tasks.fuel.dock_frame import SENSOR_SETS
@@ -45,9 +46,9 @@ def test_each_set_starts_from_a_direction_only_default_over_its_own_sensors(sens
 
 @pytest.mark.parametrize(("sensors", "target"), [("polar", False), ("dock-frame", False), ("both", False), ("both", True)])
 def test_a_docking_ga_conditions_only_on_its_sensor_set(sensors: str, target: bool) -> None:
-    ga_cfg = GAConfig(population=6, episodes=4, best_episodes=4, generations=2, docking_sensors=sensors,
-                      docking_target_sensors=target)
-    ga = GA(get_task("fuel"), "docking", world=WorldConfig(), ga=ga_cfg, seed=3)
+    ga_cfg = GAConfig(population=6, episodes=4, best_episodes=4, generations=2)
+    world = WorldConfig(docking_sensors=sensors, docking_target_sensors=target)
+    ga = GA(get_task("fuel"), "docking", world=world, ga=ga_cfg, seed=3)
     ga.generation({})
     ga.generation({})
     sch = schema("docking")
@@ -61,16 +62,16 @@ def test_a_docking_ga_conditions_only_on_its_sensor_set(sensors: str, target: bo
 
 
 def _ga(**kw: object) -> GA:
-    cfg = GAConfig(population=6, episodes=6, best_episodes=6, generations=3, docking_sensors="both", **kw)
-    return GA(get_task("fuel"), "docking", world=WorldConfig(), ga=cfg, seed=5)
+    cfg = GAConfig(population=6, episodes=6, best_episodes=6, generations=3, **kw)
+    return GA(get_task("fuel"), "docking", world=WorldConfig(docking_sensors="both"), ga=cfg, seed=5)
 
 
 def test_docking_keeps_the_policy_as_it_was_evaluated_by_default_the_others_do_not() -> None:
     fuel = get_task("fuel")
-    docking, tracking = fuel.ga_settings("docking", GAConfig()), fuel.ga_settings("tracking", GAConfig())
+    docking, tracking = ga_settings(fuel, "docking", GAConfig()), ga_settings(fuel, "tracking", GAConfig())
     assert (docking.keep_evaluated, docking.best_candidates) == (True, 3)
     assert (tracking.keep_evaluated, tracking.best_candidates) == (False, 0)
-    told = fuel.ga_settings("docking", GAConfig(keep_evaluated=False, best_candidates=0))
+    told = ga_settings(fuel, "docking", GAConfig(keep_evaluated=False, best_candidates=0))
     assert (told.keep_evaluated, told.best_candidates) == (False, 0)
     ga = _ga()
     before = list(ga.population)

@@ -14,6 +14,7 @@ from coevo.ga import GA
 from coevo.policy.rules import random_ruleset
 from coevo.policy.text import format_ruleset, parse_ruleset, read_rule_file
 from coevo.tasks import get_task, task_of
+from coevo.tasks.base import check_regime
 from coevo.tasks.door import DOOR, DoorConfig, DoorTask, default_ruleset, restart
 from coevo.tasks.door.evaluate import measure
 from coevo.tasks.door.settings import SONARS, capability_label
@@ -142,11 +143,7 @@ def test_the_door_task_is_registered_and_learns_alone() -> None:
     assert isinstance(task, DoorTask) and task_of(DOOR) is task
     assert task.regimes == ("independent",) and task.partners_needed(DOOR, "independent") == ()
     with pytest.raises(ConfigError, match="'mutual'"):
-        task.check_regime("mutual")
-    from coevo.tasks.fuel.settings import WorldConfig
-
-    with pytest.raises(ConfigError, match="DoorConfig"):
-        task.evaluator(DOOR, WorldConfig(), GAConfig())
+        check_regime(task, "mutual")
     with pytest.raises(ConfigError, match="alone"):
         task.evaluator(DOOR, DoorConfig(), TINY_GA).evaluate([default_ruleset()], {"tracking": default_ruleset()},
                                                              np.random.default_rng(0))

@@ -135,11 +135,11 @@ def test_ga_carries_one_control_gene_per_individual(name: str) -> None:
 def test_mutation_model_flag_sets_the_ga_setting(tmp_path: Path) -> None:
     args = build_parser().parse_args(["learn", "--behaviour", "docking", "--mutation-model", "gh",
                                       "--ga", "min_hypermutation_rate=0.1"])
-    ga = ga_settings(args)
+    ga = ga_settings(args, "fuel")
     assert (ga.mutation_model, ga.min_hypermutation_rate) == ("gh", 0.1)
     assert GAConfig().mutation_model == "fm"
     with pytest.raises(ConfigError, match="mutation_model='gx'"):
-        ga_settings(build_parser().parse_args(["run", "--mutation-model", "gx"]))
+        ga_settings(build_parser().parse_args(["run", "--mutation-model", "gx"]), "fuel")
     # coevo run / compare hand their GA settings to each worker process once, in the run's run.json
     f = tmp_path / "run.json"
     RunSettings.make(run="r", regime="mutual", ga=ga).save(f)

@@ -9,6 +9,7 @@ from coevo.config import GAConfig
 from coevo.errors import ConfigError
 from coevo.ga import GA, FixedRate
 from coevo.tasks import get_task
+from coevo.tasks.base import ga_settings
 from coevo.tasks.fuel.evaluate import FuelEvaluator as Evaluator
 from coevo.tasks.fuel.settings import WorldConfig
 
@@ -124,7 +125,7 @@ def test_a_split_rule_is_narrowed_in_place_in_the_child() -> None:
 
 def test_docking_splits_rules_by_default_the_others_do_not() -> None:
     def split_rate(behaviour: str, **given: object) -> float | None:
-        return FUEL.ga_settings(behaviour, GAConfig(**given)).split_rate
+        return ga_settings(FUEL, behaviour, GAConfig(**given)).split_rate
 
     assert split_rate("docking") == 0.5
     assert split_rate("tracking") == split_rate("executive") == 0.0
@@ -136,7 +137,7 @@ def test_every_setting_left_to_the_task_is_filled_in_for_every_behaviour() -> No
     left = [name for name, field in GAConfig.model_fields.items() if field.default is None]
     assert left, "GAConfig leaves no setting to the task"
     for behaviour in FUEL.behaviours:
-        filled = FUEL.ga_settings(behaviour, GAConfig())
+        filled = ga_settings(FUEL, behaviour, GAConfig())
         assert all(getattr(filled, name) is not None for name in left), (behaviour, filled)
 
 

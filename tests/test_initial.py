@@ -88,7 +88,7 @@ def test_docking_trains_on_fresh_starts_with_the_trivial_executive(world_cfg: Wo
     out = ev.evaluate([_docker()], {}, np.random.default_rng(0)).details
     assert out.played.shape == (40, 1)  # one episode per lane, each from its own random epoch start
     # With re-docking allowed, a docking is followed by an episode in front of the dock.
-    carry = Evaluator("docking", world_cfg, ga_cfg.model_copy(update={"docking_fresh_starts": False}))
+    carry = Evaluator("docking", world_cfg.model_copy(update={"docking_fresh_starts": False}), ga_cfg)
     assert not carry.fresh_starts({})
     assert carry.evaluate([_docker()], {}, np.random.default_rng(0)).details.played.shape == (4, 10)
 

@@ -15,6 +15,7 @@ from coevo.policy.rules import mirror_image, random_ruleset
 from coevo.policy.schema import Action, Sensor, schema
 from coevo.rundir.settings import RunSettings
 from coevo.tasks import get_task
+from coevo.tasks.base import ga_settings
 from coevo.tasks.fuel.settings import WorldConfig
 from coevo.tasks.fuel.world import BatchWorld
 
@@ -116,10 +117,10 @@ def test_symmetric_rules_need_a_mirror_world_and_room_for_the_images() -> None:
 def test_docking_rules_are_symmetric_by_default_the_others_are_not() -> None:
     fuel = get_task("fuel")
     assert fuel.mirror_symmetric
-    docking, tracking = fuel.ga_settings("docking", GAConfig()), fuel.ga_settings("tracking", GAConfig())
+    docking, tracking = ga_settings(fuel, "docking", GAConfig()), ga_settings(fuel, "tracking", GAConfig())
     assert (docking.symmetric_rules, docking.max_rules) == (True, 32)
     assert (tracking.symmetric_rules, tracking.max_rules) == (False, 48)
-    told = fuel.ga_settings("docking", GAConfig(symmetric_rules=False, max_rules=48))
+    told = ga_settings(fuel, "docking", GAConfig(symmetric_rules=False, max_rules=48))
     assert (told.symmetric_rules, told.max_rules) == (False, 48)
     tracker = GA(fuel, "tracking", world=WorldConfig(), ga=GAConfig(), seed=0)
     assert tracker.played(tracker.population[0]) is tracker.population[0]  # played as bred

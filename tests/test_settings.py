@@ -13,6 +13,7 @@ from coevo.config import GAConfig
 from coevo.errors import ConfigError, RunDirError
 from coevo.rundir.settings import RunSettings
 from coevo.tasks import get_task
+from coevo.tasks.base import check_ga
 from coevo.tasks.fuel.settings import WorldConfig
 
 
@@ -48,39 +49,99 @@ def test_a_run_json_from_before_settings_were_versioned_still_loads(tmp_path: Pa
 
 
 def _saved_before_rounds_6_and_7() -> dict:
-    """A GAConfig as runs saved it before symmetric rules and docking_target_sensors existed."""
+    """The GA settings as runs saved them before symmetric rules and docking_target_sensors existed (Docking's other
+    settings among them: they were GA settings until issue 41)."""
     ga = GAConfig(max_rules=48).model_dump(mode="json")
-    del ga["symmetric_rules"], ga["docking_target_sensors"]
-    return ga
+    del ga["symmetric_rules"]
+    return {**ga, "docking_fresh_starts": True, "docking_sensors": "both"}
 
 
 def test_a_run_saved_before_a_ga_setting_existed_resumes_and_replays_as_it_learned(tmp_path: Path) -> None:
-    """run.json, worker.json and a resumed worker's check all read a saved GA as the run learned: Docking's rules
+    """run.json, worker.json and a resumed worker's check all read saved settings as the run learned: Docking's rules
     plain and on the Target's sensors; a run saved today keeps today's settings."""
     from coevo.agents.checkpoint import prepare_dir
-    from coevo.config import SAVED_GA_BEFORE
+    from coevo.agents.worker import _saved_meta
     from coevo.rundir.layout import WorkerPaths
 
     old = _saved_before_rounds_6_and_7()
     (tmp_path / "old.json").write_text(json.dumps({"run": "old", "regime": "independent", "ga": old}))
     RunSettings.make(run="new", regime="independent").save(tmp_path / "new.json")
-    then, now = RunSettings.load(tmp_path / "old.json").ga, RunSettings.load(tmp_path / "new.json").ga
-    assert (then.symmetric_rules, then.docking_target_sensors, then.max_rules) == (False, True, 48)
-    assert (now.symmetric_rules, now.docking_target_sensors) == (None, False)  # None: the task's choice
-    get_task("fuel").check_ga(then)  # plain 48-rule Docking, as it learned: no symmetric-rule refusal
+    then, now = RunSettings.load(tmp_path / "old.json"), RunSettings.load(tmp_path / "new.json")
+    assert (then.ga.symmetric_rules, then.world_config().docking_target_sensors, then.ga.max_rules) == (False, True, 48)
+    assert (now.ga.symmetric_rules, now.world_config().docking_target_sensors) == (None, False)  # None: the task's
+    check_ga(get_task("fuel"), then.ga)  # plain 48-rule Docking, as it learned: no symmetric-rule refusal
 
     w = WorkerPaths(tmp_path / "worker")
     w.dir.mkdir()
+    world = {k: v for k, v in WorldConfig().model_dump(mode="json").items() if not k.startswith("docking_")}
     meta = {"run": "old", "behaviour": "docking", "worker": "docking-1", "seed": 1, "task": "fuel",
-            "regime": "independent", "model": "best", "max_lead": 1, "world": {}, "ga": old}
+            "regime": "independent", "model": "best", "max_lead": 1, "world": world, "ga": old}
     (w.worker_json).write_text(json.dumps(meta))
-    assert w.meta()["ga"] == then.model_dump(mode="json")  # what coevo replay builds its GA from
-    resumed = {**meta, "ga": then.model_dump(mode="json")}
+    assert w.meta()["ga"] == then.ga.model_dump(mode="json")  # what coevo replay builds its GA from
+    assert WorldConfig(**w.meta()["world"]) == then.world_config()  # and its world
+    resumed = {**meta, "ga": then.ga.model_dump(mode="json"), "world": then.world}
     prepare_dir(w.dir, what="worker", meta_file=w.worker_json, meta=resumed, logs=[], checkpoint=w.checkpoint,
-                resume=True, saved_defaults={"ga": SAVED_GA_BEFORE})
+                resume=True, saved=_saved_meta)
     with pytest.raises(ConfigError, match="ga was"):  # resumed under today's defaults: refused, as any other change
-        prepare_dir(w.dir, what="worker", meta_file=w.worker_json, meta={**meta, "ga": now.model_dump(mode="json")},
-                    logs=[], checkpoint=w.checkpoint, resume=True, saved_defaults={"ga": SAVED_GA_BEFORE})
+        prepare_dir(w.dir, what="worker", meta_file=w.worker_json, meta={**resumed, "ga": now.ga.model_dump(mode="json")},
+                    logs=[], checkpoint=w.checkpoint, resume=True, saved=_saved_meta)
+
+
+def _saved_before_issue_41(tmp_path: Path) -> tuple[dict, dict]:
+    """run.json and worker.json as runs saved them while Docking's settings were GA settings (issue 41 moved them
+    to the fuel task's world), with every one of them away from today's default."""
+    ga = {**GAConfig().model_dump(mode="json"),
+          "docking_fresh_starts": False, "docking_sensors": "polar", "docking_target_sensors": True}
+    world = {k: v for k, v in WorldConfig().model_dump(mode="json").items() if not k.startswith("docking_")}
+    run = {"settings_version": 1, "run": "old41", "task": "fuel", "regime": "independent", "seed": 0, "model": "best",
+           "max_lead": 1, "world": world, "ga": ga}
+    worker = {"coevo": "0", "task": "fuel", "behaviour": "docking", "regime": "independent", "run": "old41",
+              "worker": "docking-1", "seed": 1, "model": "best", "max_lead": 1, "world": world, "ga": ga}
+    return run, worker
+
+
+def test_a_run_saved_while_dockings_settings_were_ga_settings_reads_them_as_world_settings(tmp_path: Path) -> None:
+    """Docking's settings moved from the GA's to the fuel world's (issue 41): a run saved before loads with them in
+    its world, its workers resume against their worker.json, and its comparison's compare.json still matches."""
+    from coevo.agents.checkpoint import prepare_dir
+    from coevo.agents.worker import _saved_meta
+    from coevo.experiments.compare.experiment import CompareSpec, prepare
+    from coevo.rundir.layout import WorkerPaths
+
+    run, worker = _saved_before_issue_41(tmp_path)
+    (tmp_path / "run.json").write_text(json.dumps(run))
+    s = RunSettings.load(tmp_path / "run.json")
+    w = s.world_config()
+    assert (w.docking_fresh_starts, w.docking_sensors, w.docking_target_sensors) == (False, "polar", True)
+    assert s.ga == GAConfig()  # nothing else changed
+    wp = WorkerPaths(tmp_path / "docking")
+    wp.dir.mkdir()
+    wp.worker_json.write_text(json.dumps(worker))
+    assert wp.meta()["world"] == s.world and wp.meta()["ga"] == s.ga.model_dump(mode="json")
+    now = {**worker, "world": s.world, "ga": s.ga.model_dump(mode="json")}  # what the resumed worker writes today
+    prepare_dir(wp.dir, what="worker", meta_file=wp.worker_json, meta=now, logs=[], checkpoint=wp.checkpoint,
+                resume=True, saved=_saved_meta)
+    # a comparison made then: its compare.json is the same comparison as the one asked for today
+    spec = CompareSpec.make(runs=1, world=s.world, ga=s.ga)
+    held = json.loads(spec.model_dump_json())
+    held["world"], held["ga"] = run["world"], {**held["ga"], **{k: v for k, v in run["ga"].items() if "docking" in k}}
+    (tmp_path / "cmp").mkdir()
+    (tmp_path / "cmp" / "compare.json").write_text(json.dumps({"spec": held, "created": 0.0}))
+    (tmp_path / "cmp" / "runs").mkdir()
+    assert prepare(tmp_path / "cmp", spec, resume=True)
+    assert CompareSpec.model_validate(held) == spec  # as the dashboard reads it
+
+
+def test_dockings_settings_given_as_ga_settings_are_still_read_as_world_settings() -> None:
+    from coevo.tasks import split_settings
+
+    fuel = get_task("fuel")
+    assert split_settings(fuel, {"arena": 200}, {"docking_sensors": "polar", "population": 8}) == (
+        {"arena": 200, "docking_sensors": "polar"}, {"population": 8})
+    with pytest.raises(ConfigError, match="--world docking_sensors"):
+        split_settings(fuel, {"docking_sensors": "both"}, {"docking_sensors": "polar"})
+    with pytest.raises(ConfigError, match="docking_sensors"):  # the door task has no such setting
+        RunSettings.make(run="d", task="door", regime="independent", ga={"docking_sensors": "polar"})
 
 
 @pytest.mark.parametrize("text", ["{not json", "[1, 2]", json.dumps({"run": "x"})])

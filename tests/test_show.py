@@ -277,7 +277,7 @@ def test_door_scene_shows_the_room_and_the_failed_sonar() -> None:
     from coevo.tasks import get_task
     from coevo.tasks.door import DoorConfig, default_ruleset
 
-    door = get_task("door")
+    door = get_task("door").display()
     robot = door.show_robot("r", DoorConfig(failed=("front",)), {"door": default_ruleset()})
     played = door.show_play(robot, seed=1, episodes=3)
     scene = door.show_scene(played)
@@ -297,7 +297,7 @@ def test_each_door_trial_crosses_its_own_wall_drawn_in_its_own_colour() -> None:
     from coevo.tasks.door import DoorConfig, default_ruleset
     from coevo.tasks.door.world import GOAL
 
-    door = get_task("door")
+    door = get_task("door").display()
     cfg = DoorConfig()
     played = door.show_play(door.show_robot("r", cfg, {"door": default_ruleset()}), seed=0, episodes=6)
     scene = door.show_scene(played)

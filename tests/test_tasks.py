@@ -17,6 +17,7 @@ from coevo.policy.rules import RuleSet, random_ruleset
 from coevo.policy.schema import registered, schema
 from coevo.policy.text import format_ruleset, parse_ruleset
 from coevo.tasks import TASKS, get_task, task_of
+from coevo.tasks.base import check_behaviour, check_regime
 from coevo.tasks.checker import check_task
 from coevo.tasks.corridor import CorridorConfig, CorridorTask
 
@@ -29,7 +30,7 @@ def test_every_task_declares_its_behaviours_with_unique_names() -> None:
     assert set(names) <= set(registered())
     for t in TASKS.values():
         for b in t.behaviours:
-            assert task_of(b) is t and t.schema(b) is schema(b)
+            assert task_of(b) is t and check_behaviour(t, b) == b and schema(b).behaviour == b
             assert t.world_settings()  # every setting has a default
 
 
@@ -41,7 +42,7 @@ def test_unknown_tasks_behaviours_and_regimes_are_named() -> None:
     with pytest.raises(RuleSetError, match="'flying'"):
         schema("flying")
     with pytest.raises(ConfigError, match="'mutual'"):
-        get_task("corridor").check_regime("mutual")
+        check_regime(get_task("corridor"), "mutual")
 
 
 @pytest.mark.parametrize("name", sorted(TASKS))
@@ -71,8 +72,8 @@ class _Careless(CorridorTask):
     def partners_needed(self, behaviour: str, regime: str) -> tuple[str, ...]:
         return ("executive",)
 
-    def ga_settings(self, behaviour: str, ga: GAConfig) -> GAConfig:
-        return ga
+    def ga_choices(self, behaviour: str) -> dict[str, object]:
+        return {"max_rules": None}
 
 
 def test_the_task_checker_names_what_a_broken_task_gets_wrong() -> None:
@@ -82,6 +83,25 @@ def test_the_task_checker_names_what_a_broken_task_gets_wrong() -> None:
     assert any("partners_needed names ['executive']" in p for p in careless), careless
     assert any("leaves" in p and "max_rules" in p for p in careless), careless
     assert check_task(CorridorTask()) == []  # the same checks pass the real one
+
+
+class _Blind(CorridorTask):
+    """A corridor without pictures."""
+
+    def display(self) -> None:
+        return None
+
+
+def test_a_task_without_pictures_says_so_and_still_passes_the_checker(tmp_path: Path) -> None:
+    from coevo.runs.learn import learn
+    from coevo.tasks.showing import display_of
+
+    with pytest.raises(ConfigError, match="task 'corridor' has no pictures: coevo show cannot draw it"):
+        display_of(_Blind())
+    assert check_task(_Blind()) == []
+    # the corridor's display draws no best.png (TaskDisplay.picture's default): coevo learn writes none
+    assert not (learn("corridor", world=CorridorConfig(), ga=CORRIDOR_GA.model_copy(update={"generations": 1}),
+                      seed=0, out_dir=tmp_path / "l", measure_epochs=2).out_dir / "best.png").exists()
 
 
 def test_a_corridor_rule_set_prints_and_parses_like_any_other() -> None:
@@ -109,10 +129,12 @@ def test_the_same_ga_learns_the_corridor_and_replays_it_exactly() -> None:
 
 
 def test_a_task_refuses_another_tasks_settings() -> None:
+    """Settings enter through the task's own model (run.json, --world); inside, a Task[W] takes only a W (mypy)."""
+    from coevo.rundir.settings import RunSettings
     from coevo.tasks.fuel.settings import WorldConfig
 
-    with pytest.raises(ConfigError, match="CorridorConfig"):
-        get_task("corridor").evaluator("corridor", WorldConfig(), GAConfig())
+    with pytest.raises(ConfigError, match="CorridorConfig.*arena"):
+        RunSettings.make(run="c", task="corridor", regime="independent", world=WorldConfig().model_dump())
 
 
 @pytest.mark.service

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import logging
 import zlib
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -102,12 +102,13 @@ def _keep_advice(paths: WorkerPaths) -> str:
 
 
 def prepare_dir(directory: Path, *, what: str, meta_file: Path, meta: dict[str, Any], logs: Sequence[Path],
-                checkpoint: Path, resume: bool, saved_defaults: Mapping[str, Any] | None = None, hint: str = "") -> None:
+                checkpoint: Path, resume: bool, saved: Callable[[dict[str, Any]], dict[str, Any]] | None = None,
+                hint: str = "") -> None:
     """Make a process's directory (a worker's, an execution module's: ``what``) with its settings file and empty
     logs; a directory that already holds a run is refused (``hint``: where else to go).  With ``resume``, check
-    instead that its settings file says ``meta`` (``saved_defaults`` fill fields older files lack, a dict the fields of
-    a section; the ``coevo`` version may differ): any other setting is a ConfigError naming each difference.  The caller then loads the
-    checkpoint and cuts the logs back to it (:func:`cut_logs`)."""
+    instead that its settings file says ``meta`` (``saved`` reads an older file as it is meant today, e.g. filling
+    in fields it lacks; the ``coevo`` version may differ): any other setting is a ConfigError naming each
+    difference.  The caller then loads the checkpoint and cuts the logs back to it (:func:`cut_logs`)."""
     try:
         directory.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -124,11 +125,10 @@ def prepare_dir(directory: Path, *, what: str, meta_file: Path, meta: dict[str, 
     if not meta_file.exists():
         write_json(meta_file, meta)
         return
-    saved = read_json(meta_file, what=f"{what} directory (its {meta_file.name})")
-    for k, default in (saved_defaults or {}).items():  # fields older files lack; inside a section, its fields
-        both = isinstance(default, Mapping) and isinstance(saved.get(k), Mapping)
-        saved[k] = {**default, **saved[k]} if both else saved.get(k, default)
-    diff = [f"{k} was {saved.get(k)!r}, now {meta[k]!r}" for k in meta if k != "coevo" and saved.get(k) != meta[k]]
+    held = read_json(meta_file, what=f"{what} directory (its {meta_file.name})")
+    if saved is not None:
+        held = saved(held)
+    diff = [f"{k} was {held.get(k)!r}, now {meta[k]!r}" for k in meta if k != "coevo" and held.get(k) != meta[k]]
     if diff:
         raise ConfigError(f"--resume of {str(directory)!r} with other settings: {'; '.join(diff)}")
 

@@ -19,12 +19,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel
 
 from coevo.config import GAConfig
 from coevo.errors import ConfigError
 from coevo.policy.rules import RuleSet
 from coevo.config import MODELS
-from coevo.tasks.base import Partners, Task
+from coevo.tasks.base import Partners, Task, initial_model
 
 __all__ = ["MODELS", "PartnerModels"]
 
@@ -34,13 +35,14 @@ __all__ = ["MODELS", "PartnerModels"]
 class PartnerModels:
     """The partner policies a worker evaluates against, with the versions in use."""
 
-    task: Task
+    task: Task[Any]
     behaviour: str
     regime: str
     seed: int
     kind: str = "best"
     recent: int = 5
     ga: GAConfig = field(default_factory=GAConfig)  # its initial and initial_rules model unpublished partners
+    world: BaseModel | None = None  # the world whose initial rules model them (None: the task's default world)
     versions: dict[str, int] = field(default_factory=dict)
     _bests: dict[str, list[RuleSet]] = field(default_factory=dict)
 
@@ -49,9 +51,10 @@ class PartnerModels:
             raise ConfigError(f"unknown partner model {self.kind!r} (use {' or '.join(MODELS)})")
         self.behaviour = str(self.behaviour)
         self.needed = self.task.partners_needed(self.behaviour, self.regime)
+        world = self.task.world_settings() if self.world is None else self.world
         for b in self.needed:
             rng = np.random.default_rng([self.seed, self.task.behaviours.index(b), 7])
-            self._bests[b] = [self.task.initial_model(b, self.ga, rng)]
+            self._bests[b] = [initial_model(self.task, b, world, self.ga, rng)]
             self.versions[b] = 0
         self._rng = np.random.default_rng([self.seed, 11])
 

@@ -45,7 +45,6 @@ from coevo.bus.messages import PolicyUpdate, Status
 from coevo.bus.rejections import Rejections
 from coevo.bus.lifecycle import Lifecycle, main_of
 from coevo.bus.session import Config, Publisher, Session
-from coevo.config import SAVED_GA_BEFORE
 from coevo.errors import ConfigError, MessageError, ServiceError
 from coevo.ga import GA, GenerationReport
 from coevo.policy.rules import RuleSet
@@ -53,11 +52,18 @@ from coevo.policy.text import format_ruleset
 from coevo.rundir.layout import WorkerPaths, append_durably, read_jsonl, write_json, write_text
 from coevo.rundir.machine import machine
 from coevo.rundir.settings import RunSettings
-from coevo.tasks import DEFAULT_TASK
+from coevo.tasks import DEFAULT_TASK, saved_settings
+from coevo.tasks.base import check_behaviour
 
 __all__ = ["Worker", "run_worker", "INBOX"]
 
 log = logging.getLogger(__name__)
+
+def _saved_meta(meta: dict[str, Any]) -> dict[str, Any]:
+    """A worker.json as it is meant today: written before tasks were named (the default task's), or before some
+    setting existed or where it is now (:func:`coevo.tasks.saved_settings`)."""
+    return saved_settings({"task": DEFAULT_TASK, **meta})
+
 
 class Worker:
     def __init__(
@@ -83,7 +89,7 @@ class Worker:
         worker is open (and says so in its log and heartbeats)."""
         self.settings = settings
         self.task = settings.the_task
-        self.behaviour = self.task.check_behaviour(behaviour)
+        self.behaviour = check_behaviour(self.task, behaviour)
         self.regime = settings.regime
         self.run_id = settings.run
         self.seed = settings.worker_seed(self.behaviour) if seed is None else seed
@@ -92,7 +98,8 @@ class Worker:
         self.ga_cfg = settings.ga
         self.paths = WorkerPaths(Path(out_dir))
         self.conf = conf
-        self.models = PartnerModels(self.task, self.behaviour, self.regime, self.seed, kind=settings.model, ga=settings.ga)
+        self.models = PartnerModels(self.task, self.behaviour, self.regime, self.seed, kind=settings.model, ga=settings.ga,
+                                    world=self.world)
         self.store_timeout = store_timeout
         self.broker_wait = broker_wait
         self.final_sync = final_sync
@@ -141,9 +148,7 @@ class Worker:
         p = self.paths
         logs = [p.dir / n for n in self.logs]
         prepare_dir(p.dir, what="worker", meta_file=p.worker_json, meta=self._meta(), logs=logs, checkpoint=p.checkpoint,
-                    resume=self.resume, saved_defaults={"task": DEFAULT_TASK,  # written before tasks were named
-                                                       "ga": SAVED_GA_BEFORE},  # or before some GA settings existed
-                    hint=", or choose another --out")
+                    resume=self.resume, saved=_saved_meta, hint=", or choose another --out")
         with open(p.machines, "a", encoding="utf-8") as f:  # what decides the last bits here (coevo.rundir.machine)
             append_durably(f, {"started": time.time(), **machine()})
         if not self.resume:

@@ -27,7 +27,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel
 
 from coevo.cel.casebase import Case, CaseBase
 from coevo.cel.monitor import check_capabilities
@@ -35,7 +34,7 @@ from coevo.config import GAConfig
 from coevo.errors import ConfigError
 from coevo.ga import GA, GenerationReport
 from coevo.policy.rules import RuleSet
-from coevo.tasks.base import Evaluation, Partners, Tick
+from coevo.tasks.base import Evaluation, Partners, Tick, check_behaviour
 from coevo.tasks.door import DOOR, DoorTask, default_ruleset
 from coevo.tasks.door.evaluate import DoorEvaluator
 from coevo.tasks.door.settings import SONARS, DoorConfig
@@ -76,8 +75,8 @@ class _ModelTask(DoorTask):
     def __init__(self, module: LearningModule) -> None:
         self._module = module
 
-    def evaluator(self, behaviour: str, world: BaseModel, ga: GAConfig) -> _ModelEvaluator:
-        self.check_behaviour(behaviour)
+    def evaluator(self, behaviour: str, world: DoorConfig, ga: GAConfig) -> _ModelEvaluator:
+        check_behaviour(self, behaviour)
         return _ModelEvaluator(self._module, ga)
 
 

@@ -101,12 +101,12 @@ class RobotPanel:
             shown = from_path(self.paths.dir, world_over={}, partners=rules, wanted=None)
         except CoevoError as exc:  # e.g. an agent that has not published yet: said, drawn once it has
             return RobotPicture(run, versions, note=f"no robot yet: {exc}")
-        task, robot = shown.task, shown.robot
-        played = task.show_play(robot, seed=self.seed, episodes=task.show_episodes(robot))
+        display, robot = shown.display, shown.robot
+        played = display.show_play(robot, seed=self.seed, episodes=display.show_episodes(robot))
         shown_versions = ", ".join(f"{b} v{v}" for b, v in versions.items())
-        scene = task.show_scene(played, title=f"{run}: {shown_versions}, seed {self.seed}")
+        scene = display.show_scene(played, title=f"{run}: {shown_versions}, seed {self.seed}")
         with tempfile.TemporaryDirectory(prefix="coevo-dashboard-") as tmp:
             out = Path(tmp) / "robot.png"
             draw_png(scene, out, dpi=DPI)
             png = base64.b64encode(out.read_bytes()).decode("ascii")
-        return RobotPicture(run, versions, png, list(task.show_rules(played)), int(played.episodes))
+        return RobotPicture(run, versions, png, list(display.show_rules(played)), int(played.episodes))

@@ -6,7 +6,7 @@ partner models; rule strengths are updated from the payoffs (Lamarckian: offspri
 inherit them); the generation's best is re-evaluated on ``best_episodes`` episodes
 for the learning curve; the best so far is kept; the next population is bred.
 
-The GA names no task: its problem (:class:`~coevo.ga.evaluator.Problem`, a task) gives it the
+The GA names no task: its problem (:class:`~coevo.ga.problem.Problem`, a task) gives it the
 behaviour's initial rules and an evaluator.  The partner models are an argument of
 every generation, so an asynchronous worker can swap in new partner policies
 between generations without the GA knowing; so is the tick a worker's heartbeat
@@ -23,22 +23,25 @@ import json
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from pydantic import BaseModel
 
 from coevo.config import GAConfig
 from coevo.errors import ConfigError
-from coevo.ga.evaluator import Evaluation, Partners, Problem, Tick
+from coevo.ga.evaluator import Evaluation, Partners, Tick
 from coevo.ga.mutation import CONTROL_LEVELS, MutationModel, model_from_config
 from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise, split, trim
+from coevo.ga.problem import Problem, check_behaviour, ga_settings
 from coevo.ga.symmetry import MirroredEvaluator, with_mirror_images
 from coevo.policy.rules import RuleSet, random_ruleset
 from coevo.policy.schema import schema
 from coevo.policy.strength import update_strengths
 
 __all__ = ["GA", "GenerationReport"]
+
+W = TypeVar("W", bound=BaseModel)  # the world settings of the GA's problem
 
 
 @dataclass(frozen=True)
@@ -67,33 +70,33 @@ class GA:
 
     def __init__(
         self,
-        task: Problem,
+        task: Problem[W],
         behaviour: str,
         *,
-        world: BaseModel,
+        world: W,
         ga: GAConfig,
         seed: int,
         mutation: MutationModel | None = None,
         seed_policy: RuleSet | None = None,
     ) -> None:
-        self.task = task
-        self.behaviour = task.check_behaviour(behaviour)
-        self.world_cfg = world
-        self.cfg = ga = task.ga_settings(self.behaviour, ga)  # the settings left to the task, filled in
+        self.task: Problem[Any] = task
+        self.behaviour = check_behaviour(task, behaviour)
+        self.world_cfg: BaseModel = world
+        self.cfg = ga = ga_settings(task, self.behaviour, ga)  # the settings left to the task, filled in
         if ga.max_rules is None:
-            raise ConfigError(f"the task left max_rules unset for {self.behaviour}: its ga_settings must fill it in")
+            raise ConfigError(f"the task left max_rules unset for {self.behaviour}: its ga_choices must not set it to None")
         self.max_rules: int = ga.max_rules
         self.rng = np.random.default_rng(seed)
         self.mutation = mutation or model_from_config(ga)
         self.evaluator = task.evaluator(self.behaviour, world, ga)
         if ga.symmetric_rules:  # each rule also stands for its mirror image (coevo.ga.symmetry)
             self.evaluator = MirroredEvaluator(self.evaluator)
-        learnable = task.learnable_sensors(self.behaviour, ga)
+        learnable = task.learnable_sensors(self.behaviour, world)
         self._unusable = None if learnable is None or learnable.all() else ~learnable
         self._use = None if self._unusable is None else ~self._unusable  # operators draw only over these sensors
         self._full_hi = np.array([s.bins - 1 for s in schema(self.behaviour).sensors])
         if seed_policy is None and ga.initial == "default":
-            seed_policy = task.initial_rules(self.behaviour, ga)  # None where the behaviour starts random
+            seed_policy = task.initial_rules(self.behaviour, world)  # None where the behaviour starts random
         if seed_policy is not None:
             if seed_policy.behaviour != self.behaviour:
                 raise ConfigError(f"seed policy is a {seed_policy.behaviour} rule set, not {self.behaviour}")
@@ -252,7 +255,7 @@ class GA:
         )
 
     def _pool_evidence(self, chosen: RuleSet, fit: float, partners: Partners) -> bool:
-        """Best so far by all the evidence (``best_candidates`` > 0, see ``Task.ga_settings``): the candidates (the best
+        """Best so far by all the evidence (``best_candidates`` > 0, see :func:`~coevo.ga.problem.ga_settings`): the candidates (the best
         few policies chosen so far) are re-evaluated every generation and judged by the mean of all their
         re-evaluations, so one lucky re-evaluation of ``best_episodes`` no longer makes a policy the best for good.
         True if the best changed."""

@@ -31,8 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
-from coevo.config import saved_ga
-from coevo.errors import RunDirError
+from coevo.errors import ConfigError, RunDirError
 
 if TYPE_CHECKING:
     from pydantic import BaseModel
@@ -119,7 +118,12 @@ class WorkerPaths:
         if missing or not isinstance(meta.get("ga"), dict) or not isinstance(meta.get("world"), dict):
             raise RunDirError(f"{str(self.worker_json)!r} is not a worker's settings: "
                               f"{'missing ' + ', '.join(missing) if missing else 'ga and world must be objects'}")
-        return {**meta, "ga": saved_ga(meta["ga"])}  # as the worker learned, if it was saved before a GA setting existed
+        from coevo.tasks import saved_settings  # the tasks, only when a worker's settings are read
+
+        try:
+            return saved_settings(meta)  # as the worker learned, if saved before a setting existed or where it was
+        except ConfigError as exc:
+            raise RunDirError(f"{str(self.worker_json)!r}: {exc}") from None
 
 
 @dataclass(frozen=True)

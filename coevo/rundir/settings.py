@@ -21,10 +21,11 @@ from coevo.bus.auth import KEY_ENV, RunKey
 from coevo.bus.keys import check_id
 from coevo.bus.trust import Gate
 from coevo.cel.settings import CelSettings
-from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig, Settings, build, saved_ga
+from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig, Settings, build
 from coevo.errors import CoevoError, ConfigError, MessageError, RunDirError
 from coevo.rundir.layout import RunPaths, read_json, write_json
-from coevo.tasks import DEFAULT_TASK, Task, get_task
+from coevo.tasks import DEFAULT_TASK, Task, get_task, saved_settings
+from coevo.tasks.base import check_ga, check_regime
 
 __all__ = ["RunSettings", "SETTINGS_VERSION", "find_run_key"]
 
@@ -61,7 +62,7 @@ class RunSettings(Settings):
     @model_validator(mode="after")
     def _task_fits(self) -> RunSettings:
         task = get_task(self.task)
-        task.check_regime(self.regime)
+        check_regime(task, self.regime)
         if self.roster is not None:
             if set(self.roster) != set(task.behaviours):
                 raise ValueError(f"roster names {sorted(self.roster)}; it must name each of {list(task.behaviours)}")
@@ -71,7 +72,7 @@ class RunSettings(Settings):
             self.cel.check_fits(task=self.task, generations=self.ga.generations,
                                 worker_ids=(self.roster or {}).values())
         try:
-            task.check_ga(self.ga)  # every worker's GA settings as the task fills them in, before a run starts
+            check_ga(task, self.ga)  # every worker's GA settings as the task fills them in, before a run starts
         except ConfigError as exc:
             raise ValueError(str(exc)) from None
         full = build(task.world_settings, self.world).model_dump(mode="json")
@@ -134,9 +135,8 @@ class RunSettings(Settings):
         """The settings in ``path`` (a run.json); anything wrong with it is a RunDirError naming it."""
         data = read_json(path, what="run directory (its run.json)")
         data.setdefault("settings_version", SETTINGS_VERSION)  # run.json of runs made before it was versioned
-        if isinstance(data.get("ga"), dict):  # a run saved before some GA setting existed learned without it
-            data["ga"] = saved_ga(data["ga"])
         try:
+            data = saved_settings(data)  # as the run learned: saved before some setting existed, or where it was
             return build(cls, data)
         except ConfigError as exc:
             raise RunDirError(f"{str(path)!r} does not hold valid run settings: {exc}") from None

@@ -59,7 +59,7 @@ def _settings(args: argparse.Namespace) -> Any:
              if getattr(args, k) is not None}
     given.setdefault("chunk", given.get("trials_per_generation", CelSettings().trials_per_generation))  # a generation's trials at once
     cel = build(CelSettings, {"schedule": schedule, "case_base": args.case_base or bool(args.cases_from), **given})
-    ga = ga_settings(args)
+    ga = ga_settings(args, "door")
     if args.generations is None:
         ga = ga.model_copy(update={"generations": CEL_GENERATIONS})
     return RunSettings.make(run=args.run or default_run_id("cel"), task="door", regime="independent", seed=args.seed or 0,

@@ -106,7 +106,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             settings = RunSettings.make(run=args.run or default_run_id(regime), task=task, regime=regime,
                                         seed=args.seed or 0, model=args.model or "best",
                                         max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
-                                        world=world_settings(args, task), ga=ga_settings(args))
+                                        world=world_settings(args, task), ga=ga_settings(args, task))
         if (kind := kind_of_settings(settings)) is not COEVOLUTION:
             raise ConfigError(f"{args.settings} holds the settings of {kind.label}: start it with {kind.run().COMMAND}")
         lr = LocalRun(settings, root=Path(args.root), log_level=args.log_level, open_run=args.open, listen=listen)
@@ -176,7 +176,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
         task = args.task or DEFAULT_TASK
         settings = RunSettings.make(run=args.run, task=task, regime=args.regime, seed=args.seed or 0,
                                     model=args.model or "best", max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
-                                    world=world_settings(args, task), ga=ga_settings(args))
+                                    world=world_settings(args, task), ga=ga_settings(args, task))
     kind = kind_of_settings(settings).worker()  # a CEL run's learner (coevo cel) plugs into the worker's seam
     out = Path(args.out) if args.out else (RunPaths(base).worker(args.behaviour).dir if base else None)
     conf = config_from_args(args)
@@ -239,15 +239,15 @@ def configure_chaos(p: argparse.ArgumentParser) -> None:
 def cmd_chaos(args: argparse.Namespace) -> int:
     from coevo.runs.chaos import CHAOS_REPORT, ChaosPlan, run_chaos, summary_lines
     from coevo.runs.kinds import CEL, COEVOLUTION
-    from coevo.tasks import DEFAULT_TASK, get_task
     from coevo.runs.local import default_run_id
     from coevo.rundir.settings import RunSettings
+    from coevo.tasks import DEFAULT_TASK, get_task
 
     plan = ChaosPlan(faults=args.faults, kinds=tuple(args.kinds), gap=tuple(args.gap), down=tuple(args.down), seed=args.seed)
     kind = CEL if args.cel else COEVOLUTION
     task = args.task or kind.default_task or DEFAULT_TASK
     regime = args.regime or ("mutual" if "mutual" in get_task(task).regimes else "independent")
-    ga = ga_settings(args)
+    ga = ga_settings(args, task)
     own = kind.chaos_settings(ga) if kind.chaos_settings is not None else {}  # the kind's own block, its pacing
     settings = RunSettings.make(run=args.run or default_run_id(f"chaos-{kind.block or regime}"), task=task,
                                 regime=regime, seed=args.seed, model=args.model, world=world_settings(args, task), ga=ga,

@@ -76,7 +76,7 @@ def learn(
         if not needed:
             raise ConfigError(f"--history feeds recorded partner policies to a behaviour that has partners; {behaviour} has none")
         feed = HistoryFeed(Path(history), rate, partners=needed)
-        models = PartnerModels(task, behaviour, "independent", seed, ga=ga)
+        models = PartnerModels(task, behaviour, "independent", seed, ga=ga, world=world)
         partners = dict(models.partners())
     elif set(partners) != set(needed):
         missing = [b for b in needed if b not in partners]
@@ -109,24 +109,31 @@ def learn(
         if engine.best is None:  # GAConfig allows no fewer than one generation, so this is a bug
             raise RuntimeError("no generation ran: the GA has no best policy")
         best = engine.played(engine.best)  # as everyone else reads it: with its mirror images if symmetric
-        rows = [r.as_dict() for r in curve]
-        write_csv(tmp.curve_csv, rows)
-        write_json(tmp.curve_json, rows)
-        write_text(tmp.best_rules, format_ruleset(best))
-        if feed is not None:
-            write_text(tmp.adoptions, "".join(json.dumps(a) + "\n" for a in adoptions))
-        for b, rules in partners.items():
-            # The partners it was measured with, so that 'coevo show DIR' can replay them together.
-            write_text(tmp.partner_rules(b), format_ruleset(rules))
+        _write_curve(tmp, curve, best, adoptions if feed is not None else None, partners)
         measures: dict[str, float | int | None] = {
             "best_fitness": engine.best_fitness,
             **task.final_measures(behaviour, best, world=world, partners=partners, epochs=measure_epochs,
                                   seed=seed + 1_000_003)}
         write_json(tmp.measures, measures)
-        task.picture(tmp.picture, behaviour, best, world=world, partners=partners, seed=seed + 1_000_003,
-                     name=Path(out_dir).name)
+        if (display := task.display()) is not None:  # a task without pictures draws no best.png
+            display.picture(tmp.picture, behaviour, best, world=world, partners=partners, seed=seed + 1_000_003,
+                            name=Path(out_dir).name)
         seconds = time.perf_counter() - t0
         write_json(tmp.timing, {"seconds": seconds, "generations": ga.generations})
     log.info("learned %s in %.1f s -> %s", behaviour, seconds, out_dir)
     return LearnResult(Path(out_dir), best, curve, measures, seconds)
 
+
+
+def _write_curve(tmp: LearnPaths, curve: list[GenerationReport], best: RuleSet, adoptions: list[dict[str, object]] | None,
+                 partners: dict[str, RuleSet]) -> None:
+    """The learning curve (CSV and JSON), the best rules, the adoptions (with ``--history``) and the partners."""
+    rows = [r.as_dict() for r in curve]
+    write_csv(tmp.curve_csv, rows)
+    write_json(tmp.curve_json, rows)
+    write_text(tmp.best_rules, format_ruleset(best))
+    if adoptions is not None:
+        write_text(tmp.adoptions, "".join(json.dumps(a) + "\n" for a in adoptions))
+    for b, rules in partners.items():
+        # The partners it was measured with, so that 'coevo show DIR' can replay them together.
+        write_text(tmp.partner_rules(b), format_ruleset(rules))

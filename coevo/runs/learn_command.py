@@ -15,7 +15,7 @@ from coevo.console import (
     ProgressBar,
     add_settings,
     count_arg,
-    ga_settings,
+    given_settings,
     pairs,
     positive_float_arg,
     seed_arg,
@@ -60,7 +60,7 @@ def configure_learn(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_learn(args: argparse.Namespace) -> int:
-    from coevo.config import build
+    from coevo.config import GAConfig, build
     from coevo.runs.learn import default_out, learn
     from coevo.tasks import get_task, task_of
 
@@ -81,11 +81,11 @@ def cmd_learn(args: argparse.Namespace) -> int:
             raise ConfigError(f"--settings {args.settings!r} are for task {settings.task!r}, not {task.name!r}")
         world, ga, args.seed = settings.world_config(), settings.ga, settings.worker_seed(args.behaviour)
     else:
-        world_values = pairs(args.world, "world")
+        world_values, ga_values = given_settings(args, task.name)
         if args.fail is not None:
             world_values["failed"] = args.fail
         world = build(task.world_settings, world_values)
-        ga = ga_settings(args)
+        ga = build(GAConfig, ga_values)
         args.seed = 0 if args.seed is None else args.seed
     partners = {b: _read_rules(f, b) for b, f in (("tracking", args.tracking), ("docking", args.docking)) if f}
     if args.out is not None and not args.out.strip():

@@ -31,6 +31,7 @@ from coevo.rundir.machine import differences
 from coevo.rundir.records import AdoptionLine, CurveLine
 from coevo.runs.kinds import kind_of_worker, run_kinds
 from coevo.tasks import DEFAULT_TASK, Task, get_task
+from coevo.tasks.base import check_behaviour
 
 __all__ = ["WorkerReplay", "replay"]
 
@@ -54,7 +55,7 @@ def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, unt
     w = WorkerPaths(Path(wdir))
     meta = w.meta()
     task = get_task(meta.get("task", DEFAULT_TASK))
-    behaviour = task.check_behaviour(meta["behaviour"])
+    behaviour = check_behaviour(task, meta["behaviour"])
     world = build(task.world_settings, meta["world"])
     ga_cfg = build(GAConfig, meta["ga"])
     curve = read_jsonl(w.curve, schema=CurveLine)
@@ -73,7 +74,7 @@ def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, unt
 def _rows(w: WorkerPaths, task: Task, behaviour: str, meta: dict[str, Any], world: BaseModel, ga_cfg: GAConfig,
           store: dict[tuple[str, str, int], RuleSet]) -> Iterator[dict[str, Any]]:
     """A co-evolution worker's curve, again: its GA fed the partner versions it adopted, when it adopted them."""
-    models = PartnerModels(task, behaviour, meta["regime"], meta["seed"], kind=meta["model"], ga=ga_cfg)
+    models = PartnerModels(task, behaviour, meta["regime"], meta["seed"], kind=meta["model"], ga=ga_cfg, world=world)
     ga = GA(task, behaviour, world=world, ga=ga_cfg, seed=meta["seed"])
     by_gen = by_generation(read_jsonl(w.adoptions, schema=AdoptionLine))
     g = 0

@@ -23,7 +23,7 @@ from coevo.errors import ConfigError
 
 __all__ = ["configure_show", "cmd_show", "DEFAULT_EPISODES", "MAX_EPISODES"]
 
-DEFAULT_EPISODES = 3  # for a Tracking or Docking rule set alone (the task says: Task.show_episodes)
+DEFAULT_EPISODES = 3  # for a Tracking or Docking rule set alone (the task says: TaskDisplay.show_episodes)
 MAX_EPISODES = 1000  # one lane records (episodes x steps) states; beyond this a picture is unreadable anyway
 
 
@@ -90,23 +90,23 @@ def cmd_show(args: argparse.Namespace) -> int:
     if args.task is not None:
         find_task(args.task)
     shown = _shown(args, check_world(pairs(args.world, "world")))
-    task, robot = shown.task, shown.robot
-    episodes = _episodes(args, task.show_episodes(robot))
+    display, robot = shown.display, shown.robot
+    episodes = _episodes(args, display.show_episodes(robot))
     animated = args.animate or (args.out is not None and Path(args.out).suffix.lower() in ANIMATION_FORMATS)
     draw = not args.rules or args.out is not None or args.animate
     out = _out_path(args, robot.name, episodes, animated) if draw else None
     if out is not None:
         check_out_path(out, ANIMATION_FORMATS if animated else FORMATS)
 
-    played = task.show_play(robot, seed=args.seed, episodes=episodes)
+    played = display.show_play(robot, seed=args.seed, episodes=episodes)
     if args.rules:
         from coevo.show.rules_view import print_tables
 
-        print_tables(task.show_rules(played))
+        print_tables(display.show_rules(played))
         if args.trace:
-            print("\n".join(task.show_trace(played)))
+            print("\n".join(display.show_trace(played)))
     if out is not None:
-        scene = task.show_scene(played)
+        scene = display.show_scene(played)
         if animated:
             frames = animate(scene, out, fps=args.fps)
             print(f"wrote {out} ({frames} frames of {scene.frames} steps, {played.episodes} episodes)")

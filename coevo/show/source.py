@@ -1,7 +1,7 @@
 """What to show: the task and robot held by a run directory, a rule file, or a behaviour's default rules.
 
-The task is found from what was given, never assumed, and its :class:`~coevo.tasks.base.Task` show
-hooks make the robot; every way of naming partners is checked here so that the error names the
+The task is found from what was given, never assumed, and its display
+(:class:`~coevo.tasks.showing.TaskDisplay`, ``Task.display()``) makes the robot; every way of naming partners is checked here so that the error names the
 missing file.  Anything wrong with a directory is one :class:`~coevo.errors.RunDirError` naming it.
 
     FILE.rules                      its behaviour (so its task) from the '# behaviour:' header
@@ -28,7 +28,8 @@ from coevo.policy.rules import RuleSet
 from coevo.policy.text import read_rule_file
 from coevo.rundir.layout import LearnPaths, RunPaths, read_json
 from coevo.rundir.settings import SETTINGS_VERSION
-from coevo.tasks import DEFAULT_TASK, TASKS, Task, task_of
+from coevo.tasks import DEFAULT_TASK, TASKS, Task, saved_settings, task_of
+from coevo.tasks.showing import TaskDisplay, display_of
 
 __all__ = ["Shown", "find_task", "task_names", "from_default", "from_path", "check_world"]
 
@@ -37,10 +38,18 @@ _MAX_PROBLEM = 300  # characters of a validation message quoted in a one-line er
 
 @dataclass(frozen=True)
 class Shown:
-    """What ``coevo show`` plays: a task and its robot (the task's own object, with a name and a world)."""
+    """What ``coevo show`` plays: a task, its display and its robot (the display's own object, with a name and a
+    world)."""
 
-    task: Task
+    task: Task[Any]
+    display: TaskDisplay[Any]
     robot: Any
+
+
+def _shown(task: Task[Any], name: str, world: BaseModel, rules: Mapping[str, RuleSet]) -> Shown:
+    """The robot ``rules`` make in ``world``, made by ``task``'s display (a ConfigError if it has none)."""
+    display = display_of(task)
+    return Shown(task, display, display.show_robot(name, world, rules))
 
 
 def task_names() -> list[str]:
@@ -85,18 +94,20 @@ def _partners_of(task: Task, partners: Mapping[str, RuleSet], what: str) -> None
 
 
 def from_default(behaviour: str, world_over: Mapping[str, Any], *, wanted: Task | None) -> Shown:
-    """A behaviour's shipped default rules, in a world of its task's defaults with ``world_over``."""
-    have = [b for t in TASKS.values() for b in t.behaviours if t.default_rules(b) is not None]
+    """A behaviour's shipped default rules, in a world of its task's defaults with ``world_over`` (the rules a GA
+    starts from there: :meth:`~coevo.tasks.base.Task.initial_rules`)."""
+    have = [b for t in TASKS.values() for b in t.behaviours if t.initial_rules(b, t.world_settings()) is not None]
     try:
         task = task_of(behaviour)
     except ConfigError:
         raise ConfigError(f"--default {behaviour!r}: only {', '.join(have)} have default rules") from None
     if wanted is not None and wanted is not task:
         raise ConfigError(f"--default {behaviour!r} is a {task.name!r} behaviour, not {wanted.name!r} (--task)")
-    rs = task.default_rules(behaviour)
+    world = _world(task, world_over)
+    rs = task.initial_rules(behaviour, world)
     if rs is None:
         raise ConfigError(f"--default {behaviour!r}: only {', '.join(have)} have default rules")
-    return Shown(task, task.show_robot(f"default-{behaviour}", _world(task, world_over), {behaviour: rs}))
+    return _shown(task, f"default-{behaviour}", world, {behaviour: rs})
 
 
 def from_path(path: Path, *, world_over: Mapping[str, Any], partners: Mapping[str, RuleSet],
@@ -118,7 +129,7 @@ def from_path(path: Path, *, world_over: Mapping[str, Any], partners: Mapping[st
     if wanted is not None and wanted is not task:
         raise ConfigError(f"{str(path)!r} holds {rs.behaviour} rules of the {task.name!r} task, not {wanted.name!r} (--task)")
     _partners_of(task, partners, str(path))
-    return Shown(task, task.show_robot(path.stem, _world(task, world_over), {**partners, rs.behaviour: rs}))
+    return _shown(task, path.stem, _world(task, world_over), {**partners, rs.behaviour: rs})
 
 
 def _meta(f: Path) -> dict[str, Any]:
@@ -134,8 +145,13 @@ def _named_task(meta: Mapping[str, Any], f: Path, default: str) -> Task:
 
 
 def _run_world(task: Task, meta: Mapping[str, Any], f: Path, over: Mapping[str, Any], version: str) -> BaseModel:
-    """The world in ``f`` (a RunDirError naming it when it is not the task's), with ``over`` on top (a ConfigError)."""
-    values = meta.get("world", {})
+    """The world in ``f`` (a RunDirError naming it when it is not the task's), with ``over`` on top (a ConfigError);
+    a run saved before some world setting existed, or when it was a GA setting, as it learned
+    (:func:`~coevo.tasks.saved_settings`)."""
+    try:
+        values = saved_settings({**meta, "task": task.name}).get("world", {})
+    except ConfigError as exc:
+        raise RunDirError(f"{str(f)!r}: {exc}") from None
     if not isinstance(values, dict):
         raise RunDirError(f"{str(f)!r}: its world is not a JSON object of settings")
     try:
@@ -161,7 +177,7 @@ def _from_run(d: Path, over: Mapping[str, Any], partners: Mapping[str, RuleSet],
     _partners_of(task, partners, str(d))
     world = _run_world(task, meta, f, over, "")
     rules = RunPaths(d).final_rules(task.behaviours, partners)
-    return Shown(task, task.show_robot(d.name, world, rules))
+    return _shown(task, d.name, world, rules)
 
 
 def _from_learn(d: Path, over: Mapping[str, Any], partners: Mapping[str, RuleSet], wanted: Task | None) -> Shown:
@@ -193,4 +209,4 @@ def _from_learn(d: Path, over: Mapping[str, Any], partners: Mapping[str, RuleSet
         else:
             raise RunDirError(f"{rs.behaviour} learn directory {str(d)!r} does not hold its {b} partner ({f.name}; "
                               f"learn runs before coevo show did not keep it): give --{b} FILE")
-    return Shown(task, task.show_robot(d.name, world, rules))
+    return _shown(task, d.name, world, rules)

@@ -5,8 +5,9 @@ The GA, the workers, the broker, replay and check name no task; they rely on the
 where it breaks that interface: its names and settings, each behaviour's rule schema and default
 rules, the GA settings it fills in, the partners it asks for, an evaluation (shapes, payoffs in
 [0, 1], the same numbers from the same seed), its measures (the same keys every generation, numbers
-in the documented ranges) and, where it has them, its pictures.  The suite runs it on every task
-(``tests/test_tasks.py``); a new task runs it first (docs/architecture.md, "Adding a task").
+in the documented ranges) and, where ``display()`` gives them, its pictures (a robot played twice from one
+seed the same way, a scene, rule tables, a PNG).  The suite runs it on every task
+(``tests/test_tasks.py``); a new task runs it first (docs/architecture.md, "Adding things").
 
 After Gymnasium's ``utils/env_checker.py``: the interface as executable checks, not only as prose.
 """
@@ -24,11 +25,12 @@ import numpy as np
 from pydantic import BaseModel
 
 from coevo.config import GAConfig, build
-from coevo.errors import CoevoError
+from coevo.errors import RuleSetError
 from coevo.ga.evaluator import Evaluation, Partners
 from coevo.policy.rules import RuleSet
 from coevo.policy.schema import schema
-from coevo.tasks.base import Task
+from coevo.tasks.base import Task, check_behaviour, check_ga, ga_settings, initial_model
+from coevo.tasks.showing import TaskDisplay
 
 __all__ = ["check_task", "TINY_GA"]
 
@@ -36,7 +38,7 @@ __all__ = ["check_task", "TINY_GA"]
 TINY_GA = {"population": 2, "episodes": 2, "best_episodes": 2, "generations": 1, "initial_rules": 6}
 
 
-def check_task(task: Task, *, seed: int = 0, pictures: bool = True) -> list[str]:
+def check_task(task: Task[Any], *, seed: int = 0, pictures: bool = True) -> list[str]:
     """Problems with ``task`` as the interface of :class:`Task` defines it; empty when it passes."""
     problems: list[str] = []
     say = problems.append
@@ -45,7 +47,7 @@ def check_task(task: Task, *, seed: int = 0, pictures: bool = True) -> list[str]
         return problems  # without its names and settings nothing else can be tried
     world = task.world_settings()
     for behaviour in task.behaviours:
-        _guard(say, f"{behaviour}: rules", partial(_rules, task, behaviour, say))
+        _guard(say, f"{behaviour}: rules", partial(_rules, task, behaviour, world, say))
         _guard(say, f"{behaviour}: GA settings", partial(_ga, task, behaviour, say))
         _guard(say, f"{behaviour}: partners", partial(_partners, task, behaviour, say))
         _guard(say, f"{behaviour}: evaluation", partial(_evaluation, task, behaviour, world, seed, say))
@@ -62,7 +64,7 @@ def _guard(say: Callable[[str], None], what: str, check: Callable[[], None]) -> 
         say(f"{what}: raised {type(exc).__name__}: {exc}")
 
 
-def _identity(task: Task, say: Callable[[str], None]) -> None:
+def _identity(task: Task[Any], say: Callable[[str], None]) -> None:
     name = getattr(task, "name", None)
     if not isinstance(name, str) or not name.isidentifier():
         say(f"name {name!r}: give the task a short identifier (it is used on the command line and in run.json)")
@@ -84,19 +86,21 @@ def _identity(task: Task, say: Callable[[str], None]) -> None:
         say("measure_labels: give a dict (measure -> short label), empty if none")
 
 
-def _rules(task: Task, behaviour: str, say: Callable[[str], None]) -> None:
-    sch = task.schema(behaviour)
-    if sch is not schema(behaviour):
-        say(f"{behaviour}: schema() is not the registered rule schema of {behaviour!r}")
+def _rules(task: Task[Any], behaviour: str, world: BaseModel, say: Callable[[str], None]) -> None:
+    try:
+        sch = schema(check_behaviour(task, behaviour))
+    except RuleSetError:
+        say(f"{behaviour}: no rule schema is registered under {behaviour!r} (register it when the task is imported)")
+        return
     if not sch.sensors or not sch.actions:
         say(f"{behaviour}: its rule schema needs at least one sensor and one action")
-    default = task.default_rules(behaviour)
+    default = task.initial_rules(behaviour, world)
     if default is not None:
-        _is_ruleset(default, behaviour, "default_rules", say)
-    ga = task.ga_settings(behaviour, build(GAConfig, TINY_GA))
-    model = task.initial_model(behaviour, ga, np.random.default_rng(0))
+        _is_ruleset(default, behaviour, "initial_rules", say)
+    ga = ga_settings(task, behaviour, build(GAConfig, TINY_GA))
+    model = initial_model(task, behaviour, world, ga, np.random.default_rng(0))
     _is_ruleset(model, behaviour, "initial_model", say)
-    usable = task.learnable_sensors(behaviour, ga)
+    usable = task.learnable_sensors(behaviour, world)
     if usable is not None and (np.shape(usable) != (sch.n_sensors,) or np.asarray(usable).dtype != bool
                                or not np.asarray(usable).any()):
         say(f"{behaviour}: learnable_sensors must be None or {sch.n_sensors} booleans, some true")
@@ -111,16 +115,17 @@ def _is_ruleset(rs: Any, behaviour: str, what: str, say: Callable[[str], None]) 
         say(f"{behaviour}: {what} does not survive its own round trip through to_dict/from_dict")
 
 
-def _ga(task: Task, behaviour: str, say: Callable[[str], None]) -> None:
-    filled = task.ga_settings(behaviour, GAConfig())
+def _ga(task: Task[Any], behaviour: str, say: Callable[[str], None]) -> None:
+    filled = ga_settings(task, behaviour, GAConfig())
     left = sorted(k for k, v in filled.model_dump().items() if v is None)
     if left:
-        say(f"{behaviour}: ga_settings leaves {', '.join(left)} unset (a task fills in every setting left to it)")
-    if task.check_ga(GAConfig()) != GAConfig():
+        say(f"{behaviour}: ga_settings leaves {', '.join(left)} unset (ga_choices may not choose None for a "
+            "setting left to the task)")
+    if check_ga(task, GAConfig()) != GAConfig():
         say("check_ga must return the settings it was given, not change them")
 
 
-def _partners(task: Task, behaviour: str, say: Callable[[str], None]) -> None:
+def _partners(task: Task[Any], behaviour: str, say: Callable[[str], None]) -> None:
     for regime in task.regimes:
         needed = task.partners_needed(behaviour, regime)
         strangers = [p for p in needed if p not in task.behaviours or p == behaviour]
@@ -128,15 +133,15 @@ def _partners(task: Task, behaviour: str, say: Callable[[str], None]) -> None:
             say(f"{behaviour} in {regime}: partners_needed names {strangers}, not other behaviours of the task")
 
 
-def _partner_models(task: Task, behaviour: str, ga: GAConfig) -> Partners:
+def _partner_models(task: Task[Any], behaviour: str, world: BaseModel, ga: GAConfig) -> Partners:
     needed = {p for r in task.regimes for p in task.partners_needed(behaviour, r)}
-    return {p: task.initial_model(p, task.ga_settings(p, ga), np.random.default_rng(7)) for p in sorted(needed)}
+    return {p: initial_model(task, p, world, ga_settings(task, p, ga), np.random.default_rng(7)) for p in sorted(needed)}
 
 
-def _evaluation(task: Task, behaviour: str, world: BaseModel, seed: int, say: Callable[[str], None]) -> None:
-    ga = task.ga_settings(behaviour, build(GAConfig, TINY_GA))
-    partners = _partner_models(task, behaviour, ga)
-    policies = [task.initial_model(behaviour, ga, np.random.default_rng(seed + k)) for k in range(2)]
+def _evaluation(task: Task[Any], behaviour: str, world: BaseModel, seed: int, say: Callable[[str], None]) -> None:
+    ga = ga_settings(task, behaviour, build(GAConfig, TINY_GA))
+    partners = _partner_models(task, behaviour, world, ga)
+    policies = [initial_model(task, behaviour, world, ga, np.random.default_rng(seed + k)) for k in range(2)]
 
     def evaluate() -> Evaluation:
         return task.evaluator(behaviour, world, ga).evaluate(policies, partners, np.random.default_rng(seed))
@@ -172,26 +177,29 @@ def _numbers(values: Mapping[str, Any], what: str, say: Callable[[str], None], *
             say(f"{what}: {k!r} = {v!r} is not a finite number{' or None' if none_ok else ''}")
 
 
-def _pictures(task: Task, world: BaseModel, seed: int, say: Callable[[str], None]) -> None:
-    ga = build(GAConfig, TINY_GA)
-    rules = {b: task.initial_model(b, task.ga_settings(b, ga), np.random.default_rng(seed)) for b in task.behaviours}
-    try:
-        robot = task.show_robot("checked", world, rules)
-    except CoevoError:
+def _pictures(task: Task[Any], world: BaseModel, seed: int, say: Callable[[str], None]) -> None:
+    display = task.display()
+    if display is None:
         return  # a task without pictures says so (coevo show names it); nothing more to check
-    played = task.show_play(robot, seed=seed, episodes=1)
-    again = task.show_play(task.show_robot("checked", world, rules), seed=seed, episodes=1)
-    scene, replayed = task.show_scene(played), task.show_scene(again)
+    if not isinstance(display, TaskDisplay):
+        say(f"pictures: display() gave {type(display).__name__}, not a TaskDisplay (or None for no pictures)")
+        return
+    ga = build(GAConfig, TINY_GA)
+    rules = {b: initial_model(task, b, world, ga_settings(task, b, ga), np.random.default_rng(seed))
+             for b in task.behaviours}
+    played = display.show_play(display.show_robot("checked", world, rules), seed=seed, episodes=1)
+    again = display.show_play(display.show_robot("checked", world, rules), seed=seed, episodes=1)
+    scene, replayed = display.show_scene(played), display.show_scene(again)
     if not scene.frames or not scene.spans:
         say("pictures: show_scene drew no frames or no episode spans from one episode")
     if replayed.captions != scene.captions or len(replayed.tracks) != len(scene.tracks) or not all(
             np.array_equal(a.xy, b.xy) for a, b in zip(replayed.tracks, scene.tracks)):
         say("pictures: the same robot and seed played another way (show_play must be deterministic)")
-    if not task.show_rules(played):
+    if not display.show_rules(played):
         say("pictures: show_rules gave no rule tables")
     behaviour = task.behaviours[0]
     with tempfile.TemporaryDirectory() as tmp:
         png = Path(tmp) / "best.png"
-        task.picture(png, behaviour, rules[behaviour], world=world, partners={}, seed=seed, name="checked")
+        display.picture(png, behaviour, rules[behaviour], world=world, partners={}, seed=seed, name="checked")
         if png.exists() and png.read_bytes()[:8] != b"\x89PNG\r\n\x1a\n":
             say("pictures: picture() wrote a file that is not a PNG")

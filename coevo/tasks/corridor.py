@@ -6,8 +6,9 @@ payoff is 0 if it does not arrive, else ``1 - steps used / (steps + 1)``; its
 measure ``arrived`` is the share of episodes that reach the end.  Every episode
 starts on a random cell before the last.  Many lanes play at once on numpy arrays.
 
-``coevo show`` plays a walker episode by episode (:func:`play_walker`) and draws the
-corridor's cells with each episode's walk on a row of its own (:func:`corridor_scene`).
+Its display (:class:`CorridorDisplay`, the smallest :class:`~coevo.tasks.showing.TaskDisplay`): ``coevo
+show`` plays a walker episode by episode (:func:`play_walker`) and draws the corridor's cells with
+each episode's walk on a row of its own (:func:`corridor_scene`).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from pydantic import BaseModel, Field
+from pydantic import Field
 
 from coevo.config import GAConfig, Settings
 from coevo.errors import ConfigError
@@ -25,13 +26,13 @@ from coevo.ga.operators import Experience
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.rules import RuleSet
 from coevo.policy.schema import Action, Schema, Sensor, register
-from coevo.tasks.base import ChildRng, Evaluation, Evaluator, Partners, Task, Tick
+from coevo.tasks.base import ChildRng, Evaluation, Evaluator, Partners, Task, Tick, check_behaviour
+from coevo.tasks.showing import RuleTable, TaskDisplay, rule_rows, run_lengths
 
 if TYPE_CHECKING:
     from coevo.scene import Scene
-    from coevo.tasks.showing import RuleTable
 
-__all__ = ["CorridorTask", "CorridorConfig", "CORRIDOR"]
+__all__ = ["CorridorTask", "CorridorDisplay", "CorridorConfig", "CORRIDOR"]
 
 CORRIDOR = "corridor"
 _MAX_CELLS = 16  # the cell sensor's bins: the longest corridor
@@ -179,33 +180,37 @@ def corridor_scene(played: WalkerPlay, *, title: str | None = None) -> Scene:
     )
 
 
-class CorridorTask(Task):
+class CorridorTask(Task[CorridorConfig]):
     name = "corridor"
     behaviours = (CORRIDOR,)
     world_settings = CorridorConfig
 
-    def evaluator(self, behaviour: str, world: BaseModel, ga: GAConfig) -> CorridorEvaluator:
-        self.check_behaviour(behaviour)
-        if not isinstance(world, CorridorConfig):
-            raise ConfigError(f"the corridor task needs CorridorConfig settings, got {type(world).__name__}")
+    def evaluator(self, behaviour: str, world: CorridorConfig, ga: GAConfig) -> CorridorEvaluator:
+        check_behaviour(self, behaviour)
         return CorridorEvaluator(world, ga)
 
     def status_measures(self, behaviour: str, measures: Mapping[str, float | None]) -> dict[str, float]:
         return {"arrived": float(measures["arrived"] or 0.0)}
 
-    def final_measures(self, behaviour: str, best: RuleSet, *, world: BaseModel, partners: Partners,
+    def final_measures(self, behaviour: str, best: RuleSet, *, world: CorridorConfig, partners: Partners,
                        epochs: int, seed: int) -> dict[str, float | int]:
         ev = self.evaluator(behaviour, world, GAConfig()).evaluate([best], {}, np.random.default_rng(seed), episodes=epochs)
         return {"arrived": float(100.0 * ev.details.mean()), "payoff": float(ev.fitness[0])}
 
-    def run_measures(self, policies: Mapping[str, RuleSet], *, world: BaseModel, epochs: int,
+    def run_measures(self, policies: Mapping[str, RuleSet], *, world: CorridorConfig, epochs: int,
                      seed: int) -> dict[str, float | int] | None:
         best = policies.get(CORRIDOR)
         return None if best is None else self.final_measures(CORRIDOR, best, world=world, partners={}, epochs=epochs, seed=seed)
 
-    # coevo show
-    def show_robot(self, name: str, world: BaseModel, rules: Mapping[str, RuleSet]) -> Walker:
-        if set(rules) != {CORRIDOR} or not isinstance(world, CorridorConfig):
+    def display(self) -> CorridorDisplay:
+        return CorridorDisplay()
+
+
+class CorridorDisplay(TaskDisplay[CorridorConfig]):
+    """The corridor's pictures for ``coevo show``: a walker's episodes, a row each (it draws no best.png)."""
+
+    def show_robot(self, name: str, world: CorridorConfig, rules: Mapping[str, RuleSet]) -> Walker:
+        if set(rules) != {CORRIDOR}:
             raise ConfigError(f"{name}: the corridor task shows one {CORRIDOR} rule set, got {', '.join(sorted(rules)) or 'none'}")
         return Walker(name, world, rules[CORRIDOR])
 
@@ -217,15 +222,11 @@ class CorridorTask(Task):
         return corridor_scene(played, title=title)
 
     def show_rules(self, played: WalkerPlay) -> list[RuleTable]:
-        from coevo.tasks.showing import RuleTable, rule_rows
-
         rs = played.robot.rules
         counts = np.bincount(np.concatenate(played.fired), minlength=len(rs))[: len(rs)]
         return [RuleTable(f"{CORRIDOR}: {len(rs)} rules by strength; fired = steps it decided in {played.episodes} "
                           "episodes", "C", tuple(rule_rows(rs, counts)))]
 
     def show_trace(self, played: WalkerPlay) -> list[str]:
-        from coevo.tasks.showing import run_lengths
-
         return [f"episode {k + 1}: {run_lengths(f, 'C')} -> {'reached the end' if played.arrived(k) else 'time up'}"
                 for k, f in enumerate(played.fired)]

@@ -30,7 +30,7 @@ def _base_settings(args: argparse.Namespace) -> Any:
     schedule = tuple(args.fail) if args.fail else SCHEDULES[args.schedule or "figure3"]
     k = args.trials_per_generation or CelSettings().trials_per_generation
     cel = build(CelSettings, {"schedule": schedule, "case_base": args.case_base, "trials_per_generation": k, "chunk": k})
-    ga = ga_settings(args)
+    ga = ga_settings(args, "door")
     if args.generations is None:
         ga = ga.model_copy(update={"generations": CEL_GENERATIONS})
     return RunSettings.make(run="live", task="door", regime="independent", seed=0, max_lead=CEL_MAX_LEAD,

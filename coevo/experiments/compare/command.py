@@ -17,9 +17,9 @@ from coevo.console import (
     add_settings,
     count_arg,
     ga_settings,
-    pairs,
     positive_float_arg,
     seed_arg,
+    world_settings,
 )
 from coevo.config import DEFAULT_MAX_LEAD
 from coevo.errors import ConfigError
@@ -29,18 +29,17 @@ __all__ = ["configure_compare", "cmd_compare"]
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from coevo.config import build
     from coevo.experiments.compare.experiment import CompareSpec, prepare, run_all
     from coevo.experiments.compare.report import write_report
     from coevo.experiments.compare.stats import MeanInterval
     from coevo.experiments.compare.experiment import default_jobs, replicates
     from coevo.replicates.backends import ClusterLost
-    from coevo.tasks.fuel.settings import WorldConfig
+    from coevo.tasks.fuel import FuelTask  # Table 1 compares the fuel task's regimes
 
     rates = {} if args.rates is None else {"rates": tuple(args.rates)}
     spec = CompareSpec.make(regimes=tuple(args.regimes), **rates, runs=args.runs, seed=args.seed, model=args.model,
                             max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD), measure_epochs=args.measure_epochs,
-                            world=build(WorldConfig, pairs(args.world, "world")), ga=ga_settings(args))
+                            world=world_settings(args, FuelTask.name), ga=ga_settings(args, FuelTask.name))
     check_backend_flags(args)  # before anything is written into --out
     out = Path(args.out) if args.out else Path("runs") / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"
     t0 = time.time()

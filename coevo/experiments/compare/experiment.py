@@ -40,14 +40,15 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from coevo.config import MODELS
 from coevo.replicates.backends import Backend
 from coevo.replicates.replicate import Replicate as Job
 from coevo.replicates.runner import Progress, run_replicates
 from coevo.rundir.settings import RunSettings
-from coevo.tasks import get_task
+from coevo.tasks import get_task, split_settings
+from coevo.tasks.base import check_ga
 from coevo.tasks.fuel import FuelTask
 
 REGIMES = FuelTask.regimes
@@ -66,6 +67,16 @@ log = logging.getLogger(__name__)
 SEED_STRIDE = 1000  # replicate i runs with seed + i * SEED_STRIDE (workers take seed, seed+1, seed+2)
 OFFLINE = "independent-offline"  # the Executive learning on recorded Tracking/Docking histories, per rate
 DEFAULT_RATES = (0.25, 0.5, 1.0, 2.0, 4.0)  # (ours) partner generations per Executive generation: 16x apart
+
+
+def _settings_now(spec: Any) -> Any:
+    """A comparison's settings (compare.json's spec, or values given) with GA values that are now world settings
+    moved to the world (:func:`coevo.tasks.split_settings`: the fuel task's Docking settings until issue 41)."""
+    if not isinstance(spec, dict) or not isinstance(spec.get("world"), dict) or not isinstance(spec.get("ga"), dict):
+        return spec
+    world, ga = spec["world"], spec["ga"]
+    world, ga = split_settings(get_task(FuelTask.name), world, ga)
+    return {**spec, "world": world, "ga": ga}
 
 
 class CompareSpec(BaseModel):
@@ -98,11 +109,17 @@ class CompareSpec(BaseModel):
                              "add independent to the regimes")
         return v
 
+    @model_validator(mode="before")
+    @classmethod
+    def _moved(cls, data: Any) -> Any:
+        """A comparison saved before the fuel task's Docking settings moved from its GA to its world reads as it ran."""
+        return _settings_now(data)
+
     @field_validator("ga")
     @classmethod
     def _ga(cls, v: GAConfig) -> GAConfig:
         try:
-            return get_task("fuel").check_ga(v)  # before OUT is written to
+            return check_ga(get_task(FuelTask.name), v)  # before OUT is written to
         except ConfigError as exc:
             raise ValueError(str(exc)) from None
 
@@ -224,8 +241,8 @@ def prepare(out: Path, spec: CompareSpec, *, resume: bool) -> list[Replicate]:
         if not marker.exists():
             raise RunDirError(f"--out {str(out)!r} is not empty and holds no comparison (no compare.json); choose another --out")
         try:
-            held = json.loads(marker.read_text())["spec"]
-        except (OSError, json.JSONDecodeError, KeyError, TypeError) as exc:
+            held = _settings_now(json.loads(marker.read_text())["spec"])
+        except (OSError, json.JSONDecodeError, KeyError, TypeError, ConfigError) as exc:
             raise RunDirError(f"{marker} cannot be read ({exc}); choose another --out") from exc
         mine = _spec_json(spec)
         if held != mine:

@@ -1,6 +1,7 @@
 """``coevo seeds``: learning over seeds against a target, with a report (registered by :mod:`coevo.cli`).
 
-``--task fuel`` (default): Tracking and Docking learned offline against the learning targets (:mod:`.experiment`);
+``--task fuel`` (the default task, :data:`coevo.tasks.DEFAULT_TASK`): Tracking and Docking learned offline against
+the learning targets (:mod:`.experiment`);
 ``--task door``: Appendix B's door traversal, all sonars then three failed, beside Figure 3's numbers
 (:mod:`.door`, :mod:`.door_report`).  Both run their seeds through :mod:`coevo.replicates`.
 """
@@ -38,12 +39,12 @@ def cmd_seeds(args: argparse.Namespace) -> int:
     if args.task == "door":
         _refuse(args, FUEL_FLAGS, "door")
         return _cmd_door(args)
-    _refuse(args, DOOR_FLAGS, "fuel")
+    _refuse(args, DOOR_FLAGS, args.task)
     from coevo.experiments.seeds.experiment import replicates, write_report
     from coevo.replicates.backends import ClusterLost
     from coevo.replicates.runner import run_replicates
 
-    extra, ga = _fuel_settings(args)  # checked before anything is written
+    extra, ga = _fuel_settings(args, args.task)  # checked before anything is written
     extra += list(args.learn_args or [])
     out = Path(args.out) if args.out else Path("runs") / f"seeds-{time.strftime('%Y%m%d-%H%M%S')}"
     from coevo.rundir.layout import ensure_dir
@@ -52,7 +53,7 @@ def cmd_seeds(args: argparse.Namespace) -> int:
         raise RunDirError(f"--out {str(out)!r} is not empty; add --resume to continue the runs there")
     ensure_dir(out, what="--out")
     behaviours = args.behaviours or ["docking", "tracking"]
-    seeds = list(range(args.first_seed, args.first_seed + (args.seeds or DEFAULT_SEEDS["fuel"])))
+    seeds = list(range(args.first_seed, args.first_seed + (args.seeds or DEFAULT_SEEDS[args.task])))
     reps = replicates(behaviours, seeds, extra)
     backend = backend_of(args, default_jobs=1)
     print(f"learning over seeds in {out}: {len(reps)} runs, {backend.description}", flush=True)
@@ -79,17 +80,19 @@ def cmd_seeds(args: argparse.Namespace) -> int:
     return 1 if prog.failed else 0
 
 
-def _fuel_settings(args: argparse.Namespace) -> tuple[list[str], Any]:
+def _fuel_settings(args: argparse.Namespace, name: str) -> tuple[list[str], Any]:
     """``--generations``, ``--world`` and ``--ga`` as ``coevo learn`` arguments, and the GA settings they make, checked
-    first (a bad one is a ConfigError naming it, before anything runs)."""
+    first against the task ``name`` (a bad one is a ConfigError naming it, before anything runs)."""
     from coevo.config import GAConfig, build
     from coevo.console import pairs
-    from coevo.tasks import get_task
+    from coevo.tasks import get_task, split_settings
+    from coevo.tasks.base import check_ga
 
-    world, ga = pairs(args.world, "world"), pairs(args.ga, "ga")
-    build(get_task("fuel").world_settings, world)
+    task = get_task(name)
+    world, ga = split_settings(task, pairs(args.world, "world"), pairs(args.ga, "ga"))
+    build(task.world_settings, world)
     config = build(GAConfig, {**ga, **({} if args.generations is None else {"generations": args.generations})})
-    get_task("fuel").check_ga(config)
+    check_ga(task, config)
     out = [] if args.generations is None else [f"--generations={args.generations}"]
     return out + [f"--world={k}={v}" for k, v in world.items()] + [f"--ga={k}={v}" for k, v in ga.items()], config
 
@@ -142,7 +145,9 @@ def _cmd_door(args: argparse.Namespace) -> int:
 
 def configure_seeds(p: argparse.ArgumentParser) -> None:
     """``coevo seeds``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
-    p.add_argument("--task", choices=["fuel", "door"], default="fuel",
+    from coevo.tasks import DEFAULT_TASK
+
+    p.add_argument("--task", choices=["fuel", "door"], default=DEFAULT_TASK,
                    help="fuel: Tracking and Docking against the learning targets (default); door: Appendix B's door "
                         "traversal, all sonars then --fail, beside Figure 3's numbers")
     p.add_argument("--seeds", type=count_arg(1, 10_000), help="seeds per behaviour (default 5; --task door: 10)")

@@ -21,6 +21,9 @@ __all__ = ["configure_study", "cmd_study"]
 
 def _settings_given(args: argparse.Namespace) -> dict[str, Any]:
     """The settings flags given on the command line, by their study names (not given: left out)."""
+    from coevo.tasks import get_task, split_settings
+    from coevo.tasks.fuel import FuelTask  # a study's cells compare the fuel task's regimes
+
     given: dict[str, Any] = {}
     for flag, name in (("runs", "runs"), ("model", "model"), ("measure_epochs", "measure_epochs")):
         if getattr(args, flag) is not None:
@@ -30,8 +33,9 @@ def _settings_given(args: argparse.Namespace) -> dict[str, Any]:
     for flag in ("generations", "population", "episodes"):
         if getattr(args, flag) is not None:
             given[f"ga.{flag}"] = getattr(args, flag)
-    given |= {f"ga.{k}": v for k, v in pairs(args.ga, "ga").items()}
-    given |= {f"world.{k}": v for k, v in pairs(args.world, "world").items()}
+    world, ga = split_settings(get_task(FuelTask.name), pairs(args.world, "world"), pairs(args.ga, "ga"))
+    given |= {f"ga.{k}": v for k, v in ga.items()}  # --ga docking_sensors=... is the world setting it is now
+    given |= {f"world.{k}": v for k, v in world.items()}
     return given
 
 

@@ -6,7 +6,7 @@ a goal line beyond it, sensing with seven sonars that may fail.  One behaviour,
 ``door``, learns alone (regime ``independent``, no partners).  The world is in
 :mod:`.world` (batched, numpy ray casting), the settings with the sonar failures in
 :mod:`.settings`, the rule schema in :mod:`.sensors`, the evaluator and the external
-performance measure in :mod:`.evaluate`, the pictures in :mod:`.pictures`, and the
+performance measure in :mod:`.evaluate`, its display (pictures) in :mod:`.pictures`, and the
 restart on a change of capabilities (report §6) in :func:`restart`.
 """
 
@@ -15,29 +15,22 @@ from __future__ import annotations
 from collections.abc import Mapping
 from functools import cache
 from importlib import resources
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-from pydantic import BaseModel
 
 from coevo.config import GAConfig
 from coevo.errors import ConfigError
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import parse_ruleset
-from coevo.tasks.base import Partners, Task
+from coevo.tasks.base import Partners, Task, check_behaviour
 from coevo.tasks.door.evaluate import DoorEvaluator, measure
 from coevo.tasks.door.sensors import DOOR
 from coevo.tasks.door.settings import DOOR_GA, SONARS, DoorConfig, capability_label, door_ga
 
 if TYPE_CHECKING:
     from coevo.ga import GA
-    from coevo.scene import Scene
-    from coevo.tasks.door.pictures import DoorPlay, DoorRobot
-    from coevo.tasks.showing import RuleTable
-
-#: Trials ``coevo show`` plays unless told: one, like the report's figures (each trial has its own opening).
-SHOW_TRIALS = 1
+    from coevo.tasks.showing import TaskDisplay
 
 __all__ = ["DoorTask", "DoorConfig", "DOOR", "SONARS", "DOOR_GA", "door_ga", "default_ruleset", "restart",
            "capability_label"]
@@ -50,76 +43,38 @@ def default_ruleset() -> RuleSet:
     return parse_ruleset(text, DOOR)
 
 
-def _door_world(world: BaseModel) -> DoorConfig:
-    if not isinstance(world, DoorConfig):
-        raise ConfigError(f"the door task needs DoorConfig settings, got {type(world).__name__}")
-    return world
-
-
-class DoorTask(Task):
+class DoorTask(Task[DoorConfig]):
     name = "door"
     behaviours = (DOOR,)
     regimes = ("independent",)
     world_settings = DoorConfig
 
-    def default_rules(self, behaviour: str) -> RuleSet:
-        self.check_behaviour(behaviour)
+    def initial_rules(self, behaviour: str, world: DoorConfig) -> RuleSet:
+        check_behaviour(self, behaviour)
         return default_ruleset()
 
     def default_ga(self, **overrides: object) -> GAConfig:
         """GAConfig for this task: its defaults with :data:`DOOR_GA` on top, then ``overrides``."""
         return door_ga(**overrides)
 
-    def evaluator(self, behaviour: str, world: BaseModel, ga: GAConfig) -> DoorEvaluator:
-        self.check_behaviour(behaviour)
-        return DoorEvaluator(_door_world(world), ga)
+    def evaluator(self, behaviour: str, world: DoorConfig, ga: GAConfig) -> DoorEvaluator:
+        check_behaviour(self, behaviour)
+        return DoorEvaluator(world, ga)
 
     def status_measures(self, behaviour: str, measures: Mapping[str, float | None]) -> dict[str, float]:
         return {"success": float(measures.get("success") or 0.0)}
 
-    def final_measures(self, behaviour: str, best: RuleSet, *, world: BaseModel, partners: Partners,
+    def final_measures(self, behaviour: str, best: RuleSet, *, world: DoorConfig, partners: Partners,
                        epochs: int, seed: int) -> Mapping[str, float | int | None]:
         """External performance (report §8.1): ``best`` on ``epochs`` fresh trials (100 in the report)."""
-        self.check_behaviour(behaviour)
-        return measure(best, _door_world(world), trials=epochs, seed=seed)
+        check_behaviour(self, behaviour)
+        return measure(best, world, trials=epochs, seed=seed)
 
-    def picture(self, path: Path, behaviour: str, best: RuleSet, *, world: BaseModel, partners: Partners, seed: int,
-                name: str) -> None:
-        """best.png: a trial of the best rules, during the run and at its end (the report's Figures 4-5)."""
-        from coevo.tasks.door.pictures import path_figure
+    def display(self) -> TaskDisplay[DoorConfig]:
+        """Its pictures (:mod:`coevo.tasks.door.pictures`), imported only when something is drawn."""
+        from coevo.tasks.door.pictures import DoorDisplay
 
-        cfg = _door_world(world)
-        path_figure(path, best, cfg, seed=seed, title=f"{name}: the best door rules ({capability_label(cfg)}), seed {seed}")
-
-    # coevo show: a Scene of trials (coevo.tasks.door.pictures)
-    def show_robot(self, name: str, world: BaseModel, rules: Mapping[str, RuleSet]) -> DoorRobot:
-        from coevo.tasks.door.pictures import door_robot
-
-        return door_robot(name, _door_world(world), rules)
-
-    def show_episodes(self, robot: DoorRobot) -> int | None:
-        return SHOW_TRIALS
-
-    def show_play(self, robot: DoorRobot, *, seed: int, episodes: int | None) -> DoorPlay:
-        """``episodes`` trials (None, one epoch: :data:`SHOW_TRIALS`; the door task has no epochs)."""
-        from coevo.tasks.door.pictures import play_trials
-
-        return play_trials(robot, seed=seed, trials=episodes or SHOW_TRIALS)
-
-    def show_scene(self, played: DoorPlay, *, title: str | None = None) -> Scene:
-        from coevo.tasks.door.pictures import scene_of
-
-        return scene_of(played, title=title)
-
-    def show_rules(self, played: DoorPlay) -> list[RuleTable]:
-        from coevo.tasks.door.pictures import rule_tables
-
-        return rule_tables(played)
-
-    def show_trace(self, played: DoorPlay) -> list[str]:
-        from coevo.tasks.door.pictures import trace_lines
-
-        return trace_lines(played)
+        return DoorDisplay()
 
 
 def restart(ga: GA, world: DoorConfig, *, keep: float = 0.5) -> None:

@@ -12,7 +12,7 @@ picture shows how the rules succeed; if none did, or with ``prefer_success=False
 posts solid in that trial's colour (its path's: a path crosses between its own trial's posts, and the
 walls of the other trials, which were not there, show through), the goal and starting lines, the robot's path
 at every substep, the sonars at the last trial's start (failed ones as red stubs) and how each trial
-ended.
+ended.  Both reach the commands through :class:`DoorDisplay` (``DoorTask.display()``).
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from coevo.errors import ConfigError
+from coevo.ga.evaluator import Partners
 from coevo.policy.matcher import CompiledPolicies
 from coevo.policy.rules import RuleSet
 from coevo.scene.scene import Event, Scene, Shape, Span, Track
@@ -31,9 +32,9 @@ from coevo.tasks.door.evaluate import play
 from coevo.tasks.door.sensors import DOOR
 from coevo.tasks.door.settings import SONAR_ANGLES, SONARS, DoorConfig, capability_label
 from coevo.tasks.door.world import COLLISION, GOAL, TIMEOUT, DoorWorld, Trials, draw_trials
-from coevo.tasks.showing import RuleTable, rule_rows, run_lengths
+from coevo.tasks.showing import RuleTable, TaskDisplay, rule_rows, run_lengths
 
-__all__ = ["trial_path", "path_figure", "DoorRobot", "DoorPlay", "door_robot", "play_trials", "scene_of",
+__all__ = ["DoorDisplay", "trial_path", "path_figure", "DoorRobot", "DoorPlay", "door_robot", "play_trials", "scene_of",
            "rule_tables", "trace_lines"]
 
 _OUTCOME = {1: "reached the goal", 2: "collided", 3: "ran out of time"}
@@ -253,3 +254,36 @@ def rule_tables(played: DoorPlay) -> list[RuleTable]:
 def trace_lines(played: DoorPlay) -> list[str]:
     return [f"trial {k + 1}: {run_lengths(f, 'R')} -> {_ENDING[int(o)]}"
             for k, (f, o) in enumerate(zip(played.fired, played.outcome, strict=True))]
+
+
+#: Trials ``coevo show`` plays unless told: one, like the report's figures (each trial has its own opening).
+SHOW_TRIALS = 1
+
+
+class DoorDisplay(TaskDisplay[DoorConfig]):
+    """The door task's pictures: ``DoorTask.display()``."""
+
+    def picture(self, path: Path, behaviour: str, best: RuleSet, *, world: DoorConfig, partners: Partners, seed: int,
+                name: str) -> None:
+        """best.png: a trial of the best rules, during the run and at its end (the report's Figures 4-5)."""
+        path_figure(path, best, world, seed=seed,
+                    title=f"{name}: the best door rules ({capability_label(world)}), seed {seed}")
+
+    def show_robot(self, name: str, world: DoorConfig, rules: Mapping[str, RuleSet]) -> DoorRobot:
+        return door_robot(name, world, rules)
+
+    def show_episodes(self, robot: DoorRobot) -> int | None:
+        return SHOW_TRIALS
+
+    def show_play(self, robot: DoorRobot, *, seed: int, episodes: int | None) -> DoorPlay:
+        """``episodes`` trials (None, one epoch: :data:`SHOW_TRIALS`; the door task has no epochs)."""
+        return play_trials(robot, seed=seed, trials=episodes or SHOW_TRIALS)
+
+    def show_scene(self, played: DoorPlay, *, title: str | None = None) -> Scene:
+        return scene_of(played, title=title)
+
+    def show_rules(self, played: DoorPlay) -> list[RuleTable]:
+        return rule_tables(played)
+
+    def show_trace(self, played: DoorPlay) -> list[str]:
+        return trace_lines(played)

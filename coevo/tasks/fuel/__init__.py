@@ -16,25 +16,22 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from functools import cache
+from importlib import resources
+from typing import TYPE_CHECKING
 
 import numpy as np
-from importlib import resources
-from pathlib import Path
-from typing import TYPE_CHECKING
 
 from coevo.config import GAConfig
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import parse_ruleset
-from coevo.tasks.base import Partners, Task
+from coevo.tasks.base import Partners, Task, check_behaviour, check_regime
 from coevo.tasks.fuel.behaviours import TARGET_SENSORS, Behaviour
 from coevo.tasks.fuel.dock_frame import DEFAULT_FILES, DOCK_SENSORS, SENSOR_SETS
 from coevo.tasks.fuel.evaluate import FuelEvaluator
 from coevo.tasks.fuel.settings import WorldConfig
 
 if TYPE_CHECKING:
-    from coevo.scene import Scene
-    from coevo.tasks.fuel.pictures import Played, Robot
-    from coevo.tasks.showing import RuleTable
+    from coevo.tasks.showing import TaskDisplay
 
 __all__ = ["FuelTask", "Behaviour", "default_ruleset", "HAS_DEFAULT"]
 
@@ -52,7 +49,6 @@ HAS_DEFAULT = (Behaviour.TRACKING, Behaviour.DOCKING)
 #:   and its mirror images fill the matcher's 64.
 DOCKING_CHOICES = {"keep_evaluated": True, "best_candidates": 3, "split_rate": 0.5, "symmetric_rules": True,
                    "max_rules": 32}
-PICTURE_EPISODES = 3  # Tracking or Docking alone in a learned policy's picture; an Executive's is one epoch
 
 
 @cache
@@ -73,7 +69,7 @@ def default_ruleset(behaviour: Behaviour | str, sensors: str = "polar") -> RuleS
     return parse_ruleset(text, behaviour)
 
 
-class FuelTask(Task):
+class FuelTask(Task[WorldConfig]):
     name = "fuel"
     behaviours = tuple(b.value for b in Behaviour)
     regimes = ("mutual", "independent")
@@ -85,22 +81,20 @@ class FuelTask(Task):
     measure_labels = {"quality_tracking": "QT", "docking_from_random": "docks", "dock_choice": "picks-D",
                       "docking_success_rate": "docked"}
 
-    def default_rules(self, behaviour: str) -> RuleSet | None:
-        return default_ruleset(self.check_behaviour(behaviour))
+    def initial_rules(self, behaviour: str, world: WorldConfig) -> RuleSet | None:
+        """Tracking's and Docking's shipped direction-only rules, Docking's in the terms of its sensor set
+        (``world.docking_sensors``); the Executive starts random."""
+        return default_ruleset(check_behaviour(self, behaviour), world.docking_sensors)
 
-    def initial_rules(self, behaviour: str, ga: GAConfig) -> RuleSet | None:
-        """Docking starts from the direction-only default of its sensor set (``ga.docking_sensors``)."""
-        return default_ruleset(self.check_behaviour(behaviour), ga.docking_sensors)
-
-    def learnable_sensors(self, behaviour: str, ga: GAConfig) -> np.ndarray | None:
-        """Docking's rules condition on its chosen set of dock sensors (``ga.docking_sensors``), on range and bearing
-        to the nearest object, and on the Target's own sensors only if ``ga.docking_target_sensors``."""
-        if Behaviour(self.check_behaviour(behaviour)) != Behaviour.DOCKING:
+    def learnable_sensors(self, behaviour: str, world: WorldConfig) -> np.ndarray | None:
+        """Docking's rules condition on its chosen set of dock sensors (``world.docking_sensors``), on range and
+        bearing to the nearest object, and on the Target's own sensors only if ``world.docking_target_sensors``."""
+        if Behaviour(check_behaviour(self, behaviour)) != Behaviour.DOCKING:
             return None
         from coevo.policy.schema import schema
 
-        left_out = DOCK_SENSORS - set(SENSOR_SETS[ga.docking_sensors])
-        if not ga.docking_target_sensors:
+        left_out = DOCK_SENSORS - set(SENSOR_SETS[world.docking_sensors])
+        if not world.docking_target_sensors:
             left_out |= TARGET_SENSORS
         return np.array([n not in left_out for n in schema(behaviour).sensor_names])
 
@@ -110,14 +104,14 @@ class FuelTask(Task):
         return dict(DOCKING_CHOICES) if Behaviour(behaviour) == Behaviour.DOCKING else {}
 
     def partners_needed(self, behaviour: str, regime: str) -> tuple[str, ...]:
-        b = Behaviour(self.check_behaviour(behaviour))
-        self.check_regime(regime)
+        b = Behaviour(check_behaviour(self, behaviour))
+        check_regime(self, regime)
         if b == Behaviour.EXECUTIVE or regime == "mutual":
             return tuple(o.value for o in Behaviour if o is not b)
         return ()
 
-    def evaluator(self, behaviour: str, world: WorldConfig, ga: GAConfig) -> FuelEvaluator:  # type: ignore[override]
-        return FuelEvaluator(self.check_behaviour(behaviour), world, ga)
+    def evaluator(self, behaviour: str, world: WorldConfig, ga: GAConfig) -> FuelEvaluator:
+        return FuelEvaluator(check_behaviour(self, behaviour), world, ga)
 
     def status_measures(self, behaviour: str, measures: Mapping[str, float | None]) -> dict[str, float]:
         """Docking's fitness alone misleads (docs/spec.md §1, "Where Docking learns"), so Docking shows the
@@ -130,55 +124,16 @@ class FuelTask(Task):
             keys = ("docking_from_random",)
         else:
             keys = ("dock_choice", "docking_success_rate")
-        return {k: float(measures[k]) for k in keys if measures.get(k) is not None}  # type: ignore[arg-type]
+        return {k: float(v) for k in keys if (v := measures.get(k)) is not None}
 
-    def final_measures(self, behaviour: str, best: RuleSet, *, world: WorldConfig, partners: Partners,  # type: ignore[override]
+    def final_measures(self, behaviour: str, best: RuleSet, *, world: WorldConfig, partners: Partners,
                        epochs: int, seed: int) -> dict[str, float | int]:
         from coevo.tasks.fuel.robot import measure_behaviour
 
         return measure_behaviour(Behaviour(behaviour), best, world=world, tracking=partners.get("tracking"),
                                  docking=partners.get("docking"), epochs=epochs, seed=seed)
 
-    def picture(self, path: Path, behaviour: str, best: RuleSet, *, world: WorldConfig, partners: Partners,  # type: ignore[override]
-                seed: int, name: str) -> None:
-        """best.png: the best policy playing a few episodes (or, for the Executive, one epoch); ~0.5 s."""
-        from coevo.tasks.fuel.pictures import picture, robot_from_rules
-
-        robot = robot_from_rules(name, world, {**partners, behaviour: best})
-        picture(robot, path, seed=seed, episodes=None if robot.combined else PICTURE_EPISODES,
-                title=f"{name}: the best {behaviour} policy, seed {seed}")
-
-    # coevo show: the pictures of coevo.tasks.fuel.pictures
-    def show_robot(self, name: str, world: WorldConfig, rules: Mapping[str, RuleSet]) -> Robot:  # type: ignore[override]
-        from coevo.tasks.fuel.pictures import robot_from_rules
-
-        return robot_from_rules(name, world, rules)
-
-    def show_episodes(self, robot: Robot) -> int | None:
-        """One epoch for a combined robot; a few episodes for Tracking or Docking alone."""
-        return None if robot.combined else PICTURE_EPISODES
-
-    def show_play(self, robot: Robot, *, seed: int, episodes: int | None) -> Played:
-        from coevo.tasks.fuel.pictures import play
-
-        return play(robot, seed=seed, episodes=episodes)
-
-    def show_scene(self, played: Played, *, title: str | None = None) -> Scene:
-        from coevo.tasks.fuel.pictures import scene_for
-
-        return scene_for(played, title=title)
-
-    def show_rules(self, played: Played) -> list[RuleTable]:
-        from coevo.tasks.fuel.pictures.rules_view import rule_tables
-
-        return rule_tables(played)
-
-    def show_trace(self, played: Played) -> list[str]:
-        from coevo.tasks.fuel.pictures.rules_view import trace_lines
-
-        return trace_lines(played)
-
-    def run_measures(self, policies: Mapping[str, RuleSet], *, world: WorldConfig, epochs: int,  # type: ignore[override]
+    def run_measures(self, policies: Mapping[str, RuleSet], *, world: WorldConfig, epochs: int,
                      seed: int) -> dict[str, float | int] | None:
         from coevo.tasks.fuel.robot import measure_robot
 
@@ -186,3 +141,9 @@ class FuelTask(Task):
             return None
         return measure_robot(world, executive=policies["executive"], tracking=policies["tracking"],
                              docking=policies["docking"], epochs=epochs, seed=seed).as_dict()
+
+    def display(self) -> TaskDisplay[WorldConfig]:
+        """Its pictures (:mod:`coevo.tasks.fuel.pictures`), imported only when something is drawn."""
+        from coevo.tasks.fuel.pictures import FuelDisplay
+
+        return FuelDisplay()

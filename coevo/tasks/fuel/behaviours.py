@@ -4,9 +4,9 @@ Every sensor is discretised into bins (report Appendix A §4): bearings in 5° b
 ranges in 5-inch bins from 0 to 150 (a last bin for "150 and beyond"), the Target's
 heading in 45° bins.  The Docking agent's dock sensors and the Executive's sensors
 are *(ours)*: the report does not list them.  Docking's come in two sets, polar and
-in the dock's frame (:mod:`.dock_frame`); ``GAConfig.docking_sensors`` picks the one
+in the dock's frame (:mod:`.dock_frame`); ``WorldConfig.docking_sensors`` picks the one
 it learns over.  Docking's rules leave the Target's own sensors (:data:`TARGET_SENSORS`)
-out unless ``GAConfig.docking_target_sensors``.
+out unless ``WorldConfig.docking_target_sensors``.
 
 The schemas are registered by behaviour name (:mod:`coevo.policy.schema`).
 """
@@ -58,7 +58,7 @@ _REPORT_FIVE = (
 )
 
 #: The Target's own sensors among the report's five (its heading, range and bearing).  Docking's rules leave them
-#: out by default (``GAConfig.docking_target_sensors``); ``range`` and ``bearing`` still see the Target when it is
+#: out by default (``WorldConfig.docking_target_sensors``); ``range`` and ``bearing`` still see the Target when it is
 #: the nearest object.
 TARGET_SENSORS = frozenset({"heading", "target_range", "target_bearing"})
 

@@ -24,7 +24,7 @@ schema holds two sets of dock sensors:
     distance; here it is one interval on each of ``dock_offset`` and
     ``dock_orientation``.
 
-``GAConfig.docking_sensors`` chooses the set a Docking GA learns over: every rule it
+``WorldConfig.docking_sensors`` chooses the set a Docking GA learns over: every rule it
 makes leaves the other set's sensors unconditioned (``ANY``), and the population
 starts from the direction-only default written in that set's terms
 (``defaults/docking.rules`` for ``polar`` and ``both``,
@@ -52,7 +52,7 @@ FRAME_SENSORS = (
 )
 FRAME_NAMES = frozenset(s.name for s in FRAME_SENSORS)
 
-#: The dock sensors each choice of ``GAConfig.docking_sensors`` lets Docking's rules condition on
+#: The dock sensors each choice of ``WorldConfig.docking_sensors`` lets Docking's rules condition on
 #: (the report's five are always there).
 SENSOR_SETS = {
     "polar": ("dock_range", "dock_bearing", "dock_orientation"),

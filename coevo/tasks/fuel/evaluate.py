@@ -52,8 +52,9 @@ class FuelEvaluator(Evaluator):
 
     def fresh_starts(self, partners: Partners) -> bool:
         """Does every episode start from a fresh random placement? Docking with the trivial
-        Executive does (``GAConfig.docking_fresh_starts``): that is where an Executive calls it."""
-        return self.behaviour == Behaviour.DOCKING and partners.get("executive") is None and self.ga.docking_fresh_starts
+        Executive does (``WorldConfig.docking_fresh_starts``): that is where an Executive calls it."""
+        return (self.behaviour == Behaviour.DOCKING and partners.get("executive") is None
+                and self.world_cfg.docking_fresh_starts)
 
     def layout(self, episodes: int, *, fresh_starts: bool = False) -> tuple[int, int, bool]:
         """(lanes per individual, episodes per lane, restart epochs) for an evaluation of ``episodes``."""

@@ -2,11 +2,18 @@
 
 Every number the report gives is a default here; every choice the report leaves
 open is marked *(ours)* in its description and can be overridden.
+
+The world a behaviour learns in is more than its physics: what Docking may sense and where its
+training episodes start are settings of this world too (the last three fields), as an environment's
+observation and reset choices are its own keyword arguments in Gymnasium's registration.  They were
+GA settings (:class:`~coevo.config.GAConfig`) until issue 41; a run saved then reads them from there
+(:func:`coevo.tasks.saved_settings`) and ``--ga docking_sensors=...`` still sets them
+(:func:`coevo.tasks.split_settings`).
 """
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import Any, ClassVar, Literal
 
 from pydantic import Field, model_validator
 
@@ -56,6 +63,33 @@ class WorldConfig(Settings):
     spawn_margin: float = Field(20.0, ge=0, description="(ours) min clearance from walls/dock for random placements, inches")
     spawn_separation: float = Field(40.0, ge=0, description="(ours) min robot-target distance at epoch start, inches")
     hash_cell: float = Field(100.0, gt=0, description="(ours, speed only) pymunk spatial-hash cell size")
+    # What Docking learns in (docs/docking-learning.md): the world its rules see and its training episodes start in.
+    docking_fresh_starts: bool = Field(
+        True,
+        description="(ours) with the trivial always-Dock Executive (Independent, coevo learn), every Docking training "
+        "episode starts from a fresh random placement, where an Executive would call Docking, instead of in front "
+        "of the dock where the last docking left the robot (docs/design.md, 'Where Docking learns'; measured: 85 % of "
+        "a Docking learner's fitness came from such re-docking episodes, and docking from random starts stayed at "
+        "4-7 %)",
+    )
+    docking_sensors: Literal["polar", "dock-frame", "both"] = Field(
+        "both", description="(ours) the dock sensors Docking's rules may condition on (coevo/tasks/fuel/dock_frame.py): "
+        "'polar' dock_range, dock_bearing, dock_orientation; 'dock-frame' dock_axis, dock_offset (the robot's place "
+        "in the dock's frame) and dock_orientation; 'both' all five.  Each starts from the direction-only default "
+        "written in its own terms ('both' from the polar one).  Docking from random starts (docs/docking-learning.md, "
+        "Round 3), median of seeds 0-9 with Docking's keep_evaluated and best_candidates: both 50.1 %, polar 43.5 %, "
+        "dock-frame (0-4) 40.4 %; polar without them 45.0 % (the defaults before)"
+    )
+    docking_target_sensors: bool = Field(
+        False, description="(ours) may Docking's rules condition on the Target's own sensors (heading, target_range, "
+        "target_bearing)?  range and bearing to the nearest object, which may be the Target, stay either way.  "
+        "Docking from random starts (docs/docking-learning.md, Round 7): development seeds 0-19, median 79.1 % without "
+        "them against 71.1 % with them (paired +8.9 +- 2.2, 15 wins of 20); held-out seeds 1300-1319, run once after "
+        "the choice, 79.7 % against 74.2 % (+8.8 +- 3.2, 14 wins of 20, one-sided Wilcoxon p = 0.008)"
+    )
+
+    #: A run saved before Round 7 (docs/docking-learning.md) has no docking_target_sensors: it learned with them.
+    saved_before: ClassVar[dict[str, Any]] = {"docking_target_sensors": True}
 
     @model_validator(mode="after")
     def _check(self) -> WorldConfig:
