@@ -41,7 +41,6 @@ import logging
 import threading
 import time
 from collections.abc import Callable, Iterable
-from typing import Any
 
 from coevo.bus import keys
 from coevo.bus.messages import Message, Status
