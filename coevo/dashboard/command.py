@@ -3,10 +3,16 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from coevo.console import count_arg, positive_float_arg
 from coevo.errors import ConfigError, RunDirError
+
+if TYPE_CHECKING:  # for the annotations only: the command's arguments are declared with light imports
+    from coevo.bus.trust import Gate
+    from coevo.dashboard.robot import RobotPanel
 
 __all__ = ["configure_dashboard", "cmd_dashboard"]
 
@@ -57,10 +63,12 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     gate = _gate(args)  # a bad key file is said before anything is tried
     from coevo.bus.flags import connection_given
 
-    local = target is None and not connection_given(args)  # the runs under --runs-dir (default runs/)
+    # the runs under --runs-dir (default runs/), when neither a directory nor a bus is given
+    local_root = _local_root(runs_dir, args.run) if target is None and not connection_given(args) else None
+    local = local_root is not None
     gone = False
-    if local:
-        runs_dir = _local_root(runs_dir, args.run)
+    if local_root is not None:
+        runs_dir = local_root
     elif target is None and args.connect and args.connect_timeout is None and not _answers(args.connect):
         why = f"no broker answers at {', '.join(args.connect)}"  # ended, or not started: --connect-timeout waits
         if runs_dir is None:
@@ -71,8 +79,8 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
         print(f"dashboard: {why}: showing the runs under {runs_dir} from their files", flush=True)
         target, kind, gone = runs_dir, classify_dir(runs_dir), True
     robot = None if args.no_robot else _robot(args.robot, target, kind, runs_dir, args.run)
-    if local and robot is None and not args.no_robot:
-        robot = _newest_robot(runs_dir)
+    if local_root is not None and robot is None and not args.no_robot:
+        robot = _newest_robot(local_root)
     note = "" if robot is not None or args.no_robot else _no_robot(target, kind, runs_dir, args.run, local)
     on_bus = local or not gone and (target is None or bool(args.connect))  # gone: the files only, as it said (it
     # went on to the bus, and 30 s later ended on a ServiceError)
@@ -86,11 +94,11 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     def ready(url: str) -> None:
         print(f"dashboard: {url} (read-only; Ctrl-C stops it)", flush=True)
 
-    if local:
+    if local_root is not None:
         from coevo.dashboard.model import LocalRuns
         from coevo.dashboard.server import serve
 
-        source = LocalRuns(runs_dir, stall=args.stall)
+        source = LocalRuns(local_root, stall=args.stall)
         try:
             serve(Dashboard(bus=source, stale=args.stale, title=title, robot=robot, robot_note=note), host=args.host, port=args.port,
                   every=args.every, on_ready=ready)
@@ -107,7 +115,7 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     return _on_bus(args, target, runs_dir, title, ready, robot, gate, note)
 
 
-def _gate(args: argparse.Namespace) -> object:
+def _gate(args: argparse.Namespace) -> Gate | None:
     """With --key-file, the gate that shows only --run's authenticated heartbeats; else None."""
     from coevo.bus import keys
 
@@ -139,7 +147,7 @@ def _local_root(runs_dir: Path | None, run: str | None) -> Path:
     return root
 
 
-def _newest_robot(root: Path) -> object:
+def _newest_robot(root: Path) -> RobotPanel | None:
     """The robot of the run under ``root`` started last (its run.json written last), if there is one."""
     from coevo.dashboard.robot import RobotPanel
     from coevo.rundir.layout import RunPaths
@@ -162,7 +170,8 @@ def _no_robot(target: Path | None, kind: str | None, runs_dir: Path | None, run:
             f"run's. Add --robot RUN ({where}) to draw that run's newest robot.")
 
 
-def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Path | None, run: str | None) -> object:
+def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Path | None,
+           run: str | None) -> RobotPanel | None:
     """The RobotPanel of the run ``--robot`` names (a path, or a run name under the directory shown or --runs-dir),
     by default of the run shown when it is a single run (a run directory, or ``--run`` with ``--runs-dir``, whose
     directory may not exist yet); None when there is none to draw."""
@@ -185,8 +194,8 @@ def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Pa
     return RobotPanel(found)
 
 
-def _on_bus(args: argparse.Namespace, target: Path | None, runs_dir: Path | None, title: str, ready: object,
-            robot: object, gate: object, note: str) -> int:
+def _on_bus(args: argparse.Namespace, target: Path | None, runs_dir: Path | None, title: str,
+            ready: Callable[[str], None], robot: RobotPanel | None, gate: Gate | None, note: str) -> int:
     from coevo.bus.session import config_from_args, open_session, sigterm_as_exit
     from coevo.dashboard.model import BusSource, Dashboard
     from coevo.dashboard.server import serve

@@ -57,7 +57,7 @@ class Curve:
         self.best.append(float(best))
         prev = self.best_so_far[-1] if self.best_so_far else float("-inf")
         self.best_so_far.append(float(best_so_far) if best_so_far is not None else max(prev, float(best)))
-        for k, v in (measures or {}).items():
+        for k in measures or {}:
             self.measures.setdefault(k, [None] * n)
         for k, col in self.measures.items():
             v = (measures or {}).get(k)
@@ -260,7 +260,9 @@ class _WorkerFiles:
         fresh = now - max(self.curve_tail.mtime, self.adoptions.mtime, _mtime(self.paths.worker_json)) < stale
         state = "done" if done is not None else "running" if fresh else "stopped"
         measures = {k: col[-1] for k, col in self.curve.measures.items() if col and col[-1] is not None}
-        ga = meta.get("ga") if isinstance(meta.get("ga"), dict) else {}
+        ga = meta.get("ga")
+        if not isinstance(ga, dict):
+            ga = {}
         rejected = (done or {}).get("rejected") or {}
         return {"behaviour": behaviour, "worker": str(meta.get("worker", behaviour)), "regime": str(meta.get("regime", "?")),
                 "generation": self.curve.generation[-1] if self.curve else 0, "generations": int(ga.get("generations", 0)),
@@ -518,15 +520,18 @@ class Dashboard:
     def _run_dirs(self) -> list[Path]:
         if isinstance(self.bus, LocalRuns):
             return [d for d in _subdirs(self.bus.root) if is_run(d)]
+        target = self.target
+        if target is None:  # the bus's runs alone
+            return []
         if self.kind == "run":
-            return [self.target]
+            return [target]
         if self.kind == "runs":
-            return [d for d in _subdirs(self.target) if is_run(d)]
+            return [d for d in _subdirs(target) if is_run(d)]
         if self.kind == "comparison":
             from coevo.dashboard.compare import ComparisonFiles
 
             if self._comparison is None:
-                self._comparison = ComparisonFiles(self.target, stale=self.stale)
+                self._comparison = ComparisonFiles(target, stale=self.stale)
             return self._comparison.run_dirs()
         return []
 

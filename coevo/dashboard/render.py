@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import html
 import math
+from collections.abc import Sequence
 from typing import Any
 
 from coevo.dashboard.model import View
@@ -254,6 +255,7 @@ def curve_lines(view: View, behaviour: str, what: str = "fitness") -> dict[str, 
         for wid, (b, c) in sorted(r.curves.items()):
             if b != behaviour or not len(c):
                 continue
+            lines: list[tuple[str, Sequence[float | None], float]]
             if what == "fitness":
                 lines = [("published best (mean of its re-evaluations)", c.best_so_far, 2.5),
                          ("generation's best", c.best, 1.0)]

@@ -48,6 +48,7 @@ class _Page:
         self.plots: dict[tuple[str, str], Any] = {}  # (behaviour, what) -> ColumnDataSource
         self.figures: dict[tuple[str, str], Any] = {}
         doc.title = dash.title
+        self.regimes: _Regimes | None = None
         if dash.kind == "comparison":
             self.regimes = _Regimes(dash)
             layout = column(self.title, self.banner, self.regimes.headline, self.regimes.controls, *self.regimes.rows,
@@ -55,7 +56,6 @@ class _Page:
                             *_folded("runs and workers", column(self.runs, self.workers, sizing_mode="stretch_width")),
                             self.robot, sizing_mode="stretch_width")
         else:
-            self.regimes = None
             layout = column(self.title, self.banner, self.runs, self.workers, self.fitness_row, self.measures_row,
                             self.external_row, self.comparison, self.robot, sizing_mode="stretch_width")
         self.update()  # before the layout is the document's: a change to a model held by a document costs a walk
@@ -213,8 +213,11 @@ class _Regimes:
                 ("95 % interval", "@low{0.000} to @high{0.000}"), ("finished runs", "@n")]))
             if not fig.legend:
                 fig.add_layout(Legend(click_policy="hide", location="top_left", orientation="horizontal",
-                                      name=f"legend-{i}", label_text_font_size="12px", padding=2, margin=0,
-                                      spacing=12, glyph_width=16, border_line_alpha=0), "above")
+                                      name=f"legend-{i}", label_text_font_size="12px",
+                                      padding=2,  # type: ignore[arg-type]  # bokeh 3.9's stub types Legend.padding
+                                      # as the Property itself (Padding, not PaddingType): an int is refused there,
+                                      # though it is what the property takes
+                                      margin=0, spacing=12, glyph_width=16, border_line_alpha=0), "above")
             item = LegendItem(label=value(group), renderers=[mean, area, runs])
             fig.legend[0].items.append(item)
             self.items.append((i, group, item))
@@ -241,7 +244,11 @@ class _Regimes:
 
     def _picked(self, attr: str, old: list[str], new: list[str]) -> None:
         """The run selector moved (in this page only): its panels drawn again, the document walked once."""
-        with self.picker.document.models.freeze():
+        doc = self.picker.document
+        if doc is None:  # not on a page: no document to walk
+            self._redraw()
+            return
+        with doc.models.freeze():
             self._redraw()
 
     def _redraw(self) -> None:
@@ -319,11 +326,11 @@ def _static_handler() -> Any:
     from bokeh.server.views.static_handler import StaticHandler
     from tornado.web import HTTPError
 
-    class Static(StaticHandler):  # type: ignore[misc]
+    class Static(StaticHandler):
         def validate_absolute_path(self, root: str, absolute_path: str) -> str | None:
             if "\x00" in absolute_path:
                 raise HTTPError(400, reason="bad path")
-            return super().validate_absolute_path(root, absolute_path)  # type: ignore[no-any-return]
+            return super().validate_absolute_path(root, absolute_path)
 
     return Static
 
@@ -365,6 +372,7 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5, on_ready
     except OSError as exc:
         raise ConfigError(f"cannot serve on {host}:{port}: {exc.strerror or exc} (choose another --port or --host)") from None
     origins = [f"{host}:{port}"] + ([f"localhost:{port}", f"127.0.0.1:{port}"] if host in ("127.0.0.1", "localhost") else [])
+    server: BaseServer  # made below: the admission hook is called only once it serves
     admission = _Admission(lambda: server.get_sessions())
     app = Application(FunctionHandler(make_document(dash, problems, admission.built)))
     tornado_app = BokehTornado({"/": app}, extra_websocket_origins=origins, sign_sessions=True,
