@@ -15,10 +15,14 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 from coevo.dashboard import render
 from coevo.dashboard.model import Dashboard, follow
+
+if TYPE_CHECKING:
+    from tornado.ioloop import IOLoop
 
 __all__ = ["make_document", "serve"]
 
@@ -385,6 +389,7 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5, on_ready
     app.process_request = admission  # type: ignore[method-assign]
     poller.start()
     server.start()
+    unhook = _stop_on_signals(server.io_loop)
     if on_ready:
         on_ready(f"http://{host}:{port}/")
     try:
@@ -392,6 +397,33 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5, on_ready
     except KeyboardInterrupt:
         pass
     finally:
+        unhook()
         stop.set()
         server.stop()
         poller.join(timeout=5)
+
+def _stop_on_signals(loop: IOLoop) -> Callable[[], None]:
+    """While serving, SIGINT and SIGTERM stop ``loop`` from the loop itself (asyncio's signal handlers: the signal
+    wakes the loop, which stops); returns what puts the handlers before back.
+
+    Not a KeyboardInterrupt raised wherever the main thread is (the command's handler until the page serves): raised
+    inside a callback the interpreter runs for a C library, it is printed as "ignored" and lost.  pymunk frees its
+    bodies in such callbacks (``ffi.gc``) when the garbage collector runs, and a study's Docking probes and a robot's
+    drawing leave them: a SIGTERM arriving then left the dashboard running until it was killed."""
+    import signal
+
+    from tornado.platform.asyncio import BaseAsyncIOLoop
+
+    if not isinstance(loop, BaseAsyncIOLoop):  # (tornado's loops are asyncio's since tornado 5)
+        return lambda: None
+    aio = loop.asyncio_loop
+    before = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    for sig in before:
+        aio.add_signal_handler(sig, loop.stop)
+
+    def unhook() -> None:
+        for sig, handler in before.items():
+            aio.remove_signal_handler(sig)
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+
+    return unhook
