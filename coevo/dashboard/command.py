@@ -21,9 +21,10 @@ DEFAULT_PORT = 5006  # Bokeh's own default
 
 def configure_dashboard(p: argparse.ArgumentParser) -> None:
     """``coevo dashboard``'s arguments."""
-    p.add_argument("dir", nargs="?", metavar="RUN_OR_COMPARISON_DIR",
-                   help="show this run directory, comparison directory (coevo compare --out) or directory of runs from "
-                        "its files, as they grow (the bus is then followed only with --connect)")
+    p.add_argument("dir", nargs="?", metavar="DIR",
+                   help="show this run directory, comparison directory (coevo compare --out), study directory (coevo "
+                        "study --out) or directory of runs from its files, as they grow (the bus is then followed only "
+                        "with --connect)")
     p.add_argument("--run", help="follow only this run on the bus (default: every run whose workers are on it)")
     p.add_argument("--runs-dir", metavar="ROOT",
                    help="where the runs' directories are (coevo run --root, coevo broker --data-dir): the curves of a run "
@@ -37,10 +38,12 @@ def configure_dashboard(p: argparse.ArgumentParser) -> None:
                    help="seconds without a heartbeat before a live worker counts as stalled (default 3)")
     p.add_argument("--stale", type=positive_float_arg(maximum=86400), default=120.0,
                    help="seen from its files only, seconds without a new line before a run counts as stopped (a "
-                        "comparison's replicate: failed) (default 120)")
+                        "comparison's or study's replicate: failed; a study whose files all stood still: stopped) "
+                        "(default 120)")
     p.add_argument("--robot", metavar="RUN",
                    help="draw this run's robot from its newest policies, redrawn as they are published: a run directory, "
-                        "or a run's name in the directory shown or in --runs-dir (default: the run shown, when it is one)")
+                        "or a run's name in the directory shown or in --runs-dir (a study's: cells/CELL/runs/RUN) "
+                        "(default: the run shown, when it is one)")
     p.add_argument("--no-robot", action="store_true", help="draw no robot (saves ~1 s of CPU per new policy)")
     p.add_argument("--key-file", metavar="FILE",
                    help="the run's key (with --run): show only its authenticated heartbeats (default: unverified)")
@@ -165,6 +168,7 @@ def _no_robot(target: Path | None, kind: str | None, runs_dir: Path | None, run:
         return (f"No robot: it is drawn from run {run}'s files, and where they are is not given. Add --runs-dir ROOT "
                 f"(the directory holding {run}/), or --robot RUN_DIR.")
     where = (f"a run's name under {target}" if kind in ("runs", "comparison") and target is not None
+             else f"cells/CELL/runs/RUN under {target}" if kind == "study" and target is not None
              else f"a run's name under {runs_dir}" if runs_dir is not None else "a run's directory")
     return (f"No robot: this page shows every run {'in ' + str(target) if target else 'on the bus'}, and a robot is one "
             f"run's. Add --robot RUN ({where}) to draw that run's newest robot.")
@@ -183,8 +187,8 @@ def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Pa
             return RobotPanel(target)
         return RobotPanel(runs_dir / run) if run and runs_dir is not None else None
     places = [Path(name)]
-    if target is not None and kind in ("runs", "comparison"):
-        places.append(target / name if kind == "runs" else target / "runs" / name)
+    if target is not None and kind in ("runs", "comparison", "study"):
+        places.append(target / "runs" / name if kind == "comparison" else target / name)
     if runs_dir is not None:
         places.append(runs_dir / name)
     places = list(dict.fromkeys(places))  # an absolute RUN is the same place under every directory
