@@ -298,6 +298,76 @@ def test_a_directory_claiming_to_be_a_comparison_but_broken_is_a_run_dir_error(t
         Dashboard(target=out).refresh()
 
 
+# ---------------------------------------------------------------- a study directory
+def _finished(d: Path, measures: dict[str, float]) -> None:
+    (d / "summary.json").write_text(json.dumps({"interrupted": False, "measures": measures}))
+
+
+GOOD = {"docking_success_rate": 40.0, "dock_choice": 20.0, "quality_tracking": 70.0, "average_epoch_length": 7.0}
+STARVED = {"docking_success_rate": 0.0, "dock_choice": 1.0, "quality_tracking": 40.0, "average_epoch_length": 3.0}
+
+
+def test_a_half_written_study_shows_what_it_has_and_says_what_it_cannot_read(tmp_path: Path) -> None:
+    """A study as a crash or a running runner leaves it: a cell not prepared yet, a cell with no runs, a run still
+    going with a torn last line, a finished run whose curve is damaged; then a completion marker of another study."""
+    from coevo.experiments.study.declaration import declare
+    from coevo.experiments.study.experiment import COMPLETE, prepare_study, study_progress
+
+    out = tmp_path / "study"
+    spec = declare(factors=["max_lead=1,2,off", "regime=mutual"], settings={"runs": 2})
+    prepare_study(out, spec, resume=False)
+    assert classify_dir(out) == "study"
+    dash = Dashboard(target=out, stale=60)
+    dash.refresh()
+    s = dash.current()[1].study
+    assert (s["runs_done"], s["runs_total"], s["cells_done"], s["cells_total"]) == (0, 6, 0, 3)
+    assert [c["state"] for c in s["cells"]] == ["not started"] * 3 and not s["complete"] and s["verdict"] is None
+    assert s["default"] == "00-max_lead=1" and list(s["shown"]) == ["00-max_lead=1"]
+
+    shutil.rmtree(out / "cells" / "02-max_lead=off")  # a crash before its folder was written: shown waiting
+    runs = out / "cells" / "00-max_lead=1" / "runs"
+    _finished(_run_dir(runs, "mutual-00"), STARVED)
+    going = _run_dir(runs, "mutual-01", generations=2)
+    with open(going / "workers" / "executive" / "curve.jsonl", "a") as f:
+        f.write('{"generation": 3, "best_fi')  # a line being written
+    damaged = _run_dir(out / "cells" / "01-max_lead=2" / "runs", "mutual-00")
+    _finished(damaged, GOOD)
+    with open(damaged / "workers" / "tracking" / "curve.jsonl", "a") as f:
+        f.write('{"generation": 4, "best_fitness": 0.')  # a finished run's log cut short: the report cannot read it
+    dash.want("01-max_lead=2")
+    dash.refresh()
+    view = dash.current()[1]
+    s = view.study
+    cells = {c["id"]: c for c in s["cells"]}
+    assert s["runs_done"] == 2 == study_progress(out).runs_done and s["state"] == "running"
+    assert cells["00-max_lead=1"]["state"] == "running" and cells["00-max_lead=1"]["counts"] == {
+        "done": 1, "running": 1, "failed": 0, "waiting": 0}
+    assert cells["02-max_lead=off"]["state"] == "not started" and cells["01-max_lead=2"]["state"] == "waiting"
+    (row,) = cells["00-max_lead=1"]["rows"]  # the report's own row: 1 of 1 No Docking, Wilson's [21 %, 100 %]
+    assert (row["n"], row["no_docking"]["k"]) == (1, 1) and row["no_docking"]["low"] == pytest.approx(0.2065, abs=1e-4)
+    assert row["executive_end"]["mean"] == pytest.approx(0.3) and row["average_epoch_length"]["mean"] == 3.0
+    assert [p for p in view.problems if "01-max_lead=2: a finished run cannot be read" in p], view.problems
+    assert cells["01-max_lead=2"]["rows"][0]["n"] == 0
+    assert set(s["shown"]) == {"00-max_lead=1", "01-max_lead=2"}  # the default and the cell a page asked for
+    shown = s["shown"]["00-max_lead=1"]
+    assert {r["run"]: r["state"] for r in shown["replicates"]} == {"mutual-00": "done", "mutual-01": "running"}
+    page = (render.study_title_html(view) + render.study_progress_html(view) + render.study_verdict_html(view)
+            + render.study_tables_html(view) + render.study_cell_note_html(view, "01-max_lead=2"))
+    assert "2 of 6 runs finished" in page and "1/1 [21–100 %]" in page and "No report yet" in page
+    assert "coevo compare --report-only --out" in page
+
+    old = time.time() - 1000  # every file of it still for long: its running run failed, the study stopped
+    for f in out.rglob("*"):
+        os.utime(f, (old, old))
+    dash.refresh()
+    s = dash.current()[1].study
+    assert s["state"] == "stopped" and "coevo study --resume --out" in s["why"]
+    assert s["cells"][0]["state"] == "stopped" and "mutual-01: no progress" in s["cells"][0]["failed"][0]
+    (out / COMPLETE).write_text(json.dumps({"spec_sha256": "another study's", "runs": 6}))
+    dash.refresh()
+    assert dash.current()[1].study["state"] != "finished"  # only a marker naming this very declaration says so
+
+
 # ---------------------------------------------------------------- the command line's bad input
 def _coevo(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
     code = main(["--log-level", "ERROR", *argv])
@@ -318,7 +388,13 @@ def test_bad_input_is_one_line_and_status_2(tmp_path: Path, capsys: pytest.Captu
         (["dashboard", "--run", "r1", "--connect", f"tcp/127.0.0.1:{free_port()}", "--connect-timeout", "0"],
          "ServiceError: cannot open the zenoh dashboard session"),
         (["dashboard", "--runs-dir", str(tmp_path / "missing"), "--connect", "tcp/127.0.0.1:9"], "RunDirError: --runs-dir"),
+        (["dashboard", str(tmp_path / "torn-study")], "RunDirError: "),
+        (["dashboard", str(tmp_path / "not-a-study")], "RunDirError: "),
     ]
+    (tmp_path / "torn-study").mkdir()
+    (tmp_path / "torn-study" / "study.json").write_text('{"spec": {"na')
+    (tmp_path / "not-a-study").mkdir()
+    (tmp_path / "not-a-study" / "study.json").write_text('{"spec": {"name": "x", "seed": 0, "levels": []}}')
     for argv, start in cases:
         code, err = _coevo(argv, capsys)
         lines = err.strip().splitlines()
@@ -575,6 +651,226 @@ def test_a_20_run_comparison_opens_with_its_headline_above_the_fold_in_headless_
             stop(dash)
     assert dash.returncode == 0, (tmp_path / "dashboard.log").read_text()
     assert "Traceback" not in (tmp_path / "dashboard.log").read_text()
+
+
+# ---------------------------------------------------------------- a real study, on the page
+TINY_STUDY = ["--factor", "max_lead=1,off", "--factor", "regime=mutual", "--runs", "2", "--generations", "3",
+              "--population", "6", "--episodes", "10", "--ga", "best_episodes=10", "--ga", "initial_rules=8",
+              "--measure-epochs", "5", "--jobs", "2", "--seed", "3"]
+
+
+def _served(port: int) -> Any:
+    """The page's Bokeh document as the server sends it to a browser opening http://127.0.0.1:PORT/: a session of
+    its own, opened with the token the server signed into the page (it signs its session ids); None when the server
+    answers 503 (new pages come at most one per 2 s after a burst)."""
+    import urllib.error
+    import urllib.request
+
+    from bokeh.client.session import ClientSession
+    from bokeh.util.token import get_session_id
+
+    class Served(ClientSession):
+        def __init__(self, token: str) -> None:
+            self.served_token = token
+            super().__init__(session_id=get_session_id(token), websocket_url=f"ws://127.0.0.1:{port}/ws")
+
+        @property
+        def token(self) -> str:
+            return self.served_token
+
+    try:
+        page = urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=60).read().decode()
+    except urllib.error.HTTPError as exc:
+        if exc.code == 503:
+            time.sleep(1.0)  # a token comes back in 2 s
+            return None
+        raise
+    found = re.search(r'"token":"([^"]+)"', page)
+    assert found, page[:2000]
+    session = Served(found.group(1))
+    try:
+        session.pull()
+        return session.document
+    finally:
+        session.close()
+
+
+def _text(doc: Any, name: str) -> str:
+    """What a Div of the served document says, without its markup."""
+    import html as html_lib
+
+    return " ".join(html_lib.unescape(re.sub(r"<style>.*?</style>|<[^>]+>", " ", doc.get_model_by_name(name).text)).split())
+
+
+def _runs_finished(text: str) -> int:
+    found = re.search(r"(\d+) of 4 runs finished", text)
+    assert found, text[:1000]
+    return int(found.group(1))
+
+
+def _cell_rows_html(doc: Any) -> dict[str, list[str]]:
+    """cell -> its row's cells, from the study's table as served."""
+    import html as html_lib
+
+    table = doc.get_model_by_name("study").text.split("study-cells", 2)[-1]
+    out = {}
+    for tr in re.findall(r"<tr>(.*?)</tr>", table)[1:]:
+        cells = [html_lib.unescape(re.sub(r"<[^>]+>", "", c)).strip() for c in re.findall(r"<td[^>]*>(.*?)</td>", tr)]
+        out[cells[0]] = cells
+    return out
+
+
+# The study's headline as the browser drew it: each element's box in the viewport's coordinates
+STUDY_BOXES = """
+function find(n, pred) {
+  if (n.shadowRoot) { const r = find(n.shadowRoot, pred); if (r) return r; }
+  for (const c of n.children || []) { if (pred(c)) return c; const r = find(c, pred); if (r) return r; }
+  return null;
+}
+const rect = (r) => [r.left, r.top, r.right, r.bottom];
+const out = {viewport: [window.innerWidth, window.innerHeight]};
+const progress = find(document.body, (e) => e.classList && e.classList.contains('study-progress'));
+if (progress) { out.progress = rect(progress.getBoundingClientRect()); out.progress_text = progress.textContent; }
+const table = find(document.body, (e) => e.tagName === 'TABLE' && e.classList.contains('study-cells'));
+if (table) {
+  out.table = rect(table.getBoundingClientRect());
+  out.rows = [...table.rows].map((r) => [...r.cells].map((c) => c.textContent.trim()));
+}
+const select = find(document.body, (e) => e.tagName === 'SELECT');
+if (select) out.selector = rect(select.getBoundingClientRect());
+const cell = find(document.body, (e) => e.tagName === 'TABLE' && e.classList.contains('cell-table1'));
+if (cell) out.cell_table1 = rect(cell.getBoundingClientRect());
+return out;
+"""
+
+
+@pytest.mark.service
+@pytest.mark.slow
+class TestAStudyOnThePage:
+    """One tiny real study (2 cells x 2 Mutual runs: about a minute on 2 shared cores) for both tests, which one
+    xdist worker runs in order (tests/conftest.py keeps a class together): the dashboard is started on the study as
+    soon as its study.json is written, while its runs go on."""
+
+    @pytest.fixture(scope="class")
+    @classmethod
+    def study(cls, tmp_path_factory: pytest.TempPathFactory) -> Any:
+        import signal
+
+        from procs import poll, stop
+
+        tmp = tmp_path_factory.mktemp("study-page")
+        out = tmp / "study"
+        with open(tmp / "study.log", "wb") as log:
+            proc = subprocess.Popen([sys.executable, "-m", "coevo", "study", "--out", str(out), "--quiet", *TINY_STUDY],
+                                    stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+        dash = None
+        try:
+            poll(lambda: (out / "study.json").exists() or proc.poll() is not None, 120, "the study's study.json")
+            dash, port = _dashboard_proc(str(out), "--stale", "60", log=tmp / "dashboard.log")
+            yield {"out": out, "proc": proc, "port": port, "tmp": tmp}
+        finally:
+            if proc.poll() is None:  # the study and every run under it
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+            if dash is not None:
+                stop(dash)
+        said = (tmp / "dashboard.log").read_text()
+        assert dash is not None and dash.returncode == 0, said[-3000:]
+        assert "Traceback" not in said, said[said.index("Traceback") - 500:][:3000]
+
+    def test_the_served_page_counts_the_study_as_its_runs_finish(self, study: dict[str, Any]) -> None:
+        from procs import poll
+
+        from coevo.experiments.study.experiment import study_progress
+        from coevo.experiments.study.intervals import Proportion
+
+        out, port, proc = study["out"], study["port"], study["proc"]
+        before = study_progress(out).runs_done
+        doc = poll(lambda: _served(port), 60, "the page")
+        assert proc.poll() is None, "the study ended before its page was read: nothing in progress was seen"
+        text = _text(doc, "study")
+        first = _runs_finished(text)
+        assert before <= first < 4 and "the study: finished" not in text, text[:600]
+        assert "of 2 cells finished" in text
+        assert [o[0] for o in doc.get_model_by_name("cell-selector").options] == ["00-max_lead=1", "01-max_lead=off"]
+
+        # a run finishes: the page moves on (within the dashboard's next reads: the first read of a finished run
+        # makes its record, a Docking probe, and its cell's intervals)
+        done = poll(lambda: (n := study_progress(out).runs_done) > first and n, 300, "a run of the study finishing")
+        poll(lambda: (d := _served(port)) is not None and _runs_finished(_text(d, "study")) >= done, 60,
+             f"the page counting {done} runs finished")
+
+        # the study ends: every run, both cells, finished, and the report's own numbers per cell
+        assert proc.wait(timeout=600) == 0, (study["tmp"] / "study.log").read_text()[-3000:]
+        progress = study_progress(out)
+        assert progress.complete and progress.runs_done == 4
+
+        def finished_page() -> Any:
+            d = _served(port)
+            return d if d is not None and "the study: finished" in _text(d, "study") else None
+
+        doc = poll(finished_page, 60, "the page saying the study finished")
+        text = _text(doc, "study")
+        assert "4 of 4 runs finished" in text and "2 of 2 cells finished" in text, text[:600]
+        results = json.loads((out / "results.json").read_text())
+        rows = _cell_rows_html(doc)
+        assert set(rows) == {"00-max_lead=1", "01-max_lead=off"}
+        for r in results["cell_rows"]:
+            served = rows[r["cell"]]
+            assert served[1:4] == ["finished", "2/2", "mutual"], served
+            for col, key in ((4, "good_docking"), (5, "no_docking")):
+                p = r[key]
+                assert served[col] == Proportion(p["k"], p["n"], p["low"], p["high"]).text(), (key, served)
+            e = r["executive_end"]
+            assert served[6] == f"{e['mean']:.2f} [{e['low']:.2f}, {e['high']:.2f}]", served
+        verdict = _text(doc, "study-verdict")
+        first_line = results["verdict"].split("\n")[0].removeprefix("- ").replace("**", "")
+        assert " ".join(first_line.split()[:8]) in " ".join(verdict.split()), verdict[:600]
+        # the cell shown below: its Table 1 with Wilson intervals, and its regimes' panels with a band over its runs
+        assert "Cell 00-max_lead=1 (max_lead 1): 2 done" in _text(doc, "table1")
+        band = doc.get_model_by_name("band-0-mutual").data
+        assert band["generation"] == [1, 2, 3] and band["n"] == [2, 2, 2]
+
+    def test_a_finished_study_opens_with_its_headline_above_the_fold_in_headless_chromium(
+            self, study: dict[str, Any], tmp_path: Path) -> None:
+        from procs import poll
+
+        browser = _browser(tmp_path)
+        try:
+            assert study["proc"].wait(timeout=600) == 0
+            results = json.loads((study["out"] / "results.json").read_text())
+            browser.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
+                                    {"width": 1280, "height": 800, "deviceScaleFactor": 1, "mobile": False})
+            browser.get(f"http://127.0.0.1:{study['port']}/")
+            poll(lambda: (b := browser.execute_script(STUDY_BOXES)) and b.get("table") and b.get("cell_table1") and
+                 "finished" in b.get("progress_text", "") and b, 60,
+                 lambda: f"the study's headline drawn: {browser.execute_script(STUDY_BOXES)}")
+            time.sleep(1.0)  # the last layout pass
+            page = browser.execute_script(STUDY_BOXES)
+            viewport = page["viewport"]
+            assert viewport == [1280, 800], viewport
+            shot = tmp_path / "study.png"
+            browser.save_screenshot(str(shot))
+            if os.environ.get("COEVO_DASHBOARD_STUDY_SCREENSHOT"):  # docs/dashboard-study.png is made this way
+                shutil.copy(shot, os.environ["COEVO_DASHBOARD_STUDY_SCREENSHOT"])
+            for what in ("progress", "table", "selector"):  # the headline, and the way to a cell, on the first screen
+                assert _above_the_fold(page[what], viewport), (what, page[what])
+            assert "4 of 4 runs finished" in page["progress_text"] and "the study: finished" in page["progress_text"]
+            head, *rows = page["rows"]
+            assert head == ["cell", "state", "runs done", "group", "Good Docking", "No Docking", "Executive end", "AEL"]
+            by_cell = {r[0]: r for r in rows}
+            for r in results["cell_rows"]:
+                assert by_cell[r["cell"]][1:3] == ["finished", "2/2"]
+                assert by_cell[r["cell"]][5].startswith(f"{r['no_docking']['k']}/2 ["), by_cell[r["cell"]]
+
+            # another cell picked: its Table 1 and its panels replace the first's, in this page
+            browser.execute_script("Bokeh.documents[0].get_model_by_name('cell-selector').value = '01-max_lead=off'")
+            poll(lambda: "Cell 01-max_lead=off (max_lead off): 2 done" in browser.execute_script(DEEP_TEXT), 30,
+                 lambda: f"the second cell shown: {browser.execute_script(DEEP_TEXT)[:1500]}")
+            legends = browser.execute_script(HEADLINE_BOXES)["legends"]
+            assert legends and all(x["labels"] == ["mutual, 2 runs"] for x in legends), legends
+        finally:
+            browser.quit()
 
 
 # ---------------------------------------------------------------- the robot, from the publication logs

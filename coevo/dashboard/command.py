@@ -3,10 +3,16 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from coevo.console import count_arg, positive_float_arg
 from coevo.errors import ConfigError, RunDirError
+
+if TYPE_CHECKING:  # for the annotations only: the command's arguments are declared with light imports
+    from coevo.bus.trust import Gate
+    from coevo.dashboard.robot import RobotPanel
 
 __all__ = ["configure_dashboard", "cmd_dashboard"]
 
@@ -15,9 +21,10 @@ DEFAULT_PORT = 5006  # Bokeh's own default
 
 def configure_dashboard(p: argparse.ArgumentParser) -> None:
     """``coevo dashboard``'s arguments."""
-    p.add_argument("dir", nargs="?", metavar="RUN_OR_COMPARISON_DIR",
-                   help="show this run directory, comparison directory (coevo compare --out) or directory of runs from "
-                        "its files, as they grow (the bus is then followed only with --connect)")
+    p.add_argument("dir", nargs="?", metavar="DIR",
+                   help="show this run directory, comparison directory (coevo compare --out), study directory (coevo "
+                        "study --out) or directory of runs from its files, as they grow (the bus is then followed only "
+                        "with --connect)")
     p.add_argument("--run", help="follow only this run on the bus (default: every run whose workers are on it)")
     p.add_argument("--runs-dir", metavar="ROOT",
                    help="where the runs' directories are (coevo run --root, coevo broker --data-dir): the curves of a run "
@@ -31,10 +38,12 @@ def configure_dashboard(p: argparse.ArgumentParser) -> None:
                    help="seconds without a heartbeat before a live worker counts as stalled (default 3)")
     p.add_argument("--stale", type=positive_float_arg(maximum=86400), default=120.0,
                    help="seen from its files only, seconds without a new line before a run counts as stopped (a "
-                        "comparison's replicate: failed) (default 120)")
+                        "comparison's or study's replicate: failed; a study whose files all stood still: stopped) "
+                        "(default 120)")
     p.add_argument("--robot", metavar="RUN",
                    help="draw this run's robot from its newest policies, redrawn as they are published: a run directory, "
-                        "or a run's name in the directory shown or in --runs-dir (default: the run shown, when it is one)")
+                        "or a run's name in the directory shown or in --runs-dir (a study's: cells/CELL/runs/RUN) "
+                        "(default: the run shown, when it is one)")
     p.add_argument("--no-robot", action="store_true", help="draw no robot (saves ~1 s of CPU per new policy)")
     p.add_argument("--key-file", metavar="FILE",
                    help="the run's key (with --run): show only its authenticated heartbeats (default: unverified)")
@@ -57,10 +66,12 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     gate = _gate(args)  # a bad key file is said before anything is tried
     from coevo.bus.flags import connection_given
 
-    local = target is None and not connection_given(args)  # the runs under --runs-dir (default runs/)
+    # the runs under --runs-dir (default runs/), when neither a directory nor a bus is given
+    local_root = _local_root(runs_dir, args.run) if target is None and not connection_given(args) else None
+    local = local_root is not None
     gone = False
-    if local:
-        runs_dir = _local_root(runs_dir, args.run)
+    if local_root is not None:
+        runs_dir = local_root
     elif target is None and args.connect and args.connect_timeout is None and not _answers(args.connect):
         why = f"no broker answers at {', '.join(args.connect)}"  # ended, or not started: --connect-timeout waits
         if runs_dir is None:
@@ -71,8 +82,8 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
         print(f"dashboard: {why}: showing the runs under {runs_dir} from their files", flush=True)
         target, kind, gone = runs_dir, classify_dir(runs_dir), True
     robot = None if args.no_robot else _robot(args.robot, target, kind, runs_dir, args.run)
-    if local and robot is None and not args.no_robot:
-        robot = _newest_robot(runs_dir)
+    if local_root is not None and robot is None and not args.no_robot:
+        robot = _newest_robot(local_root)
     note = "" if robot is not None or args.no_robot else _no_robot(target, kind, runs_dir, args.run, local)
     on_bus = local or not gone and (target is None or bool(args.connect))  # gone: the files only, as it said (it
     # went on to the bus, and 30 s later ended on a ServiceError)
@@ -86,11 +97,11 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     def ready(url: str) -> None:
         print(f"dashboard: {url} (read-only; Ctrl-C stops it)", flush=True)
 
-    if local:
+    if local_root is not None:
         from coevo.dashboard.model import LocalRuns
         from coevo.dashboard.server import serve
 
-        source = LocalRuns(runs_dir, stall=args.stall)
+        source = LocalRuns(local_root, stall=args.stall)
         try:
             serve(Dashboard(bus=source, stale=args.stale, title=title, robot=robot, robot_note=note), host=args.host, port=args.port,
                   every=args.every, on_ready=ready)
@@ -107,7 +118,7 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     return _on_bus(args, target, runs_dir, title, ready, robot, gate, note)
 
 
-def _gate(args: argparse.Namespace) -> object:
+def _gate(args: argparse.Namespace) -> Gate | None:
     """With --key-file, the gate that shows only --run's authenticated heartbeats; else None."""
     from coevo.bus import keys
 
@@ -139,7 +150,7 @@ def _local_root(runs_dir: Path | None, run: str | None) -> Path:
     return root
 
 
-def _newest_robot(root: Path) -> object:
+def _newest_robot(root: Path) -> RobotPanel | None:
     """The robot of the run under ``root`` started last (its run.json written last), if there is one."""
     from coevo.dashboard.robot import RobotPanel
     from coevo.rundir.layout import RunPaths
@@ -157,12 +168,14 @@ def _no_robot(target: Path | None, kind: str | None, runs_dir: Path | None, run:
         return (f"No robot: it is drawn from run {run}'s files, and where they are is not given. Add --runs-dir ROOT "
                 f"(the directory holding {run}/), or --robot RUN_DIR.")
     where = (f"a run's name under {target}" if kind in ("runs", "comparison") and target is not None
+             else f"cells/CELL/runs/RUN under {target}" if kind == "study" and target is not None
              else f"a run's name under {runs_dir}" if runs_dir is not None else "a run's directory")
     return (f"No robot: this page shows every run {'in ' + str(target) if target else 'on the bus'}, and a robot is one "
             f"run's. Add --robot RUN ({where}) to draw that run's newest robot.")
 
 
-def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Path | None, run: str | None) -> object:
+def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Path | None,
+           run: str | None) -> RobotPanel | None:
     """The RobotPanel of the run ``--robot`` names (a path, or a run name under the directory shown or --runs-dir),
     by default of the run shown when it is a single run (a run directory, or ``--run`` with ``--runs-dir``, whose
     directory may not exist yet); None when there is none to draw."""
@@ -174,8 +187,8 @@ def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Pa
             return RobotPanel(target)
         return RobotPanel(runs_dir / run) if run and runs_dir is not None else None
     places = [Path(name)]
-    if target is not None and kind in ("runs", "comparison"):
-        places.append(target / name if kind == "runs" else target / "runs" / name)
+    if target is not None and kind in ("runs", "comparison", "study"):
+        places.append(target / "runs" / name if kind == "comparison" else target / name)
     if runs_dir is not None:
         places.append(runs_dir / name)
     places = list(dict.fromkeys(places))  # an absolute RUN is the same place under every directory
@@ -185,8 +198,8 @@ def _robot(name: str | None, target: Path | None, kind: str | None, runs_dir: Pa
     return RobotPanel(found)
 
 
-def _on_bus(args: argparse.Namespace, target: Path | None, runs_dir: Path | None, title: str, ready: object,
-            robot: object, gate: object, note: str) -> int:
+def _on_bus(args: argparse.Namespace, target: Path | None, runs_dir: Path | None, title: str,
+            ready: Callable[[str], None], robot: RobotPanel | None, gate: Gate | None, note: str) -> int:
     from coevo.bus.session import config_from_args, open_session, sigterm_as_exit
     from coevo.dashboard.model import BusSource, Dashboard
     from coevo.dashboard.server import serve

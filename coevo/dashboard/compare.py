@@ -22,10 +22,14 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from coevo.errors import RunDirError
+
+if TYPE_CHECKING:
+    from coevo.experiments.compare.experiment import CompareSpec
 
 __all__ = ["ComparisonFiles"]
 
@@ -40,19 +44,26 @@ def _mtime(p: Path) -> float:
 class ComparisonFiles:
     """A comparison directory, followed."""
 
-    def __init__(self, out: Path, *, stale: float) -> None:
+    def __init__(self, out: Path, *, stale: float, spec: CompareSpec | None = None,
+                 log_of: Callable[[str], Path] | None = None) -> None:
+        """``spec``: the comparison's settings when they are known already (a study's cell: from its declaration,
+        so a cell whose compare.json is not written yet is shown too), else read from ``out/compare.json``;
+        ``log_of``: where a replicate's log is, by its run id (default ``out/logs/RUN.log``)."""
         from pydantic import ValidationError
 
         from coevo.experiments.compare.experiment import CompareSpec, replicates
         from coevo.rundir.layout import read_json
 
         self.out, self.stale = Path(out), stale
-        marker = read_json(self.out / "compare.json", what="comparison (its compare.json)")
-        try:
-            self.spec = CompareSpec.model_validate(marker["spec"])
-        except (KeyError, TypeError, ValidationError) as exc:
-            raise RunDirError(f"{self.out / 'compare.json'} is not a comparison's settings: "
-                              f"{str(exc).splitlines()[0]}") from None
+        self.log_of = log_of or (lambda run: self.out / "logs" / f"{run}.log")
+        if spec is None:
+            marker = read_json(self.out / "compare.json", what="comparison (its compare.json)")
+            try:
+                spec = CompareSpec.model_validate(marker["spec"])
+            except (KeyError, TypeError, ValidationError) as exc:
+                raise RunDirError(f"{self.out / 'compare.json'} is not a comparison's settings: "
+                                  f"{str(exc).splitlines()[0]}") from None
+        self.spec = spec
         self.replicates = replicates(self.spec)
         self._classes: dict[str, str] = {}  # a finished replicate's Table 1 class: it no longer changes
         self._curves: dict[str, list[float]] = {}  # ... and its Executive curve (best per generation)
@@ -77,7 +88,7 @@ class ComparisonFiles:
         if rep.run_id in self._classes or is_finished(self.out, rep):
             return "done", ""
         d = run_dir(self.out, rep)
-        log = self.out / "logs" / f"{rep.run_id}.log"
+        log = self.log_of(rep.run_id)
         paths = RunPaths(d)
         summary = paths.summary
         if summary.exists():
@@ -206,36 +217,40 @@ class ComparisonFiles:
             self._results = (mtime, held)
         return self._results[1]
 
-    def read(self) -> dict[str, Any]:
-        """Replicates by state, the Table 1 so far beside the report's, the Executive curve of the finished live runs,
-        the verdict and the regimes' panels: ``{"dir", "replicates": [...], "counts", "table1", "table1_report",
-        "executive_curve", "verdict", "caveat", "panels", "regimes", "lengths"}`` (``lengths``: rows read per curve, what tells
-        the page its panels changed)."""
-        from coevo.experiments.common import below_report
-        from coevo.experiments.compare.experiment import (
-            OFFLINE,
-            generations_done,
-            generations_of,
-            groups,
-        )
-        from coevo.experiments.compare.report import executive_curve
-        from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS, count
+    def states(self) -> list[dict[str, Any]]:
+        """Each replicate's state (done, running, failed, waiting), why (a failed one), Table 1 class (a done one)
+        and worker generations of the total: ``{"run", "group", "state", "why", "class", "generations", "of"}``."""
+        from coevo.experiments.compare.experiment import generations_done, generations_of
 
         now = time.time()
         rows = []
-        classes: dict[str, list[str]] = {g: [] for g in groups(self.spec)}
-        curves: dict[str, list[list[float]]] = {g: [] for g in groups(self.spec)}
         for rep in self.replicates:
             state, why = self._state(rep, now)
             cls = self._class(rep) if state == "done" else None
-            if cls is not None:
-                classes.setdefault(rep.group, []).append(cls)
-                if not rep.offline:
-                    curves.setdefault(rep.group, []).append(self._executive_curve(rep))
             total = generations_of(self.spec, rep)
             done = total if state == "done" else min(total, generations_done(self.out, rep))
             rows.append({"run": rep.run_id, "group": rep.group, "state": state, "why": why, "class": cls or "",
                          "generations": done, "of": total})
+        return rows
+
+    def read(self, states: list[dict[str, Any]] | None = None) -> dict[str, Any]:
+        """Replicates by state, the Table 1 so far beside the report's, the Executive curve of the finished live runs,
+        the verdict and the regimes' panels: ``{"dir", "replicates": [...], "counts", "table1", "table1_report",
+        "executive_curve", "verdict", "caveat", "panels", "regimes", "lengths"}`` (``lengths``: rows read per curve, what tells
+        the page its panels changed); ``states``: :meth:`states` when just read."""
+        from coevo.experiments.common import below_report
+        from coevo.experiments.compare.experiment import OFFLINE, groups
+        from coevo.experiments.compare.report import executive_curve
+        from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS, count
+
+        rows = self.states() if states is None else states
+        classes: dict[str, list[str]] = {g: [] for g in groups(self.spec)}
+        curves: dict[str, list[list[float]]] = {g: [] for g in groups(self.spec)}
+        for rep, row in zip(self.replicates, rows, strict=True):
+            if row["class"]:
+                classes.setdefault(rep.group, []).append(row["class"])
+                if not rep.offline:
+                    curves.setdefault(rep.group, []).append(self._executive_curve(rep))
         counts = {s: sum(1 for r in rows if r["state"] == s) for s in ("done", "running", "failed", "waiting")}
         ga = self.spec.ga
         caveat = below_report({"generations": ga.generations, "population": ga.population, "episodes": ga.episodes,

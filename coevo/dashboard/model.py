@@ -1,4 +1,5 @@
-"""What the dashboard shows, as plain data: runs, their workers, learning curves, a comparison's replicates.
+"""What the dashboard shows, as plain data: runs, their workers, learning curves, a comparison's replicates, a study's
+cells.
 
 Two sources, each followed incrementally:
 
@@ -14,7 +15,8 @@ Two sources, each followed incrementally:
 
 :class:`Dashboard` merges them into a :class:`View` (a run seen on both shows the bus's live
 state and the files' complete curves) and counts a version that moves only when something the
-page shows changed, so a page redraws only then.
+page shows changed, so a page redraws only then.  A comparison directory is read by
+:mod:`coevo.dashboard.compare`, a study directory by :mod:`coevo.dashboard.study`.
 """
 
 from __future__ import annotations
@@ -57,7 +59,7 @@ class Curve:
         self.best.append(float(best))
         prev = self.best_so_far[-1] if self.best_so_far else float("-inf")
         self.best_so_far.append(float(best_so_far) if best_so_far is not None else max(prev, float(best)))
-        for k, v in (measures or {}).items():
+        for k in measures or {}:
             self.measures.setdefault(k, [None] * n)
         for k, col in self.measures.items():
             v = (measures or {}).get(k)
@@ -93,6 +95,7 @@ class View:
     title: str
     runs: list[RunView] = field(default_factory=list)
     comparison: dict[str, Any] | None = None
+    study: dict[str, Any] | None = None  # coevo.dashboard.study.StudyFiles.read()'s dict
     problems: list[str] = field(default_factory=list)
     robot: Any = None  # coevo.dashboard.robot.RobotPicture of the run whose robot is drawn, if one is
     robot_note: str = ""  # else why none is, and how to have one (empty: none asked for, --no-robot)
@@ -106,9 +109,15 @@ class View:
                  "robots": [worker(w) for w in r.robots], "broker": r.broker, "final": r.final, "problems": r.problems,
                  "curves": {k: len(c) for k, (_, c) in r.curves.items()},
                  "external": len(r.external) if r.external else 0} for r in self.runs]
-        comparison = {k: v for k, v in self.comparison.items() if k != "panels"} if self.comparison else None  # its
-        # "lengths" stand for the panels: a panel changes only when a curve grows or a run's state moves
-        return json.dumps({"runs": runs, "comparison": comparison, "problems": self.problems,
+        def short(c: dict[str, Any] | None) -> dict[str, Any] | None:  # a comparison's "lengths" stand for its
+            # panels: a panel changes only when a curve grows or a run's state moves
+            return {k: v for k, v in c.items() if k != "panels"} if c else None
+
+        study = None
+        if self.study:
+            study = {k: v for k, v in self.study.items() if k != "shown"}
+            study["shown"] = {cell: short(c) for cell, c in self.study["shown"].items()}
+        return json.dumps({"runs": runs, "comparison": short(self.comparison), "study": study, "problems": self.problems,
                            "robot": self.robot.key() if self.robot is not None else self.robot_note}, sort_keys=True,
                           default=str)
 
@@ -191,20 +200,22 @@ def _task_of(behaviours: list[str]) -> str:
 
 
 def classify_dir(path: Path) -> str:
-    """``run``, ``comparison`` or ``runs`` (a directory of runs), else a RunDirError saying what it is not."""
+    """``run``, ``comparison``, ``study`` or ``runs`` (a directory of runs), else a RunDirError saying what it is not."""
 
     p = Path(path)
     if not p.is_dir():
-        raise RunDirError(f"{str(p)!r} is not a directory: give a run directory, a comparison directory or a "
-                          "directory of runs")
+        raise RunDirError(f"{str(p)!r} is not a directory: give a run directory, a comparison directory, a study "
+                          "directory or a directory of runs")
     if (p / "compare.json").exists():
         return "comparison"
+    if (p / "study.json").exists():  # (coevo.experiments.study.experiment.MARKER: written first, before any cell)
+        return "study"
     if is_run(p):
         return "run"
     if any(is_run(c) for c in _subdirs(p)):
         return "runs"
     raise RunDirError(f"{str(p)!r} is not a coevo run directory (no run.json or workers/*/worker.json), a comparison "
-                      f"(no compare.json) or a directory of runs")
+                      f"(no compare.json), a study (no study.json) or a directory of runs")
 
 
 def is_run(p: Path) -> bool:
@@ -260,7 +271,9 @@ class _WorkerFiles:
         fresh = now - max(self.curve_tail.mtime, self.adoptions.mtime, _mtime(self.paths.worker_json)) < stale
         state = "done" if done is not None else "running" if fresh else "stopped"
         measures = {k: col[-1] for k, col in self.curve.measures.items() if col and col[-1] is not None}
-        ga = meta.get("ga") if isinstance(meta.get("ga"), dict) else {}
+        ga = meta.get("ga")
+        if not isinstance(ga, dict):
+            ga = {}
         rejected = (done or {}).get("rejected") or {}
         return {"behaviour": behaviour, "worker": str(meta.get("worker", behaviour)), "regime": str(meta.get("regime", "?")),
                 "generation": self.curve.generation[-1] if self.curve else 0, "generations": int(ga.get("generations", 0)),
@@ -496,9 +509,14 @@ def _merge(bus: RunView, files: RunView) -> RunView:
                    final=files.final, problems=(bus.problems if state != "done" else []) + files.problems)
 
 
+#: A study's cells whose comparison is read: those a page asked for (:meth:`Dashboard.want`) in the last WANTED_FOR
+#: seconds, at most SHOWN_CELLS of them (the newest asked), besides the one a new page opens on.
+WANTED_FOR, SHOWN_CELLS = 10.0, 4
+
+
 class Dashboard:
-    """The page's data: the bus's runs, the runs under ``runs_dir`` or in ``target`` (a run, a comparison or a
-    directory of runs), merged; :meth:`refresh` reads what is new and moves :attr:`version` when the page changes."""
+    """The page's data: the bus's runs, the runs under ``runs_dir`` or in ``target`` (a run, a comparison, a study or
+    a directory of runs), merged; :meth:`refresh` reads what is new and moves :attr:`version` when the page changes."""
 
     def __init__(self, *, bus: BusSource | LocalRuns | None = None, runs_dir: Path | None = None, target: Path | None = None,
                  stale: float = STALE, title: str = "coevo dashboard", robot: Any = None, robot_note: str = "") -> None:
@@ -510,6 +528,12 @@ class Dashboard:
         self.kind = classify_dir(self.target) if self.target else None
         self._files: dict[Path, RunFiles] = {}
         self._comparison: Any = None
+        self._study: Any = None
+        if self.kind == "study" and self.target is not None:
+            from coevo.dashboard.study import StudyFiles
+
+            self._study = StudyFiles(self.target, stale=stale)  # a study.json that cannot be read: said at once
+        self._wanted: dict[str, float] = {}  # a study's cell -> when a page last asked for its comparison
         self.view = View(title)
         self.version = 0
         self._print = ""
@@ -518,17 +542,31 @@ class Dashboard:
     def _run_dirs(self) -> list[Path]:
         if isinstance(self.bus, LocalRuns):
             return [d for d in _subdirs(self.bus.root) if is_run(d)]
+        target = self.target
+        if target is None:  # the bus's runs alone
+            return []
         if self.kind == "run":
-            return [self.target]
+            return [target]
         if self.kind == "runs":
-            return [d for d in _subdirs(self.target) if is_run(d)]
+            return [d for d in _subdirs(target) if is_run(d)]
         if self.kind == "comparison":
             from coevo.dashboard.compare import ComparisonFiles
 
             if self._comparison is None:
-                self._comparison = ComparisonFiles(self.target, stale=self.stale)
+                self._comparison = ComparisonFiles(target, stale=self.stale)
             return self._comparison.run_dirs()
         return []
+
+    def want(self, cell: str) -> None:
+        """A page shows this cell of the study: read its comparison (from the next refresh, while asked for)."""
+        with self._lock:
+            self._wanted[cell] = time.monotonic()
+
+    def _shown(self) -> list[str]:
+        now = time.monotonic()
+        with self._lock:
+            self._wanted = {c: t for c, t in self._wanted.items() if now - t < WANTED_FOR}
+            return sorted(self._wanted, key=self._wanted.__getitem__, reverse=True)[:SHOWN_CELLS]
 
     def _files_for(self, d: Path) -> RunFiles:
         f = self._files.get(d)
@@ -552,11 +590,16 @@ class Dashboard:
             if not runs and time.time() - self.bus.started > 5:
                 problems.append(self.bus.waiting)
         comparison = self._comparison.read() if self._comparison is not None else None
+        study = None
+        if self._study is not None:
+            study = self._study.read(self._shown())
+            problems += study["problems"]
         robot = None
         if self.robot is not None:
             self.robot.update()
             robot = self.robot.picture
-        view = View(self.title, runs=[runs[k] for k in sorted(runs)], comparison=comparison, problems=problems,
+        view = View(self.title, runs=[runs[k] for k in sorted(runs)], comparison=comparison, study=study,
+                    problems=problems,
                     robot=robot, robot_note=self.robot_note)
         fp = view.fingerprint()
         with self._lock:

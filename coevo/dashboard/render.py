@@ -9,13 +9,16 @@ from __future__ import annotations
 
 import html
 import math
+import re
+from collections.abc import Sequence
 from typing import Any
 
 from coevo.dashboard.model import View
 
 __all__ = ["PALETTE", "REGIME_COLOURS", "problems_html", "runs_html", "workers_html", "comparison_html",
            "table1_html", "verdict_html", "regime_colour", "regime_columns", "curve_lines", "behaviours",
-           "measure_names", "external_lines", "robot_html"]
+           "measure_names", "external_lines", "robot_html", "study_title_html", "study_progress_html",
+           "study_verdict_html", "study_cell", "study_cell_table1_html", "study_cell_note_html", "study_tables_html"]
 
 # Bokeh's Category20 (d3): a colour per run for up to twenty runs, then the colours repeat (a line style never
 # stands for a run: on the measures' plot it says which measure, nowhere else)
@@ -254,6 +257,7 @@ def curve_lines(view: View, behaviour: str, what: str = "fitness") -> dict[str, 
         for wid, (b, c) in sorted(r.curves.items()):
             if b != behaviour or not len(c):
                 continue
+            lines: list[tuple[str, Sequence[float | None], float]]
             if what == "fitness":
                 lines = [("published best (mean of its re-evaluations)", c.best_so_far, 2.5),
                          ("generation's best", c.best, 1.0)]
@@ -316,3 +320,168 @@ def robot_html(view: View) -> str:
                      + "</p>")
         parts.append(_table("rules", ["rule", "strength", "fired", "IF ... THEN ..."], rows, numeric={1, 2}))
     return "".join(parts)
+
+
+# ---------------------------------------------------------------- a study
+def _share(d: dict[str, Any]) -> str:
+    """k/n [low–high %] of a Wilson interval's dict (:meth:`~coevo.experiments.study.intervals.Proportion.as_dict`)."""
+    from coevo.experiments.study.intervals import Proportion
+
+    return _e(Proportion(int(d["k"]), int(d["n"]), float(d["low"]), float(d["high"])).text())
+
+
+def _mean(d: dict[str, Any]) -> str:
+    """mean [low, high] of a bootstrap interval's dict (:meth:`~coevo.experiments.compare.stats.MeanInterval.as_dict`),
+    its n left to the runs' column."""
+    if not d["n"]:
+        return "–"
+    if math.isnan(d["low"]):
+        return f"{d['mean']:.2f}"
+    return f"{d['mean']:.2f} [{d['low']:.2f}, {d['high']:.2f}]"
+
+
+_CELL_STATE_COLOUR = {"finished": "#1f77b4", "running": "#2ca02c", "stopped": "#d62728", "waiting": "#7f7f7f",
+                      "not started": "#7f7f7f", "writing its report": "#2ca02c"}
+
+
+def _cell_state(s: str) -> str:
+    return (f'<b style="color:{_CELL_STATE_COLOUR.get(s, "#000")}" class="state-{_e(s.replace(" ", "-"))}">'
+            f"{_e(s)}</b>")
+
+
+def study_title_html(view: View) -> str:
+    """The study's name, its description, its folder."""
+    s = view.study or {}
+    desc = f"{_e(s['description'])} · " if s.get("description") else ""
+    return (f"<h2 style='font:bold 20px sans-serif;margin:4px 0'>Study {_e(s.get('name', '?'))}</h2>"
+            f"<span style='font:13px sans-serif;color:#333'>{desc}</span>"
+            f"<span style='font:12px sans-serif;color:#555'>{_e(s.get('dir', ''))} · factors {_e(s.get('factors', ''))}"
+            " · read-only: nothing here can steer a run</span>")
+
+
+def study_progress_html(view: View) -> str:
+    """The study's headline: runs and cells done of the total, its state (finished only when its completion marker
+    says so), a bar, and a row per cell and group: its state, runs, and the report's numbers so far (Good and No
+    Docking with 95 % Wilson intervals, the Executive curve's end and AEL with 95 % bootstrap intervals)."""
+    s = view.study
+    if not s:
+        return ""
+    done, total = s["runs_done"], s["runs_total"]
+    pct = 100 * done / total if total else 0.0
+    going = ", ".join(f"{n} {k}" for k, n in s["counts"].items() if n and k != "done")
+    why = f": {_e(s['why'])}" if s["why"] else ""
+    head = (f"<div class='study-progress' style='font:15px sans-serif;margin:2px 0'>"
+            f"<b class='runs-done'>{done} of {total} runs finished</b> ({pct:.0f} %)"
+            + (f" · {_e(going)}" if going else "")
+            + f" · <span class='cells-done'>{s['cells_done']} of {s['cells_total']} cells finished</span>"
+            f" · the study: {_cell_state(s['state'])}{why}</div>"
+            f"<div style='width:420px;height:8px;background:#e5e5e5;margin:2px 0 6px 0'>"
+            f"<div class='bar' style='width:{pct:.1f}%;height:8px;background:"
+            f"{_CELL_STATE_COLOUR.get(s['state'], '#2ca02c')}'></div></div>")
+    rows = []
+    for c in s["cells"]:
+        runs = f"{c['runs_done']}/{c['runs_total']}"
+        extra = ", ".join(f"{n} {k}" for k, n in c["counts"].items() if n and k in ("running", "failed"))
+        lead = [f"<span title='{_e(c['label'])}, seed {c['seed']}'>{_e(c['id'])}</span>", _cell_state(c["state"]),
+                runs + (f" ({_e(extra)})" if extra else "")]
+        for i, r in enumerate(c["rows"]):
+            cells = lead if i == 0 else ["", "", ""]
+            rows.append([*cells, _e(r["group"]), _share(r["good_docking"]), _share(r["no_docking"]),
+                         _mean(r["executive_end"]), _mean(r["average_epoch_length"])])
+    table = _table("study-cells", ["cell", "state", "runs done", "group", "Good Docking", "No Docking",
+                                   "Executive end", "AEL"], rows, numeric={2, 6, 7})
+    style = "<style>table.study-cells td,table.study-cells th{white-space:nowrap;padding:1px 8px}</style>"
+    # a study of many cells scrolls in its box: the cell selector below stays on the first screen
+    return head + style + f"<div class='study-cells-box' style='max-height:440px;overflow:auto'>{table}</div>"
+
+
+def study_verdict_html(view: View) -> str:
+    """The study's report's verdict once written (said when it covers fewer runs than have finished), else when it
+    will be, and whether the settings are below the report's."""
+    s = view.study
+    if not s:
+        return ""
+    v = s.get("verdict")
+    box = "font:13px/1.35 sans-serif;max-height:200px;overflow:auto;margin:0 0 0 12px"
+    caveat = f"<p><i>{_e(s['caveat'])}</i></p>" if s.get("caveat") else ""
+    if v is None:
+        body = (f"<p>No report yet: it is written when the study ends ({s['runs_done']} of {s['runs_total']} runs "
+                f"finished). <code>coevo study --report-only --out {_e(s['dir'])}</code> writes one from the runs "
+                "finished so far.</p>" + caveat)
+    else:
+        stale = (f" (the report covers {v['finished']} of {v['expected']} runs; {s['runs_done']} have finished since:"
+                 f" coevo study --report-only --out {_e(s['dir'])} writes it again)"
+                 if v["finished"] < s["runs_done"] else "")
+        items, paras = [], []
+        for part in v["text"].split("\n"):
+            text = re.sub(r"\*\*(.+?)\*\*", r"<b>\1</b>", _e(part.strip()))  # the report's Markdown bold
+            if part.startswith("- "):
+                items.append(f"<li>{text[2:]}</li>")
+            elif part.strip():
+                paras.append(f"<p>{text}</p>")
+        body = (f"<ul style='padding-left:18px;margin:4px 0'>{''.join(items)}</ul>" if items else "") + "".join(paras)
+        body += f"<p><i>{stale}</i></p>" if stale else ""
+    return f"<h3 class='coevo'>The study's verdict</h3><div class='study-verdict' style='{box}'>{body}</div>"
+
+
+def study_cell(view: View, cell: str) -> dict[str, Any] | None:
+    """One cell of the study as its page shows it (its row in :func:`study_progress_html`), or None."""
+    return next((c for c in (view.study or {}).get("cells", []) if c["id"] == cell), None)
+
+
+def study_cell_table1_html(view: View, cell: str) -> str:
+    """One cell's Table 1 so far: each class k of n with its 95 % Wilson interval per group, beside the report's
+    counts of 10 with theirs (as the study's report.md)."""
+    from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS
+    from coevo.experiments.study.intervals import wilson
+
+    c = study_cell(view, cell)
+    if c is None:
+        return ""
+    rows = c["rows"]
+    heads = ["Table 1"]
+    for r in rows:
+        heads.append(f"{r['group']} so far")
+        if r["group"] in REPORT_COUNTS:
+            heads.append("report")
+    body = []
+    for k in CLASSES:
+        line = [_e(k)]
+        for r in rows:
+            line.append(_share(r["table1"][k]))
+            if r["group"] in REPORT_COUNTS:
+                line.append(f'<span class="report">{_e(wilson(REPORT_COUNTS[r["group"]].get(k, 0), 10).text())}</span>')
+        body.append(line)
+    style = ("<style>table.cell-table1 td,table.cell-table1 th{white-space:nowrap;padding:1px 8px}"
+             "table.cell-table1 span.report{color:#777}</style>")
+    counts = ", ".join(f"{n} {s}" for s, n in c["counts"].items())
+    return (f"<h3 class='coevo'>Cell {_e(c['id'])} ({_e(c['label'])}): {_e(counts)}</h3>" + style
+            + _table("cell-table1", heads, body, numeric=set(range(1, len(heads)))))
+
+
+def study_cell_note_html(view: View, cell: str) -> str:
+    """Beside a cell's Table 1: its own comparison report's verdict if one was written, else how to write one; and
+    its failed runs, with why."""
+    c = study_cell(view, cell)
+    comparison = ((view.study or {}).get("shown") or {}).get(cell)
+    if c is None:
+        return ""
+    box = "font:13px/1.35 sans-serif;max-height:300px;overflow:auto;margin:0 0 0 12px"
+    failed = "".join(f"<li>{_e(f)}</li>" for f in c["failed"])
+    failed = f"<p>Failed or stopped runs (coevo study --resume runs them again):</p><ul>{failed}</ul>" if failed else ""
+    if comparison and comparison.get("verdict"):
+        return verdict_html(View(view.title, comparison=comparison)) + (f"<div style='{box}'>{failed}</div>"
+                                                                       if failed else "")
+    where = comparison["dir"] if comparison else f"{(view.study or {}).get('dir', '')}/cells/{cell}"
+    body = (f"<p>A cell is one comparison, paired by seed (cell seed {c['seed']}). Its own report (rank tests, curves, "
+            f"robots): <code>coevo compare --report-only --out {_e(where)}</code>; <code>coevo dashboard "
+            f"{_e(where)}</code> shows it alone.</p>" + failed)
+    return f"<h3 class='coevo'>This cell</h3><div class='cell-note' style='{box}'>{body}</div>"
+
+
+def study_tables_html(view: View) -> str:
+    """Every cell's Table 1 so far with 95 % Wilson intervals, for the fold at the bottom of a study's page."""
+    s = view.study
+    if not s:
+        return ""
+    return "".join(study_cell_table1_html(view, c["id"]) for c in s["cells"])

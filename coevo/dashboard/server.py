@@ -1,5 +1,9 @@
 """The dashboard's web page: a Bokeh server (the library behind Dask's dashboard) on this machine.
 
+Three pages: a run's or runs' (tables and curves), a comparison's (:class:`_Regimes`: its Table 1 and verdict, then
+the report's panels per regime) and a study's (:class:`_Study`: its progress and cells, then one cell at a time as
+a comparison, picked in a selector).
+
 One :class:`~coevo.dashboard.model.Dashboard` is read by a polling thread for the whole process;
 each open page holds a Bokeh document whose periodic callback redraws only when the model's
 version moved (the fingerprint of what the page shows), so an idle page costs a comparison of two
@@ -15,10 +19,14 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 from coevo.dashboard import render
-from coevo.dashboard.model import Dashboard, follow
+from coevo.dashboard.model import Dashboard, View, follow
+
+if TYPE_CHECKING:
+    from tornado.ioloop import IOLoop
 
 __all__ = ["make_document", "serve"]
 
@@ -48,14 +56,21 @@ class _Page:
         self.plots: dict[tuple[str, str], Any] = {}  # (behaviour, what) -> ColumnDataSource
         self.figures: dict[tuple[str, str], Any] = {}
         doc.title = dash.title
-        if dash.kind == "comparison":
+        self.regimes: _Regimes | None = None
+        self.study: _Study | None = None
+        if dash.kind == "study":
+            self.study = _Study(dash)
+            layout = column(self.title, self.banner, self.study.headline, self.study.controls,
+                            self.study.regimes.headline, self.study.regimes.controls, *self.study.regimes.rows,
+                            *_folded("the cell's replicates and its Executive curve's table", self.comparison),
+                            *_folded("every cell's Table 1", self.study.tables), self.robot, sizing_mode="stretch_width")
+        elif dash.kind == "comparison":
             self.regimes = _Regimes(dash)
             layout = column(self.title, self.banner, self.regimes.headline, self.regimes.controls, *self.regimes.rows,
                             *_folded("replicates and the Executive curve's table", self.comparison),
                             *_folded("runs and workers", column(self.runs, self.workers, sizing_mode="stretch_width")),
                             self.robot, sizing_mode="stretch_width")
         else:
-            self.regimes = None
             layout = column(self.title, self.banner, self.runs, self.workers, self.fitness_row, self.measures_row,
                             self.external_row, self.comparison, self.robot, sizing_mode="stretch_width")
         self.update()  # before the layout is the document's: a change to a model held by a document costs a walk
@@ -92,6 +107,8 @@ class _Page:
         return self.plots[key]
 
     def update(self) -> None:
+        if self.study is not None:
+            self.dash.want(self.study.cell)  # while this page is open, its cell's comparison is read
         version, view = self.dash.current()
         key = (version, tuple(self.problems))
         if key == self.version:
@@ -101,6 +118,14 @@ class _Page:
             self._draw(view)
 
     def _draw(self, view: Any) -> None:
+        if self.study is not None:
+            self.title.text = render.study_title_html(view)
+            self.banner.text = render.problems_html(view, self.problems)
+            self.banner.visible = bool(self.banner.text)
+            self.study.update(view)
+            self.comparison.text = render.comparison_html(self.study.cell_view(view))
+            self.robot.text = render.robot_html(view)
+            return
         n = len(view.runs)
         self.title.text = (f"<h2 style='font:bold 20px sans-serif;margin:4px 0'>{render._e(view.title)}</h2>"
                            f"<span style='font:12px sans-serif;color:#555'>{n} run{'s' * (n != 1)} · read-only: "
@@ -154,7 +179,8 @@ class _Regimes:
     and the report's panels with a band, a mean and the runs' lines per regime; a legend in each panel hides a regime
     in all of them."""
 
-    def __init__(self, dash: Dashboard) -> None:
+    def __init__(self, dash: Dashboard, first: View | None = None) -> None:
+        """``first``: the view whose comparison the page opens on (default: the dashboard's)."""
         from bokeh.layouts import row
         from bokeh.models.widgets import Div, MultiChoice
 
@@ -184,10 +210,15 @@ class _Regimes:
                 for title, beh, col, ylabel, _ in self.panels]
         self.figures = figs
         self.rows = [row(*figs[i:i + 3], sizing_mode="stretch_width") for i in range(0, len(figs), 3)]
-        view = dash.current()[1]
+        view = first if first is not None else dash.current()[1]
+        self._add_groups(view)
+
+    def _add_groups(self, view: View) -> None:
+        """Every regime of the view's comparison not drawn yet (a study's page may open before its cell is read)."""
         for g in (view.comparison or {}).get("regimes", []):
-            self.groups.append(g)
-            self._add_group(g, render.regime_colour(view, g))
+            if g not in self.groups:
+                self.groups.append(g)
+                self._add_group(g, render.regime_colour(view, g))
 
     def _add_group(self, group: str, colour: str) -> None:
         """The band, mean and runs of a new group in every panel, with its legend entries."""
@@ -213,8 +244,11 @@ class _Regimes:
                 ("95 % interval", "@low{0.000} to @high{0.000}"), ("finished runs", "@n")]))
             if not fig.legend:
                 fig.add_layout(Legend(click_policy="hide", location="top_left", orientation="horizontal",
-                                      name=f"legend-{i}", label_text_font_size="12px", padding=2, margin=0,
-                                      spacing=12, glyph_width=16, border_line_alpha=0), "above")
+                                      name=f"legend-{i}", label_text_font_size="12px",
+                                      padding=2,  # type: ignore[arg-type]  # bokeh 3.9's stub types Legend.padding
+                                      # as the Property itself (Padding, not PaddingType): an int is refused there,
+                                      # though it is what the property takes
+                                      margin=0, spacing=12, glyph_width=16, border_line_alpha=0), "above")
             item = LegendItem(label=value(group), renderers=[mean, area, runs])
             fig.legend[0].items.append(item)
             self.items.append((i, group, item))
@@ -227,13 +261,27 @@ class _Regimes:
             r.js_on_change("visible", sync)
         self.renderers[group] = mine
 
-    def update(self, view: Any) -> None:
+    def update(self, view: Any, *, table1: str | None = None, verdict: str | None = None) -> None:
+        """Draw the view's comparison; ``table1`` and ``verdict``: the headline's two boxes, when not the
+        comparison's own (a study's cell: its Table 1 with intervals, and how to have its own report)."""
         c = view.comparison
-        if not c:
+        if table1 is not None:
+            self.table1.text = table1
+        if verdict is not None:
+            self.verdict.text = verdict
+        if not c:  # (a study's cell picked, not read yet) no other cell's lines under its name
+            if self.view is not None:
+                self.view = None
+                for band, lines in self.sources.values():
+                    band.data = {k: [] for k in band.data}
+                    lines.data = {k: [] for k in lines.data}
             return
         self.view = view
-        self.table1.text = render.table1_html(view)
-        self.verdict.text = render.verdict_html(view)
+        self._add_groups(view)
+        if table1 is None:
+            self.table1.text = render.table1_html(view)
+        if verdict is None:
+            self.verdict.text = render.verdict_html(view)
         runs = sorted({ln["run"] for p in c["panels"] for grp in p["groups"].values() for ln in grp["lines"]})
         if runs != list(self.picker.options):
             self.picker.options = runs
@@ -241,7 +289,11 @@ class _Regimes:
 
     def _picked(self, attr: str, old: list[str], new: list[str]) -> None:
         """The run selector moved (in this page only): its panels drawn again, the document walked once."""
-        with self.picker.document.models.freeze():
+        doc = self.picker.document
+        if doc is None:  # not on a page: no document to walk
+            self._redraw()
+            return
+        with doc.models.freeze():
             self._redraw()
 
     def _redraw(self) -> None:
@@ -263,6 +315,68 @@ class _Regimes:
             if self.labels.get((i, g)) != label:  # a legend redrawn only when its text changes
                 self.labels[(i, g)] = label
                 item.label = value(label)
+
+
+class _Study:
+    """A study's page: its headline (progress, each cell's state and numbers so far, the study's verdict), a cell
+    selector, and the cell picked shown as a comparison (:class:`_Regimes`) with its Table 1's intervals.  The cell
+    picked is this page's own; the dashboard reads the comparisons of the cells open pages ask for."""
+
+    def __init__(self, dash: Dashboard) -> None:
+        from bokeh.layouts import row
+        from bokeh.models.widgets import Div, Select
+
+        self.dash = dash
+        view = dash.current()[1]
+        s = view.study or {}
+        self.cell: str = s.get("default", "")
+        self.progress = Div(text="", name="study", width=840)
+        self.verdict = Div(text="", name="study-verdict", sizing_mode="stretch_width")
+        self.headline = row(self.progress, self.verdict, sizing_mode="stretch_width")
+        self.options = self._options(view)  # as last given to the selector
+        self.selector = Select(title="The cell shown below, as a comparison:", options=self.options,
+                               value=self.cell, name="cell-selector", width=420)
+        self.selector.on_change("value", self._picked)
+        key = Div(text=("<p style='font:13px sans-serif;color:#333;margin:22px 0 0 12px'>Each cell is one regime "
+                        "comparison with its own seeds. Below: its Table 1 so far with 95 % Wilson intervals (the "
+                        "report's counts of 10 in grey) and its regimes' curves.</p>"), sizing_mode="stretch_width")
+        self.controls = row(self.selector, key, sizing_mode="stretch_width")
+        self.tables = Div(text="", name="study-tables", sizing_mode="stretch_width")
+        self.regimes = _Regimes(dash, first=self.cell_view(view))
+        dash.want(self.cell)
+
+    @staticmethod
+    def _options(view: View) -> list[str | tuple[Any, str]]:
+        return [(c["id"], f"{c['id']}: {c['state']}, {c['runs_done']}/{c['runs_total']} runs")
+                for c in (view.study or {}).get("cells", [])]
+
+    def cell_view(self, view: View) -> View:
+        """The picked cell's comparison as a view of its own, for the comparison's page pieces."""
+        return View(view.title, comparison=((view.study or {}).get("shown") or {}).get(self.cell))
+
+    def update(self, view: View) -> None:
+        self.progress.text = render.study_progress_html(view)
+        self.verdict.text = render.study_verdict_html(view)
+        options = self._options(view)
+        if options != self.options:
+            self.selector.options = self.options = options
+        self.tables.text = render.study_tables_html(view)
+        cell = self.cell_view(view)
+        wait = "" if cell.comparison else f"<p style='font:13px sans-serif'>reading cell {render._e(self.cell)} ...</p>"
+        self.regimes.update(cell, table1=render.study_cell_table1_html(view, self.cell) + wait,
+                            verdict=render.study_cell_note_html(view, self.cell))
+
+    def _picked(self, attr: str, old: str, new: str) -> None:
+        """Another cell picked (in this page only): asked of the dashboard, and drawn now as far as it is read."""
+        self.cell = new
+        self.dash.want(new)
+        self.regimes.picker.value = []  # a run id names a run of each cell: the one picked was the other cell's
+        doc = self.selector.document
+        if doc is None:
+            self.update(self.dash.current()[1])
+            return
+        with doc.models.freeze():
+            self.update(self.dash.current()[1])
 
 
 def make_document(dash: Dashboard, problems: list[str], built: Any = None) -> Any:
@@ -319,11 +433,11 @@ def _static_handler() -> Any:
     from bokeh.server.views.static_handler import StaticHandler
     from tornado.web import HTTPError
 
-    class Static(StaticHandler):  # type: ignore[misc]
+    class Static(StaticHandler):
         def validate_absolute_path(self, root: str, absolute_path: str) -> str | None:
             if "\x00" in absolute_path:
                 raise HTTPError(400, reason="bad path")
-            return super().validate_absolute_path(root, absolute_path)  # type: ignore[no-any-return]
+            return super().validate_absolute_path(root, absolute_path)
 
     return Static
 
@@ -365,6 +479,7 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5, on_ready
     except OSError as exc:
         raise ConfigError(f"cannot serve on {host}:{port}: {exc.strerror or exc} (choose another --port or --host)") from None
     origins = [f"{host}:{port}"] + ([f"localhost:{port}", f"127.0.0.1:{port}"] if host in ("127.0.0.1", "localhost") else [])
+    server: BaseServer  # made below: the admission hook is called only once it serves
     admission = _Admission(lambda: server.get_sessions())
     app = Application(FunctionHandler(make_document(dash, problems, admission.built)))
     tornado_app = BokehTornado({"/": app}, extra_websocket_origins=origins, sign_sessions=True,
@@ -377,6 +492,7 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5, on_ready
     app.process_request = admission  # type: ignore[method-assign]
     poller.start()
     server.start()
+    unhook = _stop_on_signals(server.io_loop)
     if on_ready:
         on_ready(f"http://{host}:{port}/")
     try:
@@ -384,6 +500,34 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5, on_ready
     except KeyboardInterrupt:
         pass
     finally:
+        unhook()
         stop.set()
         server.stop()
         poller.join(timeout=5)
+
+
+def _stop_on_signals(loop: IOLoop) -> Callable[[], None]:
+    """While serving, SIGINT and SIGTERM stop ``loop`` from the loop itself (asyncio's signal handlers: the signal
+    wakes the loop, which stops); returns what puts the handlers before back.
+
+    Not a KeyboardInterrupt raised wherever the main thread is (the command's handler until the page serves): raised
+    inside a callback the interpreter runs for a C library, it is printed as "ignored" and lost.  pymunk frees its
+    bodies in such callbacks (``ffi.gc``) when the garbage collector runs, and a study's Docking probes and a robot's
+    drawing leave them: a SIGTERM arriving then left the dashboard running until it was killed."""
+    import signal
+
+    from tornado.platform.asyncio import BaseAsyncIOLoop
+
+    if not isinstance(loop, BaseAsyncIOLoop):  # (tornado's loops are asyncio's since tornado 5)
+        return lambda: None
+    aio = loop.asyncio_loop
+    before = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    for sig in before:
+        aio.add_signal_handler(sig, loop.stop)
+
+    def unhook() -> None:
+        for sig, handler in before.items():
+            aio.remove_signal_handler(sig)
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+
+    return unhook

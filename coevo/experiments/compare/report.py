@@ -65,19 +65,26 @@ CURVE_COLUMNS = ("best_fitness", "best_so_far", "quality_tracking", "successful_
 DOCKING_PROBE_EPISODES = 300
 
 
-def collect(out: Path, spec: CompareSpec) -> list[dict[str, Any]]:
-    """One record per finished run: its measures, Table 1 class, final fitnesses and curves."""
+def collect(out: Path, spec: CompareSpec, *, known: dict[str, dict[str, Any]] | None = None) -> list[dict[str, Any]]:
+    """One record per finished run: its measures, Table 1 class, final fitnesses and curves.
+
+    ``known``: records already made, by run id, reused instead of made again and added to as runs finish (a
+    finished run no longer changes; its record costs a Docking probe of ``DOCKING_PROBE_EPISODES`` episodes), for a
+    reader that follows a growing comparison (the dashboard's study page)."""
     records: list[dict[str, Any]] = []
     by_run: dict[str, dict[str, Any]] = {}  # an offline replicate reads its live run's record, built just before
     for rep in replicates(spec):
         if not is_finished(out, rep):
             continue
-        if rep.offline:
-            live = by_run.get(rep.depends_on.run_id) if rep.depends_on else None
-            records.append(_offline_record(out, rep, live))
-        else:
-            records.append(_record(out, spec, rep))
-            by_run[rep.run_id] = records[-1]
+        x = known.get(rep.run_id) if known is not None else None
+        if x is None:
+            live = by_run.get(rep.depends_on.run_id) if rep.offline and rep.depends_on else None
+            x = _offline_record(out, rep, live) if rep.offline else _record(out, spec, rep)
+            if known is not None and (not rep.offline or live is not None):  # not one made without its live run
+                known[rep.run_id] = x
+        records.append(x)
+        if not rep.offline:
+            by_run[rep.run_id] = x
     return records
 
 

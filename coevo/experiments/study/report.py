@@ -38,7 +38,7 @@ from coevo.experiments.study.experiment import cell_dir
 from coevo.experiments.study.intervals import Difference, difference_interval, share_difference, wilson
 from coevo.rundir.layout import write_json, write_text
 
-__all__ = ["MEASURES", "collect_study", "analyse", "write_report"]
+__all__ = ["MEASURES", "collect_cell", "collect_study", "cell_rows", "analyse", "write_report"]
 
 #: The measures every factor is tested on: name -> (title, value of a run record, is it a 0/1 share?).
 MEASURES: dict[str, tuple[str, Callable[[dict[str, Any]], float], bool]] = {
@@ -56,17 +56,17 @@ def _executive_end(record: dict[str, Any]) -> float:
     return float(curve[-1]) if curve else float("nan")
 
 
+def collect_cell(out: Path, cell: Cell, *, known: dict[str, dict[str, Any]] | None = None) -> list[dict[str, Any]]:
+    """One record per finished run of ``cell``: the comparison's record, plus ``cell`` and the run's level of every
+    factor (``known``: records already made, by run id, as :func:`~coevo.experiments.compare.report.collect`)."""
+    return [x | {"cell": cell.id, "levels": {**dict(cell.levels), "regime": x["regime"], "rate": x["rate"]}}
+            for x in collect(cell_dir(out, cell), cell.spec, known=known)]
+
+
 def collect_study(out: Path, spec: StudySpec) -> tuple[list[Cell], list[dict[str, Any]]]:
-    """The cells, and one record per finished run of any cell (the comparison's record, plus ``cell`` and the
-    run's level of every factor)."""
+    """The cells, and one record per finished run of any cell (:func:`collect_cell`)."""
     the_cells = cells(spec)
-    records = []
-    for c in the_cells:
-        for x in collect(cell_dir(out, c), c.spec):
-            x["cell"] = c.id
-            x["levels"] = {**dict(c.levels), "regime": x["regime"], "rate": x["rate"]}
-            records.append(x)
-    return the_cells, records
+    return the_cells, [x for c in the_cells for x in collect_cell(out, c)]
 
 
 def _summary(values: Sequence[float], share: bool) -> dict[str, Any]:
@@ -78,7 +78,9 @@ def _summary(values: Sequence[float], share: bool) -> dict[str, Any]:
     return mean_interval(v).as_dict()
 
 
-def _cell_rows(the_cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def cell_rows(the_cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per cell and group: its runs (``n`` of ``runs_expected``), Table 1's classes and the docking classes as k of n
+    with 95 % Wilson intervals, and the Executive curve's end and AEL as means with 95 % bootstrap intervals."""
     rows = []
     for c in the_cells:
         for g in groups(c.spec):
@@ -196,7 +198,7 @@ def write_report(out: Path, spec: StudySpec, *, elapsed: float | None = None) ->
     if not records:
         raise RunDirError(f"{out} holds no finished runs to report on")
     expected = sum(len(replicates(c.spec)) for c in the_cells)
-    rows = _cell_rows(the_cells, records)
+    rows = cell_rows(the_cells, records)
     tests = analyse(spec, records)
     verdict = _verdict(spec, rows, tests, len(records), expected)
     ga = the_cells[0].spec.ga
