@@ -133,7 +133,7 @@ class Worker:
         self.rejected.note(err, key)
 
     # ------------------------------------------------------------ the worker directory
-    def _meta(self) -> dict[str, Any]:
+    def meta(self) -> dict[str, Any]:
         return {
             "coevo": __version__, "task": self.task.name, "behaviour": self.behaviour, "regime": self.regime,
             "run": self.run_id, "worker": self.worker_id, "seed": self.seed, "model": self.models.kind,
@@ -147,7 +147,7 @@ class Worker:
         """Create the directory, or check it and cut its logs back to the checkpoint (``resume``)."""
         p = self.paths
         logs = [p.dir / n for n in self.logs]
-        prepare_dir(p.dir, what="worker", meta_file=p.worker_json, meta=self._meta(), logs=logs, checkpoint=p.checkpoint,
+        prepare_dir(p.dir, what="worker", meta_file=p.worker_json, meta=self.meta(), logs=logs, checkpoint=p.checkpoint,
                     resume=self.resume, saved=_saved_meta, hint=", or choose another --out")
         with open(p.machines, "a", encoding="utf-8") as f:  # what decides the last bits here (coevo.rundir.machine)
             append_durably(f, {"started": time.time(), **machine()})
@@ -157,13 +157,13 @@ class Worker:
         cut_logs(logs, state["worker"]["log_sizes"] if state else {})
         return state
 
-    def _restore(self, ga: GA, state: dict[str, Any] | None) -> float:
+    def restore(self, ga: GA, state: dict[str, Any] | None) -> float:
         """Continue from the checkpoint ``state``; the seconds it had spent pacing."""
         if state is None:
             if self.resume:
                 log.info("%s: no checkpoint in %s; starting afresh", self.worker_id, self.out)
             return 0.0
-        self._load_learner(ga, state["ga"])
+        self.load_learner(ga, state["ga"])
         self.models.load_state(state["models"])
         w = state["worker"]
         self.rejected.load(w["rejected"])
@@ -179,7 +179,7 @@ class Worker:
     def _checkpoint(self, ga: GA, pace_seconds: float) -> None:
         t0 = time.perf_counter()
         state = {
-            "ga": self._learner_state(ga),
+            "ga": self.learner_state(ga),
             "models": self.models.state_dict(),
             "worker": {
                 "log_sizes": {n: (self.out / n).stat().st_size for n in self.logs},
@@ -191,35 +191,37 @@ class Worker:
         self.checkpoint_seconds += time.perf_counter() - t0
 
     # ------------------------------------------------------------ the seam: what another kind of learner changes
-    # A learner of another kind (the CEL learning module is one) subclasses Worker and
-    # overrides only these: how its GA is made and checkpointed, how one generation is made and what of it is
-    # published, what it takes in between generations, how it is paced, and the extra subscriptions it runs inside.
-    # The loop, the directory, the publication log, the store sync and the heartbeats stay here, and this module
-    # names no kind but its own.
-    def _make_ga(self) -> GA:
+    # A learner of another kind (the CEL learning module is one) subclasses Worker and overrides only these public
+    # methods: how its GA is made and checkpointed (make_ga, learner_state, load_learner; restore and meta for what
+    # more it keeps), how one generation is made and what of it is published (generation), what it takes in between
+    # generations (take_in), how it is paced (pacer), and the extra context managers it runs inside (services).
+    # one_generation is the step around generation (the curve, publication, checkpoint, heartbeat), for a subclass
+    # or a test to wrap.  The loop, the directory, the publication log, the store sync and the heartbeats stay
+    # here (on a coevo.bus.lifecycle.Lifecycle), and this module names no kind but its own.
+    def make_ga(self) -> GA:
         return GA(self.task, self.behaviour, world=self.world, ga=self.ga_cfg, seed=self.seed)
 
-    def _learner_state(self, ga: GA) -> dict[str, Any]:
+    def learner_state(self, ga: GA) -> dict[str, Any]:
         return ga.state_dict()
 
-    def _load_learner(self, ga: GA, state: dict[str, Any]) -> None:
+    def load_learner(self, ga: GA, state: dict[str, Any]) -> None:
         ga.load_state(state)
 
-    def _generation(self, ga: GA) -> tuple[GenerationReport, RuleSet | None, float]:
+    def generation(self, ga: GA) -> tuple[GenerationReport, RuleSet | None, float]:
         """One generation: its report, the new best so far to publish (None: no improvement), the best so far's
         fitness."""
         rep = ga.generation(self.models.partners(), tick=self._tick)
         return rep, (ga.played(ga.best) if rep.improved and ga.best is not None else None), rep.best_so_far
 
-    def _take_in(self, inbox: Inbox, completed: int) -> None:
+    def take_in(self, inbox: Inbox, completed: int) -> None:
         """Between generations: what arrived for the learner (partner policies)."""
         inbox.fetch()
         inbox.adopt(completed)
 
-    def _pacer(self, session: Session) -> Pacer:
+    def pacer(self, session: Session) -> Pacer:
         return Pacer(session, self.run_id, self.models.needed, max_lead=self.max_lead)
 
-    def _services(self, session: Session, broker: BrokerWatch) -> list[Any]:
+    def services(self, session: Session, broker: BrokerWatch) -> list[Any]:
         """More context managers the generation loop runs inside (a subclass's subscriptions)."""
         return []
 
@@ -227,8 +229,8 @@ class Worker:
     def run(self) -> list[GenerationReport]:
         state = self._prepare()
         self.paths.done.unlink(missing_ok=True)  # written at the end of this start; a predecessor's tells of its own
-        ga = self._make_ga()
-        paced = self._restore(ga, state)
+        ga = self.make_ga()
+        paced = self.restore(ga, state)
         if state is None:  # generation 0: from now on, logs without a checkpoint mean it was removed
             self._checkpoint(ga, paced)
         curve: list[GenerationReport] = []
@@ -247,8 +249,8 @@ class Worker:
             outbox = self._outbox = life.enter(Outbox(
                 s, broker, run=self.run_id, behaviour=self.behaviour, worker_id=self.worker_id, log_path=p.published,
                 store_timeout=self.store_timeout, confirm_every=self.confirm_every, gate=self.gate))
-            pacer = life.enter(self._pacer(s))
-            for service in self._services(s, broker):
+            pacer = life.enter(self.pacer(s))
+            for service in self.services(s, broker):
                 life.enter(service)
             life.declare(s.liveliness().declare_token(keys.alive(self.run_id, self.behaviour, self.worker_id)))
             self._status_pub = life.declare(s.declare_publisher(keys.status(self.run_id, self.behaviour,
@@ -265,7 +267,7 @@ class Worker:
                     break
                 pacer.wait(g, inbox.stop, tick=partial(self._paced_tick, g))
                 t_net = time.perf_counter()
-                self._take_in(inbox, g)
+                self.take_in(inbox, g)
                 self.net_seconds += time.perf_counter() - t_net
                 curve.append(self.one_generation(ga, inbox, outbox, pacer, curve_log))
             finished = self._completed >= self.ga_cfg.generations
@@ -298,7 +300,7 @@ class Worker:
         """One generation and what follows it: the curve's line, the new best published (after the checkpoint),
         the current best, a heartbeat and the store sync."""
         p = self.paths
-        rep, new_best, best_so_far = self._generation(ga)
+        rep, new_best, best_so_far = self.generation(ga)
         curve_log.write(json.dumps(rep.as_dict()) + "\n")
         curve_log.flush()
         if new_best is not None:

@@ -129,11 +129,11 @@ class CelLearner(Worker):
         self._caps: _Capabilities | None = None
         self._case_log: IO[str] | None = None
 
-    def _meta(self) -> dict[str, Any]:
-        return {**super()._meta(), "cel": self.cel.model_dump(mode="json")}
+    def meta(self) -> dict[str, Any]:
+        return {**super().meta(), "cel": self.cel.model_dump(mode="json")}
 
     # ------------------------------------------------------------ the learner
-    def _make_ga(self) -> GA:
+    def make_ga(self) -> GA:
         self.module = LearningModule(self.world, self.ga_cfg, seed=self.seed,  # type: ignore[arg-type]
                                      case_base=CaseBase() if self.cel.case_base else None, keep=self.cel.keep,
                                      cases=self.cel.cases)
@@ -145,15 +145,15 @@ class CelLearner(Worker):
             raise RuntimeError("the learning module is made in run()")
         return self.module
 
-    def _learner_state(self, ga: GA) -> dict[str, Any]:
+    def learner_state(self, ga: GA) -> dict[str, Any]:
         return {"module": self._m.state_dict(), "change": self.change, "cases_put": self.cases_put}
 
-    def _load_learner(self, ga: GA, state: dict[str, Any]) -> None:
+    def load_learner(self, ga: GA, state: dict[str, Any]) -> None:
         self._m.load_state(state["module"])
         self.change, self.cases_put = int(state["change"]), int(state["cases_put"])
 
-    def _restore(self, ga: GA, state: dict[str, Any] | None) -> float:
-        paced = super()._restore(ga, state)
+    def restore(self, ga: GA, state: dict[str, Any] | None) -> float:
+        paced = super().restore(ga, state)
         if state is not None:
             self._best = float(self._m.best_fitness) if self._m.best is not None else 0.0
             if self._m.best is not None:  # the robot's rules: the best since the last change, not the GA's of the run
@@ -170,24 +170,24 @@ class CelLearner(Worker):
         self._m.case_base = CaseBase(case_of(m, i) for i, m in enumerate(msgs))
         self._cases_found = bool(msgs) or self._m.generation_no > 0
 
-    def _generation(self, ga: GA) -> tuple[GenerationReport, RuleSet | None, float]:
+    def generation(self, ga: GA) -> tuple[GenerationReport, RuleSet | None, float]:
         step = self._m.generation(tick=self._tick)
         return step.report, step.new_best, float(self._m.best_fitness) if self._m.best is not None else 0.0
 
-    def _pacer(self, session: Session) -> Pacer:
+    def pacer(self, session: Session) -> Pacer:
         return RobotPacer(session, self.run_id, self.cel.robot, trials_per_generation=self.cel.trials_per_generation,
                           max_lead=self.max_lead, patience=self.cel.patience,
                           grace=self.cel.patience if self._m.generation_no else math.inf)  # a fresh learner: start order free
 
-    def _services(self, session: Session, broker: BrokerWatch) -> list[Any]:
+    def services(self, session: Session, broker: BrokerWatch) -> list[Any]:
         self._session, self._broker = session, broker
         self._caps = _Capabilities(session, self.run_id, self._reject)
         self._case_log = open(self.paths.cases, "a", encoding="utf-8")
         return [self._caps, self._case_log]
 
     # ------------------------------------------------------------ between generations
-    def _take_in(self, inbox: Inbox, completed: int) -> None:
-        super()._take_in(inbox, completed)
+    def take_in(self, inbox: Inbox, completed: int) -> None:
+        super().take_in(inbox, completed)
         if not self._cases_found:
             self._find_cases()
         if self._broker.back.is_set():
