@@ -79,3 +79,19 @@ def test_generic_modules_name_no_learner_kind_or_task() -> None:
                 if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in NAMES:
                     found.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.value!r}")
     assert not found, f"a kind's or a task's name in a generic module: {found}"
+
+
+def test_the_code_cites_only_what_the_repository_holds() -> None:
+    """A reader of the package has the repository, not the tracker or the workplace's notes: no issue numbers, no
+    SPEC or ZENOH-NOTES of the workplace (what they said is in docs/), and every docs/ file it names exists."""
+    import re
+
+    cite = re.compile(r"\bissues? #?\d+|\bSPEC\.md|\bSPEC §|ZENOH-NOTES")
+    doc = re.compile(r"\bdocs/[\w./-]+\.(?:md|png|json)")
+    found = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+            where = f"{path.relative_to(ROOT)}:{n}"
+            found += [f"{where} {m.group(0)!r}" for m in cite.finditer(line)]
+            found += [f"{where} {m.group(0)!r} (missing)" for m in doc.finditer(line) if not (ROOT / m.group(0)).exists()]
+    assert not found, f"the code cites what the repository does not hold: {found}"

@@ -10,7 +10,7 @@ Importing this package registers every built-in task's behaviours (their rule sc
 Settings as given and as saved: :func:`split_settings` reads ``--ga`` values that name a setting
 of the task's world (and none of the GA's) as world settings; :func:`saved_settings` reads a
 saved run's settings as the run learned with them (both for the fuel task's Docking settings,
-GA settings until issue 41 and world settings since).
+GA settings in the runs saved before November 2026, world settings since).
 """
 
 from __future__ import annotations
@@ -57,7 +57,7 @@ def task_of(behaviour: str) -> Task[Any]:
 def split_settings(task: Task[Any], world: Mapping[str, Any], ga: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
     """The world and GA setting values given (``--world``, ``--ga``; dicts of names and values), with every GA value
     that names a setting of ``task``'s world and none of the GA's moved to the world: the fuel task's Docking
-    settings (``docking_sensors``, ...) were GA settings until issue 41, and ``--ga docking_sensors=polar`` still
+    settings (``docking_sensors``, ...) were GA settings in runs saved before November 2026, and ``--ga docking_sensors=polar`` still
     says what it said.  A name given both ways is a ConfigError."""
     moved = {k: v for k, v in ga.items() if k in task.world_settings.model_fields and k not in GAConfig.model_fields}
     twice = sorted(k for k in moved if k in world)

@@ -71,7 +71,7 @@ DEFAULT_RATES = (0.25, 0.5, 1.0, 2.0, 4.0)  # (ours) partner generations per Exe
 
 def _settings_now(spec: Any) -> Any:
     """A comparison's settings (compare.json's spec, or values given) with GA values that are now world settings
-    moved to the world (:func:`coevo.tasks.split_settings`: the fuel task's Docking settings until issue 41)."""
+    moved to the world (:func:`coevo.tasks.split_settings`: the fuel task's Docking settings, GA settings in comparisons saved before November 2026)."""
     if not isinstance(spec, dict) or not isinstance(spec.get("world"), dict) or not isinstance(spec.get("ga"), dict):
         return spec
     world, ga = spec["world"], spec["ga"]

@@ -85,7 +85,7 @@ def _check_name(name: str, where: str) -> None:
         fields = list(models[head].model_fields)
         if sub in fields:
             return
-        if head == "ga" and sub in WorldConfig.model_fields:  # the fuel task's Docking settings until issue 41
+        if head == "ga" and sub in WorldConfig.model_fields:  # the fuel task's Docking settings (GA settings before November 2026)
             raise ConfigError(f"{where}: {name!r} is a world setting of the fuel task now: use world.{sub}")
         near = difflib.get_close_matches(sub, fields, n=1)
         hint = f"; did you mean {head}.{near[0]}?" if near else f" (see coevo compare --{head} and docs/spec.md)"

@@ -6,7 +6,7 @@ open is marked *(ours)* in its description and can be overridden.
 The world a behaviour learns in is more than its physics: what Docking may sense and where its
 training episodes start are settings of this world too (the last three fields), as an environment's
 observation and reset choices are its own keyword arguments in Gymnasium's registration.  They were
-GA settings (:class:`~coevo.config.GAConfig`) until issue 41; a run saved then reads them from there
+GA settings (:class:`~coevo.config.GAConfig`) in runs saved before November 2026; such a run reads them from there
 (:func:`coevo.tasks.saved_settings`) and ``--ga docking_sensors=...`` still sets them
 (:func:`coevo.tasks.split_settings`).
 """
