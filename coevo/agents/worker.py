@@ -262,7 +262,7 @@ class Worker:
                             "delivered when one appears)", self.worker_id, self.broker_wait)
             inbox.refetch = True
             for g in range(ga.generation_no, self.ga_cfg.generations):
-                if inbox.stop_requested():
+                if inbox.stop_requested() or life.stop.is_set():
                     log.info("%s stopping at generation %d", self.worker_id, g)
                     break
                 pacer.wait(g, inbox.stop, tick=partial(self._paced_tick, g))

@@ -12,7 +12,9 @@
     # managers exited, the session closed.  close() may be called again; a session already gone is no error.
 
 ``main_of(work)`` is a process's entry around it: SIGTERM ends the work as Ctrl-C does (so every ``finally`` and
-every life closes), and an interrupted work returns None for the command to turn into its exit status.
+every life closes), and an interrupted work returns None for the command to turn into its exit status.  The signal
+also sets every open life's :attr:`~Lifecycle.stop`: a KeyboardInterrupt that lands in a finaliser (pymunk frees
+its objects in ``__del__``) is printed and dropped by Python, and the loops that watch ``stop`` end all the same.
 
 The order matters twice.  A subscriber undeclared before the thread that drains what it queued is stopped loses
 nothing (the broker's store).  And a liveliness token that ends right after the last heartbeat can reach a watcher
@@ -22,16 +24,18 @@ first, which then reads "dead" for a process that ended well: :meth:`Lifecycle.l
 from __future__ import annotations
 
 import logging
+import signal
 import threading
 import time
+import weakref
 from collections.abc import Callable
 from contextlib import AbstractContextManager, ExitStack
 from typing import Any, Protocol, TypeVar
 
-from coevo.bus.session import Config, Session, SessionGone, open_session, sigterm_as_exit
+from coevo.bus.session import Config, Session, SessionGone, open_session
 from coevo.bus.trust import Gate
 
-__all__ = ["Lifecycle", "main_of", "DONE_LINGER", "JOIN_SECONDS"]
+__all__ = ["Lifecycle", "main_of", "DONE_LINGER", "JOIN_SECONDS", "SIGNALLED"]
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +48,10 @@ DONE_LINGER = 0.2
 JOIN_SECONDS = 5.0
 
 T = TypeVar("T")
+
+#: Set by a stop signal that :func:`main_of` took (SIGTERM, or SIGINT unless it was ignored when the process began).
+SIGNALLED = threading.Event()
+_OPEN: weakref.WeakSet[Lifecycle] = weakref.WeakSet()  # the lives a stop signal ends
 
 
 class Undeclarable(Protocol):
@@ -76,6 +84,9 @@ class Lifecycle:
         except BaseException:
             self._stack.close()
             raise
+        _OPEN.add(self)
+        if SIGNALLED.is_set():
+            self.stop.set()
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -130,11 +141,23 @@ class Lifecycle:
             log.warning("%s: thread %s did not end within %.0f s", self.what, thread.name, JOIN_SECONDS)
 
 
+def _stop_signal(signum: int, frame: object) -> None:
+    SIGNALLED.set()
+    for life in list(_OPEN):
+        life.stop.set()
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
 def main_of(work: Callable[[], T]) -> T | None:
     """``work()`` as a process's main: SIGTERM stops it as Ctrl-C does (a KeyboardInterrupt, so that every
-    ``finally`` runs and every :class:`Lifecycle` closes); None when it was interrupted."""
-    sigterm_as_exit()
+    ``finally`` runs and every :class:`Lifecycle` closes) and sets every open life's ``stop``; None when it was
+    interrupted.  A SIGINT that was ignored when the process began (``coevo run &`` in a script) stays ignored."""
+    SIGNALLED.clear()
+    signal.signal(signal.SIGTERM, _stop_signal)
+    if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
+        signal.signal(signal.SIGINT, _stop_signal)
     try:
-        return work()
+        result = work()
     except KeyboardInterrupt:
         return None
+    return None if SIGNALLED.is_set() else result

@@ -222,7 +222,7 @@ class Execution:
             if not broker.wait(self.broker_wait, self.stop):
                 log.warning("%s: no coevo broker seen after %.0f s; going on", self.robot, self.broker_wait)
             self._put_capabilities()
-            while self.module.trial < self.total and not self._stop_asked(control):
+            while self.module.trial < self.total and not self._stop_asked(control) and not life.stop.is_set():
                 generation = self.module.trial // self.K
                 clock.wait(generation, self.stop, tick=lambda: self._beat(control), tick_every=self.heartbeat_every,
                            poll=0.002)
