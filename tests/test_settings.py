@@ -158,3 +158,22 @@ def test_a_worker_given_settings_refuses_flags_that_would_contradict_them(tmp_pa
     r = subprocess.run([sys.executable, "-m", "coevo", "worker", "--settings", str(f), "--behaviour", "tracking",
                         "--regime", "independent", "--generations", "3"], capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and "drop --regime, --generations" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_a_worker_resumed_before_its_first_start_made_anything_starts_with_empty_logs(tmp_path: Path) -> None:
+    """Seen in a study: a worker died at import (exit 1, twice), then coevo run --resume found its directory with no
+    worker.json and no logs, wrote worker.json and stopped at its first checkpoint, which measures every log."""
+    from coevo.agents.checkpoint import prepare_dir
+    from coevo.rundir.layout import WorkerPaths
+
+    w = WorkerPaths(tmp_path / "w")
+    logs = [w.dir / n for n in WorkerPaths.LOGS]
+    for before in ("nothing", "its settings"):
+        if before == "its settings":  # it got as far as worker.json, and one log, before it died
+            for f in logs:
+                f.unlink()
+            logs[0].write_text("")
+        prepare_dir(w.dir, what="worker", meta_file=w.worker_json, meta={"run": "r"}, logs=logs, checkpoint=w.checkpoint,
+                    resume=True)
+        assert all(f.exists() and f.stat().st_size == 0 for f in logs), before
+        assert json.loads(w.worker_json.read_text()) == {"run": "r"}

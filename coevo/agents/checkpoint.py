@@ -122,15 +122,18 @@ def prepare_dir(directory: Path, *, what: str, meta_file: Path, meta: dict[str, 
         for f in logs:
             f.touch()
         return
-    if not meta_file.exists():
+    if meta_file.exists():
+        held = read_json(meta_file, what=f"{what} directory (its {meta_file.name})")
+        if saved is not None:
+            held = saved(held)
+        diff = [f"{k} was {held.get(k)!r}, now {meta[k]!r}" for k in meta if k != "coevo" and held.get(k) != meta[k]]
+        if diff:
+            raise ConfigError(f"--resume of {str(directory)!r} with other settings: {'; '.join(diff)}")
+    else:  # resumed before its first start made anything (it died on the way): as a fresh start
         write_json(meta_file, meta)
-        return
-    held = read_json(meta_file, what=f"{what} directory (its {meta_file.name})")
-    if saved is not None:
-        held = saved(held)
-    diff = [f"{k} was {held.get(k)!r}, now {meta[k]!r}" for k in meta if k != "coevo" and held.get(k) != meta[k]]
-    if diff:
-        raise ConfigError(f"--resume of {str(directory)!r} with other settings: {'; '.join(diff)}")
+    if not checkpoint.exists():  # it never reached its first checkpoint: its logs start empty, and must be there
+        for f in logs:
+            f.touch()
 
 
 def cut_logs(logs: Sequence[Path], sizes: Mapping[str, int]) -> None:
