@@ -1,5 +1,5 @@
 """`coevo study`: declarations and every bad input, cells and seeds, the statistics, and a tiny real study killed
-with a signal and resumed; a study of learning runs (``learn``): its declaration, seeds and runs."""
+with a signal and resumed; the same for a study of learning runs (``learn``)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ import json
 import math
 import os
 import signal
+import statistics
 import subprocess
 import sys
 import time
@@ -29,13 +30,14 @@ from coevo.experiments.study.declaration import (
 )
 from coevo.experiments.study.experiment import (
     COMPLETE,
+    held_declaration,
     is_complete,
     mark_complete,
     prepare_study,
     study_jobs,
     study_progress,
 )
-from coevo.experiments.compare.stats import holm
+from coevo.experiments.compare.stats import holm, mean_interval
 from coevo.experiments.study.intervals import difference_interval, share_difference, wilson
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -138,6 +140,9 @@ def test_parse_factor() -> None:
     (["--cluster", "local:zero"], "give a number of workers"),
     (["/nonexistent/study.toml"], "No such file"),
     (["--resume"], "need --out"),
+    (["--learn", "executive"], "learn = 'executive': the Executive learns against fixed Tracking and Docking"),
+    (["--learn", "docking", "--factor", "regime=mutual", "--max-lead", "2"],
+     "takes no regime (--factor regime=mutual), max_lead (--max-lead): those are a regime comparison's"),
 ])
 def test_the_command_refuses_bad_input_before_anything_runs(tmp_path: Path, args: list[str], message: str) -> None:
     out = tmp_path / "never"
@@ -464,3 +469,70 @@ def test_a_half_written_learning_run_is_never_finished_and_is_run_again(tmp_path
     (whole / "timing.json").write_text('{"seconds": 1.0}')
     assert second.finished(out) and study_progress(out).runs_done == 1
     assert second.command is not None and second.command(out) and (whole / "measures.json").exists()  # kept
+
+
+TINY_LEARN = ["--learn", "docking", "--factor", "world.docking_sensors=polar,both", "--runs", "2", "--generations", "2",
+              "--population", "4", "--episodes", "4", "--ga", "best_episodes=4", "--measure-epochs", "1", "--seed", "9"]
+
+
+@pytest.mark.service
+@pytest.mark.slow
+def test_a_tiny_learning_study_killed_resumes_and_reports_its_runs_measures(tmp_path: Path) -> None:
+    """2 cells x 2 runs of coevo learn --behaviour docking: killed after its first run, a run's folder torn, resumed;
+    the report's numbers per cell are the runs' measures.json."""
+    out = tmp_path / "learn"
+    p = subprocess.Popen([sys.executable, "-m", "coevo", "study", "--out", str(out), "--quiet", "--jobs", "1",
+                          *TINY_LEARN], stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    def runs_done() -> int:
+        return study_progress(out).runs_done if (out / "study.json").exists() else 0
+
+    deadline = time.monotonic() + 120
+    while runs_done() == 0:  # --jobs 1 runs two learning runs at once (half a slot each): two more wait
+        assert p.poll() is None and time.monotonic() < deadline, p.communicate()
+        time.sleep(0.1)
+    os.killpg(p.pid, signal.SIGKILL)  # the study and the run under way, as a crash would
+    p.wait()
+    progress = study_progress(out)
+    # (a run killed while coevo learn wrote it is a hidden .NAME.*.partial folder: never counted)
+    kept = {str(f.relative_to(out)): f.read_bytes() for f in out.glob("cells/*/runs/[!.]*/measures.json")}
+    assert 1 <= progress.runs_done == len(kept) < 4 and not progress.complete and not (out / "report.md").exists()
+    held = held_declaration(out)
+    assert held is not None and held.learn == "docking"
+    torn = next(j for j in study_jobs(out, learn_cells(held)) if not j.finished(out))
+    (out / torn.output).mkdir(parents=True)
+    (out / torn.output / "config.json").write_text("{")  # a half-written run: not counted, run again
+    assert study_progress(out).runs_done == len(kept)
+
+    r = coevo("study", "--out", str(out), "--resume", "--quiet", "--jobs", "2", timeout=300)  # its declaration, held
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert f"{len(kept)} of 4 runs already done, {4 - len(kept)} to run" in r.stdout
+    for name, body in kept.items():  # finished runs are not redone
+        assert (out / name).read_bytes() == body, name
+    progress = study_progress(out)
+    assert progress.complete and (progress.cells_done, progress.runs_done) == (2, 4)
+
+    res = json.loads((out / "results.json").read_text())
+    assert res["kind"] == "learn" and res["runs_finished"] == res["runs_expected"] == 4
+    assert res["measures"][0] == "docking_from_random_starts"
+    for row in res["cell_rows"]:
+        folder = out / "cells" / row["cell"] / "runs"
+        runs = [json.loads((folder / f"docking-seed{s}" / "measures.json").read_text()) for s in row["seeds"]]
+        assert row["n"] == 2 and len(runs) == 2
+        for key in res["measures"]:
+            values = [float(m[key]) for m in runs]
+            want = mean_interval(values).as_dict()
+            got = row["measures"][key]
+            assert got["mean"] == pytest.approx(want["mean"]) and got["median"] == pytest.approx(statistics.median(values))
+            assert (got["low"], got["high"]) == pytest.approx((want["low"], want["high"]))
+    for run in res["runs"]:  # every run's measures, exactly as coevo learn wrote them
+        assert run["measures"] == json.loads((out / "cells" / run["cell"] / "runs" / run["run"] / "measures.json")
+                                             .read_text())
+    tests = {t["measure"]: t for t in res["tests"]}
+    assert set(tests) == set(res["measures"]) and all(t["factor"] == "world.docking_sensors" for t in tests.values())
+    md = (out / "report.md").read_text()
+    for part in ("# Study `study`", "A study of learning runs", "## Verdict", "## Cells", "## Factor tests",
+                 "Docking from random starts (%) mean [95 %]", "effect-world.docking_sensors.png", "cells.png"):
+        assert part in md, part
+    for png in ("effect-world.docking_sensors.png", "cells.png"):
+        assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
