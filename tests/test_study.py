@@ -479,7 +479,7 @@ TINY_LEARN = ["--learn", "docking", "--factor", "world.docking_sensors=polar,bot
 @pytest.mark.slow
 def test_a_tiny_learning_study_killed_resumes_and_reports_its_runs_measures(tmp_path: Path) -> None:
     """2 cells x 2 runs of coevo learn --behaviour docking: killed after its first run, a run's folder torn, resumed;
-    the report's numbers per cell are the runs' measures.json."""
+    the report's numbers per cell are the runs' measures.json, and the dashboard reads the same."""
     out = tmp_path / "learn"
     p = subprocess.Popen([sys.executable, "-m", "coevo", "study", "--out", str(out), "--quiet", "--jobs", "1",
                           *TINY_LEARN], stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
@@ -536,3 +536,10 @@ def test_a_tiny_learning_study_killed_resumes_and_reports_its_runs_measures(tmp_
     for png in ("effect-world.docking_sensors.png", "cells.png"):
         assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
+    from coevo.dashboard.model import Dashboard
+
+    dash = Dashboard(target=out, stale=60)
+    dash.refresh()
+    s = dash.current()[1].study
+    assert s["kind"] == "learn" and s["state"] == "finished" and s["shown"] == {}  # no cell is a comparison
+    assert [c["rows"][0]["measures"] for c in s["cells"]] == [r["measures"] for r in res["cell_rows"]]
