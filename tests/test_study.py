@@ -11,6 +11,7 @@ import statistics
 import subprocess
 import sys
 import time
+import typing
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +40,7 @@ from coevo.experiments.study.experiment import (
 )
 from coevo.experiments.compare.stats import holm, mean_interval
 from coevo.experiments.study.intervals import difference_interval, share_difference, wilson
+from coevo.tasks.fuel.settings import WorldConfig
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -154,10 +156,14 @@ def test_the_command_refuses_bad_input_before_anything_runs(tmp_path: Path, args
 
 def test_the_shipped_studies_are_valid_declarations() -> None:
     files = sorted((ROOT / "studies").glob("*.toml"))
-    assert len(files) == 3
+    assert len(files) == 4
     for f in files:
         spec = declare(toml=read_toml(f), source=str(f))
         assert study_cells(spec)
+    sensors = declare(toml=read_toml(ROOT / "studies" / "docking-sensors.toml"))
+    allowed = typing.get_args(WorldConfig.model_fields["docking_sensors"].annotation)  # every set the world has
+    assert sensors.learn == "docking" and sensors.factors == {"world.docking_sensors": allowed}
+    assert all(c.spec.runs == 10 for c in learn_cells(sensors))
 
 
 # ---------------------------------------------------------------- cells and seeds
