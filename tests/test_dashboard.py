@@ -368,6 +368,56 @@ def test_a_half_written_study_shows_what_it_has_and_says_what_it_cannot_read(tmp
     assert dash.current()[1].study["state"] != "finished"  # only a marker naming this very declaration says so
 
 
+def test_a_study_of_learning_runs_shows_its_runs_and_measures_and_no_comparison(tmp_path: Path) -> None:
+    """A study whose cells are coevo learn runs, part-way: a finished run, one under way (its log still empty: coevo
+    learn --quiet writes it when it ends), one that failed, one not started; then everything still for long."""
+    from bokeh.document import Document
+
+    from coevo.dashboard.server import make_document
+    from coevo.experiments.study.declaration import declare
+    from coevo.experiments.study.experiment import prepare_study, study_jobs
+
+    out = tmp_path / "study"
+    spec = declare(factors=["world.target_speed=2,3"], settings={"learn": "tracking", "runs": 2})
+    the_cells = prepare_study(out, spec, resume=False)
+    done, going, failed, waiting = study_jobs(out, the_cells)  # run 0 of both cells, then run 1 of both
+    (out / done.output).mkdir(parents=True)
+    (out / done.output / "measures.json").write_text(json.dumps({"quality_tracking": 62.5, "collision_rate": 10.0,
+                                                                 "best_fitness": 0.7}))
+    (out / done.output / "timing.json").write_text(json.dumps({"seconds": 3.0}))
+    (out / "logs").mkdir(exist_ok=True)
+    (out / "logs" / f"{going.name}.log").write_text("")
+    (out / "logs" / f"{failed.name}.log").write_text("ConfigError: something went wrong\n")
+    dash = Dashboard(target=out, stale=60)
+    dash.refresh()
+    view = dash.current()[1]
+    s = view.study
+    assert s["kind"] == "learn" and s["behaviour"] == "tracking" and s["shown"] == {}
+    assert (s["runs_done"], s["runs_total"], s["state"]) == (1, 4, "running")
+    first, second = s["cells"]
+    assert first["counts"] == {"done": 1, "running": 0, "failed": 1, "waiting": 0} and first["state"] == "stopped"
+    assert "ConfigError: something went wrong" in first["failed"][0]
+    assert second["counts"] == {"done": 0, "running": 1, "failed": 0, "waiting": 1} and second["state"] == "running"
+    (row,) = first["rows"]
+    assert row["n"] == 1 and row["measures"]["quality_tracking"]["mean"] == 62.5
+    assert row["measures"]["quality_tracking"]["median"] == 62.5 and second["rows"][0]["n"] == 0
+    page = render.study_progress_html(view) + render.study_tables_html(view)
+    assert "Quality Tracking (%): mean [95 %] · median" in page and "62.50 · 62.50" in page
+    assert "Table 1" not in page and "coevo compare" not in render.study_cell_note_html(view, first["id"])
+    doc = Document()
+    make_document(dash, [])(doc)  # the page as the server builds it: no cell selector, no comparison's panels
+    assert doc.get_model_by_name("cell-selector") is None and doc.get_model_by_name("study") is not None
+    assert "something went wrong" in doc.get_model_by_name("study-tables").text
+
+    old = time.time() - 1000  # nothing moved for long: the run under way stopped with the study
+    for f in out.rglob("*"):
+        os.utime(f, (old, old))
+    dash.refresh()
+    s = dash.current()[1].study
+    assert s["state"] == "stopped" and s["cells"][1]["state"] == "stopped"
+    assert "no progress" in s["cells"][1]["failed"][0]
+
+
 # ---------------------------------------------------------------- the command line's bad input
 def _coevo(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
     code = main(["--log-level", "ERROR", *argv])

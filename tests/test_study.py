@@ -1,5 +1,5 @@
 """`coevo study`: declarations and every bad input, cells and seeds, the statistics, and a tiny real study killed
-with a signal and resumed."""
+with a signal and resumed; the same for a study of learning runs (``learn``)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,11 @@ import json
 import math
 import os
 import signal
+import statistics
 import subprocess
 import sys
 import time
+import typing
 from pathlib import Path
 
 import numpy as np
@@ -17,17 +19,28 @@ import pytest
 from scipy import stats
 
 from coevo.errors import ConfigError, RunDirError
-from coevo.experiments.study.declaration import cell_seed, cells, declare, parse_factor, read_toml
+from coevo.experiments.study.declaration import (
+    LearnCell,
+    cell_seed,
+    cells,
+    declare,
+    learn_cells,
+    parse_factor,
+    read_toml,
+    study_cells,
+)
 from coevo.experiments.study.experiment import (
     COMPLETE,
+    held_declaration,
     is_complete,
     mark_complete,
     prepare_study,
     study_jobs,
     study_progress,
 )
-from coevo.experiments.compare.stats import holm
+from coevo.experiments.compare.stats import holm, mean_interval
 from coevo.experiments.study.intervals import difference_interval, share_difference, wilson
+from coevo.tasks.fuel.settings import WorldConfig
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -129,6 +142,9 @@ def test_parse_factor() -> None:
     (["--cluster", "local:zero"], "give a number of workers"),
     (["/nonexistent/study.toml"], "No such file"),
     (["--resume"], "need --out"),
+    (["--learn", "executive"], "learn = 'executive': the Executive learns against fixed Tracking and Docking"),
+    (["--learn", "docking", "--factor", "regime=mutual", "--max-lead", "2"],
+     "takes no regime (--factor regime=mutual), max_lead (--max-lead): those are a regime comparison's"),
 ])
 def test_the_command_refuses_bad_input_before_anything_runs(tmp_path: Path, args: list[str], message: str) -> None:
     out = tmp_path / "never"
@@ -140,10 +156,14 @@ def test_the_command_refuses_bad_input_before_anything_runs(tmp_path: Path, args
 
 def test_the_shipped_studies_are_valid_declarations() -> None:
     files = sorted((ROOT / "studies").glob("*.toml"))
-    assert len(files) == 3
+    assert len(files) == 4
     for f in files:
         spec = declare(toml=read_toml(f), source=str(f))
-        assert cells(spec)
+        assert study_cells(spec)
+    sensors = declare(toml=read_toml(ROOT / "studies" / "docking-sensors.toml"))
+    allowed = typing.get_args(WorldConfig.model_fields["docking_sensors"].annotation)  # every set the world has
+    assert sensors.learn == "docking" and sensors.factors == {"world.docking_sensors": allowed}
+    assert all(c.spec.runs == 10 for c in learn_cells(sensors))
 
 
 # ---------------------------------------------------------------- cells and seeds
@@ -352,3 +372,180 @@ def test_a_tiny_study_runs_on_a_local_dask_cluster(tmp_path: Path) -> None:
     assert p.complete and (p.cells_done, p.runs_done) == (2, 2)
     assert sorted(f.name for f in (out / "logs").iterdir()) == ["00-max_lead=1@independent-00.log",
                                                                 "01-max_lead=off@independent-00.log"]
+
+
+# ---------------------------------------------------------------- studies of learning runs
+def test_a_learning_study_is_declared_in_a_file_or_on_the_command_line(tmp_path: Path) -> None:
+    f = tmp_path / "s.toml"
+    f.write_text('name = "sensors"\nseed = 5\n[settings]\nlearn = "docking"\nruns = 3\nmeasure_epochs = 2\n'
+                 'ga = { generations = 4 }\n[factors]\nworld.docking_sensors = ["polar", "both"]\n')
+    spec = declare(toml=read_toml(f))
+    assert spec.learn == "docking" and spec.factors == {"world.docking_sensors": ("polar", "both")}
+    assert not {"regime", "max_lead", "model", "rate"} & set(dict(spec.levels))  # a comparison's defaults dropped
+    line = declare(factors=["world.docking_sensors=polar,both"], seed=5,
+                   settings={"learn": "docking", "runs": 3, "measure_epochs": 2, "ga.generations": 4})
+    assert [c.args for c in learn_cells(line)] == [c.args for c in learn_cells(spec)]  # the same study either way
+    a, b = learn_cells(spec)
+    assert isinstance(a, LearnCell) and a.id == "00-world.docking_sensors=polar" and b.spec.world.docking_sensors == "both"
+    assert a.spec.runs == 3 and a.spec.measure_epochs == 2 and a.spec.ga.generations == 4
+    # what coevo learn is given: the declared settings only (JSON values), so its own defaults stay its own
+    assert a.args == ("--ga=generations=4", '--world=docking_sensors="polar"', "--measure-epochs=2")
+    with pytest.raises(ConfigError, match="a study of learning runs"):
+        cells(spec)
+    # a comparison study's declaration has no learn: its study.json, seeds and completion digest are as they were
+    assert "learn" not in dict(declare(factors=["max_lead=1,2"]).as_dict()["levels"])
+    assert declare(settings={"learn": "tracking"}).learn == "tracking"
+
+
+@pytest.mark.parametrize(("toml", "factors", "settings", "message"), [
+    ("", ["regime=mutual,independent"], {"learn": "docking"},
+     "learn = docking: a study of learning runs takes no regime (--factor regime=mutual,independent): that is a "
+     "regime comparison's; remove it"),
+    ("", ["rate=1,2"], {"learn": "docking"}, "takes no rate (--factor rate=1,2)"),
+    ("", [], {"learn": "docking", "model": "best"}, "takes no model (--model)"),
+    ("", ["max_lead=1,2", "model=best,recent"], {"learn": "tracking"},
+     "takes no max_lead (--factor max_lead=1,2), model (--factor model=best,recent)"),
+    ('[settings]\nlearn = "docking"\n[factors]\nmodel = ["best", "recent"]\n', [], {},
+     "takes no model (the study file, [factors])"),
+    ('[settings]\nmax_lead = 2\n', [], {"learn": "docking"}, "takes no max_lead (the study file, [settings])"),
+    ("", [], {"learn": "executive"}, "learn = 'executive': the Executive learns against fixed"),
+    ("", [], {"learn": "corridor"}, "learn = 'corridor': a study's cells learn the fuel task's behaviours"),
+    ('[settings]\nlearn = 3\n', [], {}, "learn = 3: a study's cells learn"),
+    ('[settings]\nlearn = ["docking"]\n', [], {}, "is a list: put it under [factors]"),
+    ("", ["learn=docking,tracking"], {}, "a study learns one behaviour"),
+    ("", ["ga.population=1,8"], {"learn": "docking"}, "cell 00-ga.population=1: GAConfig: population=1"),
+    ("", [], {"learn": "docking", "ga.elite": 60}, "elite (60) must be smaller than population"),
+])
+def test_a_bad_learning_study_is_one_line_naming_it(tmp_path: Path, toml: str, factors: list[str],
+                                                    settings: dict[str, object], message: str) -> None:
+    f = tmp_path / "s.toml"
+    f.write_text(toml)
+    with pytest.raises(ConfigError) as exc:
+        declare(toml=read_toml(f), factors=factors, settings=settings)
+    assert message in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_learning_cells_take_their_seeds_as_comparison_cells_do_and_run_through_the_same_runner(tmp_path: Path) -> None:
+    spec = declare(factors=["world.docking_sensors=polar,both"], settings={"learn": "docking", "runs": 2}, seed=4)
+    the_cells = learn_cells(spec)
+    polar = cell_seed(4, {"world.docking_sensors": "polar"})
+    assert the_cells[0].spec.seed == polar and the_cells[0].spec.seeds == [polar, polar + 1000]
+    assert polar == cells(declare(factors=["world.docking_sensors=polar,both"], seed=4))[0].spec.seed  # the one rule
+    more = learn_cells(declare(factors=["world.docking_sensors=both,dock-frame,polar"],
+                               settings={"learn": "docking", "runs": 2}, seed=4))
+    assert {c.id.split("-", 1)[1]: c.spec.seeds for c in more}["world.docking_sensors=polar"] == [polar, polar + 1000]
+    assert len({s for c in the_cells for s in c.spec.seeds}) == 4
+
+    out = tmp_path / "s"
+    prepare_study(out, spec, resume=False)
+    jobs = study_jobs(out, the_cells)
+    (p0, p1), (b0, b1) = (the_cells[0].spec.seeds, the_cells[1].spec.seeds)
+    assert [j.name for j in jobs] == [f"00-world.docking_sensors=polar@docking-seed{p0}",
+                                      f"01-world.docking_sensors=both@docking-seed{b0}",
+                                      f"00-world.docking_sensors=polar@docking-seed{p1}",
+                                      f"01-world.docking_sensors=both@docking-seed{b1}"]  # interleaved, run 0 first
+    assert jobs[0].output == f"cells/00-world.docking_sensors=polar/runs/docking-seed{p0}" and jobs[0].weight == 1
+    argv = jobs[0].command(out) if jobs[0].command is not None else []
+    assert argv[1:] == ["-m", "coevo", "learn", "--behaviour", "docking", "--seed", str(p0), "--out",
+                        str(out / jobs[0].output), "--quiet", '--world=docking_sensors="polar"', "--measure-epochs=100"]
+    held = json.loads((out / "cells" / "01-world.docking_sensors=both" / "learn.json").read_text())
+    assert held["spec"]["seed"] == b0 and held["spec"]["behaviour"] == "docking"
+    p = study_progress(out)
+    assert (p.cells_total, p.cells_done, p.runs_total, p.runs_done, p.complete) == (2, 0, 4, 0, False)
+    with pytest.raises(RunDirError, match="differs in: learn"):
+        prepare_study(out, declare(factors=["world.docking_sensors=polar,both"],
+                                   settings={"learn": "tracking", "runs": 2}, seed=4), resume=True)
+
+
+def test_a_half_written_learning_run_is_never_finished_and_is_run_again(tmp_path: Path) -> None:
+    out = tmp_path / "s"
+    spec = declare(settings={"learn": "tracking", "runs": 2}, seed=1)
+    the_cells = prepare_study(out, spec, resume=False)
+    first, second = study_jobs(out, the_cells)
+    torn = out / first.output  # as a copy cut short would leave it: some files, not its measures and timing both
+    torn.mkdir(parents=True)
+    (torn / "curve.csv").write_text("generation,best_fitness\n0,0.5\n")
+    (torn / "measures.json").write_text("{}")
+    assert not first.finished(out) and study_progress(out).runs_done == 0
+    assert first.command is not None and first.command(out)[3] == "learn"  # what runs it removes the torn copy first
+    assert not torn.exists()
+    whole = out / second.output
+    whole.mkdir(parents=True)
+    (whole / "measures.json").write_text('{"quality_tracking": 50.0}')
+    (whole / "timing.json").write_text('{"seconds": 1.0}')
+    assert second.finished(out) and study_progress(out).runs_done == 1
+    assert second.command is not None and second.command(out) and (whole / "measures.json").exists()  # kept
+
+
+TINY_LEARN = ["--learn", "docking", "--factor", "world.docking_sensors=polar,both", "--runs", "2", "--generations", "2",
+              "--population", "4", "--episodes", "4", "--ga", "best_episodes=4", "--measure-epochs", "1", "--seed", "9"]
+
+
+@pytest.mark.service
+@pytest.mark.slow
+def test_a_tiny_learning_study_killed_resumes_and_reports_its_runs_measures(tmp_path: Path) -> None:
+    """2 cells x 2 runs of coevo learn --behaviour docking: killed after its first run, a run's folder torn, resumed;
+    the report's numbers per cell are the runs' measures.json, and the dashboard reads the same."""
+    out = tmp_path / "learn"
+    p = subprocess.Popen([sys.executable, "-m", "coevo", "study", "--out", str(out), "--quiet", "--jobs", "1",
+                          *TINY_LEARN], stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    def runs_done() -> int:
+        return study_progress(out).runs_done if (out / "study.json").exists() else 0
+
+    deadline = time.monotonic() + 120
+    while runs_done() == 0:  # --jobs 1 runs two learning runs at once (half a slot each): two more wait
+        assert p.poll() is None and time.monotonic() < deadline, p.communicate()
+        time.sleep(0.1)
+    os.killpg(p.pid, signal.SIGKILL)  # the study and the run under way, as a crash would
+    p.wait()
+    progress = study_progress(out)
+    # (a run killed while coevo learn wrote it is a hidden .NAME.*.partial folder: never counted)
+    kept = {str(f.relative_to(out)): f.read_bytes() for f in out.glob("cells/*/runs/[!.]*/measures.json")}
+    assert 1 <= progress.runs_done == len(kept) < 4 and not progress.complete and not (out / "report.md").exists()
+    held = held_declaration(out)
+    assert held is not None and held.learn == "docking"
+    torn = next(j for j in study_jobs(out, learn_cells(held)) if not j.finished(out))
+    (out / torn.output).mkdir(parents=True)
+    (out / torn.output / "config.json").write_text("{")  # a half-written run: not counted, run again
+    assert study_progress(out).runs_done == len(kept)
+
+    r = coevo("study", "--out", str(out), "--resume", "--quiet", "--jobs", "2", timeout=300)  # its declaration, held
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert f"{len(kept)} of 4 runs already done, {4 - len(kept)} to run" in r.stdout
+    for name, body in kept.items():  # finished runs are not redone
+        assert (out / name).read_bytes() == body, name
+    progress = study_progress(out)
+    assert progress.complete and (progress.cells_done, progress.runs_done) == (2, 4)
+
+    res = json.loads((out / "results.json").read_text())
+    assert res["kind"] == "learn" and res["runs_finished"] == res["runs_expected"] == 4
+    assert res["measures"][0] == "docking_from_random_starts"
+    for row in res["cell_rows"]:
+        folder = out / "cells" / row["cell"] / "runs"
+        runs = [json.loads((folder / f"docking-seed{s}" / "measures.json").read_text()) for s in row["seeds"]]
+        assert row["n"] == 2 and len(runs) == 2
+        for key in res["measures"]:
+            values = [float(m[key]) for m in runs]
+            want = mean_interval(values).as_dict()
+            got = row["measures"][key]
+            assert got["mean"] == pytest.approx(want["mean"]) and got["median"] == pytest.approx(statistics.median(values))
+            assert (got["low"], got["high"]) == pytest.approx((want["low"], want["high"]))
+    for run in res["runs"]:  # every run's measures, exactly as coevo learn wrote them
+        assert run["measures"] == json.loads((out / "cells" / run["cell"] / "runs" / run["run"] / "measures.json")
+                                             .read_text())
+    tests = {t["measure"]: t for t in res["tests"]}
+    assert set(tests) == set(res["measures"]) and all(t["factor"] == "world.docking_sensors" for t in tests.values())
+    md = (out / "report.md").read_text()
+    for part in ("# Study `study`", "A study of learning runs", "## Verdict", "## Cells", "## Factor tests",
+                 "Docking from random starts (%) mean [95 %]", "effect-world.docking_sensors.png", "cells.png"):
+        assert part in md, part
+    for png in ("effect-world.docking_sensors.png", "cells.png"):
+        assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    from coevo.dashboard.model import Dashboard
+
+    dash = Dashboard(target=out, stale=60)
+    dash.refresh()
+    s = dash.current()[1].study
+    assert s["kind"] == "learn" and s["state"] == "finished" and s["shown"] == {}  # no cell is a comparison
+    assert [c["rows"][0]["measures"] for c in s["cells"]] == [r["measures"] for r in res["cell_rows"]]

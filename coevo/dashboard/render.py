@@ -340,6 +340,12 @@ def _mean(d: dict[str, Any]) -> str:
     return f"{d['mean']:.2f} [{d['low']:.2f}, {d['high']:.2f}]"
 
 
+def _median(d: dict[str, Any]) -> str:
+    """The median of a learning-run cell's measure (:func:`~coevo.experiments.study.learn_report.learn_cell_rows`)."""
+    m = d.get("median")
+    return "–" if not d["n"] or m is None or math.isnan(m) else f"{m:.2f}"
+
+
 _CELL_STATE_COLOUR = {"finished": "#1f77b4", "running": "#2ca02c", "stopped": "#d62728", "waiting": "#7f7f7f",
                       "not started": "#7f7f7f", "writing its report": "#2ca02c"}
 
@@ -379,6 +385,7 @@ def study_progress_html(view: View) -> str:
             f"<div class='bar' style='width:{pct:.1f}%;height:8px;background:"
             f"{_CELL_STATE_COLOUR.get(s['state'], '#2ca02c')}'></div></div>")
     rows = []
+    learn = s.get("kind") == "learn"
     for c in s["cells"]:
         runs = f"{c['runs_done']}/{c['runs_total']}"
         extra = ", ".join(f"{n} {k}" for k, n in c["counts"].items() if n and k in ("running", "failed"))
@@ -386,10 +393,19 @@ def study_progress_html(view: View) -> str:
                 runs + (f" ({_e(extra)})" if extra else "")]
         for i, r in enumerate(c["rows"]):
             cells = lead if i == 0 else ["", "", ""]
-            rows.append([*cells, _e(r["group"]), _share(r["good_docking"]), _share(r["no_docking"]),
-                         _mean(r["executive_end"]), _mean(r["average_epoch_length"])])
-    table = _table("study-cells", ["cell", "state", "runs done", "group", "Good Docking", "No Docking",
-                                   "Executive end", "AEL"], rows, numeric={2, 6, 7})
+            if learn:  # a study of learning runs: its behaviour's measures, each a mean [95 %] and the median
+                rows.append([*cells, *(f"{_mean(r['measures'][k])} · {_median(r['measures'][k])}"
+                                       for k, _ in s["measures"])])
+            else:
+                rows.append([*cells, _e(r["group"]), _share(r["good_docking"]), _share(r["no_docking"]),
+                             _mean(r["executive_end"]), _mean(r["average_epoch_length"])])
+    if learn:
+        heads = [f"{title}: mean [95 %] · median" for _, title in s["measures"]]
+        table = _table("study-cells", ["cell", "state", "runs done", *heads], rows,
+                       numeric=set(range(2, 3 + len(heads))))
+    else:
+        table = _table("study-cells", ["cell", "state", "runs done", "group", "Good Docking", "No Docking",
+                                       "Executive end", "AEL"], rows, numeric={2, 6, 7})
     style = "<style>table.study-cells td,table.study-cells th{white-space:nowrap;padding:1px 8px}</style>"
     # a study of many cells scrolls in its box: the cell selector below stays on the first screen
     return head + style + f"<div class='study-cells-box' style='max-height:440px;overflow:auto'>{table}</div>"
@@ -436,7 +452,7 @@ def study_cell_table1_html(view: View, cell: str) -> str:
     from coevo.experiments.study.intervals import wilson
 
     c = study_cell(view, cell)
-    if c is None:
+    if c is None or (view.study or {}).get("kind") == "learn":  # learning runs have no Table 1
         return ""
     rows = c["rows"]
     heads = ["Table 1"]
@@ -469,6 +485,13 @@ def study_cell_note_html(view: View, cell: str) -> str:
     box = "font:13px/1.35 sans-serif;max-height:300px;overflow:auto;margin:0 0 0 12px"
     failed = "".join(f"<li>{_e(f)}</li>" for f in c["failed"])
     failed = f"<p>Failed or stopped runs (coevo study --resume runs them again):</p><ul>{failed}</ul>" if failed else ""
+    s = view.study or {}
+    if s.get("kind") == "learn":
+        where = f"{s.get('dir', '')}/cells/{cell}"
+        body = (f"<p>A cell is {c['runs_total']} runs of <code>coevo learn --behaviour {_e(s.get('behaviour'))}"
+                f"</code>, one per seed (cell seed {c['seed']}, then + 1000 a run), in <code>{_e(where)}/runs</code>"
+                "; each run's measures are its measures.json.</p>" + failed)
+        return f"<h3 class='coevo'>Cell {_e(c['id'])}</h3><div class='cell-note' style='{box}'>{body}</div>"
     if comparison and comparison.get("verdict"):
         return verdict_html(View(view.title, comparison=comparison)) + (f"<div style='{box}'>{failed}</div>"
                                                                        if failed else "")

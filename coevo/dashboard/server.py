@@ -60,10 +60,16 @@ class _Page:
         self.study: _Study | None = None
         if dash.kind == "study":
             self.study = _Study(dash)
-            layout = column(self.title, self.banner, self.study.headline, self.study.controls,
-                            self.study.regimes.headline, self.study.regimes.controls, *self.study.regimes.rows,
-                            *_folded("the cell's replicates and its Executive curve's table", self.comparison),
-                            *_folded("every cell's Table 1", self.study.tables), self.robot, sizing_mode="stretch_width")
+            if self.study.regimes is None:  # a study of learning runs: no cell is a comparison
+                layout = column(self.title, self.banner, self.study.headline, self.study.controls,
+                                *_folded("every cell's runs", self.study.tables), self.robot,
+                                sizing_mode="stretch_width")
+            else:
+                layout = column(self.title, self.banner, self.study.headline, self.study.controls,
+                                self.study.regimes.headline, self.study.regimes.controls, *self.study.regimes.rows,
+                                *_folded("the cell's replicates and its Executive curve's table", self.comparison),
+                                *_folded("every cell's Table 1", self.study.tables), self.robot,
+                                sizing_mode="stretch_width")
         elif dash.kind == "comparison":
             self.regimes = _Regimes(dash)
             layout = column(self.title, self.banner, self.regimes.headline, self.regimes.controls, *self.regimes.rows,
@@ -107,7 +113,7 @@ class _Page:
         return self.plots[key]
 
     def update(self) -> None:
-        if self.study is not None:
+        if self.study is not None and self.study.regimes is not None:
             self.dash.want(self.study.cell)  # while this page is open, its cell's comparison is read
         version, view = self.dash.current()
         key = (version, tuple(self.problems))
@@ -123,7 +129,8 @@ class _Page:
             self.banner.text = render.problems_html(view, self.problems)
             self.banner.visible = bool(self.banner.text)
             self.study.update(view)
-            self.comparison.text = render.comparison_html(self.study.cell_view(view))
+            if self.study.regimes is not None:
+                self.comparison.text = render.comparison_html(self.study.cell_view(view))
             self.robot.text = render.robot_html(view)
             return
         n = len(view.runs)
@@ -320,7 +327,9 @@ class _Regimes:
 class _Study:
     """A study's page: its headline (progress, each cell's state and numbers so far, the study's verdict), a cell
     selector, and the cell picked shown as a comparison (:class:`_Regimes`) with its Table 1's intervals.  The cell
-    picked is this page's own; the dashboard reads the comparisons of the cells open pages ask for."""
+    picked is this page's own; the dashboard reads the comparisons of the cells open pages ask for.  A study of
+    learning runs has its headline alone (its cells are no comparisons: no selector, ``regimes`` None), and every
+    cell's runs in the fold."""
 
     def __init__(self, dash: Dashboard) -> None:
         from bokeh.layouts import row
@@ -333,6 +342,15 @@ class _Study:
         self.progress = Div(text="", name="study", width=840)
         self.verdict = Div(text="", name="study-verdict", sizing_mode="stretch_width")
         self.headline = row(self.progress, self.verdict, sizing_mode="stretch_width")
+        self.tables = Div(text="", name="study-tables", sizing_mode="stretch_width")
+        self.regimes: _Regimes | None = None
+        if s.get("kind") == "learn":
+            self.controls = row(Div(text=(
+                "<p style='font:13px sans-serif;color:#333;margin:4px 0'>Each cell is a set of learning runs "
+                f"(<code>coevo learn --behaviour {render._e(s.get('behaviour'))}</code>, one per seed), not a "
+                "comparison: above, each measure of its finished runs' best policies, the mean with its 95 % "
+                "bootstrap interval and the median.</p>"), sizing_mode="stretch_width"), sizing_mode="stretch_width")
+            return
         self.options = self._options(view)  # as last given to the selector
         self.selector = Select(title="The cell shown below, as a comparison:", options=self.options,
                                value=self.cell, name="cell-selector", width=420)
@@ -341,7 +359,6 @@ class _Study:
                         "comparison with its own seeds. Below: its Table 1 so far with 95 % Wilson intervals (the "
                         "report's counts of 10 in grey) and its regimes' curves.</p>"), sizing_mode="stretch_width")
         self.controls = row(self.selector, key, sizing_mode="stretch_width")
-        self.tables = Div(text="", name="study-tables", sizing_mode="stretch_width")
         self.regimes = _Regimes(dash, first=self.cell_view(view))
         dash.want(self.cell)
 
@@ -357,6 +374,10 @@ class _Study:
     def update(self, view: View) -> None:
         self.progress.text = render.study_progress_html(view)
         self.verdict.text = render.study_verdict_html(view)
+        if self.regimes is None:  # learning runs: every cell's note (its runs, those that failed)
+            self.tables.text = "".join(render.study_cell_note_html(view, c["id"])
+                                       for c in (view.study or {}).get("cells", []))
+            return
         options = self._options(view)
         if options != self.options:
             self.selector.options = self.options = options
@@ -370,7 +391,8 @@ class _Study:
         """Another cell picked (in this page only): asked of the dashboard, and drawn now as far as it is read."""
         self.cell = new
         self.dash.want(new)
-        self.regimes.picker.value = []  # a run id names a run of each cell: the one picked was the other cell's
+        if self.regimes is not None:  # (always: only a study of comparisons has a selector)
+            self.regimes.picker.value = []  # a run id names a run of each cell: the one picked was the other cell's
         doc = self.selector.document
         if doc is None:
             self.update(self.dash.current()[1])

@@ -1,4 +1,5 @@
-"""``coevo study``: factors × seeds, each cell a regime comparison, on ``--jobs`` or ``--cluster``, with one report.
+"""``coevo study``: factors × seeds, each cell a regime comparison (or, with ``--learn``, a set of learning runs), on
+``--jobs`` or ``--cluster``, with one report.
 
 Registered by :mod:`coevo.cli`; the declaration is :mod:`.declaration`, the folder and the runs :mod:`.experiment`,
 the report :mod:`.report`.  See docs/studies.md.
@@ -25,7 +26,7 @@ def _settings_given(args: argparse.Namespace) -> dict[str, Any]:
     from coevo.tasks.fuel import FuelTask  # a study's cells compare the fuel task's regimes
 
     given: dict[str, Any] = {}
-    for flag, name in (("runs", "runs"), ("model", "model"), ("measure_epochs", "measure_epochs")):
+    for flag, name in (("runs", "runs"), ("model", "model"), ("measure_epochs", "measure_epochs"), ("learn", "learn")):
         if getattr(args, flag) is not None:
             given[name] = getattr(args, flag)
     if args.max_lead is not None:
@@ -105,7 +106,8 @@ def cmd_study(args: argparse.Namespace) -> int:
             return f"cells {cells_done}/{len(per_cell)}"
 
         finished = set(done)
-        with ProgressBar("study", total=1, unit="worker generations", quiet=args.quiet) as bar:
+        unit = "runs" if spec.learn is not None else "worker generations"  # a learning run shows nothing until done
+        with ProgressBar("study", total=1, unit=unit, quiet=args.quiet) as bar:
             def show(p: Any) -> None:
                 finished.update(o.name for o in p.outcomes if o.ok)
                 bar.update(p.done, p.total, info=f"{info(finished)}, {p.info}")
@@ -129,12 +131,21 @@ def cmd_study(args: argparse.Namespace) -> int:
         mark_complete(out, spec, runs=results["runs_expected"])
     print(f"report: {out / 'report.md'} ({results['runs_finished']} of {results['runs_expected']} runs"
           f"{'' if complete else '; the study is not complete: --resume runs the rest'})")
-    for r in results["cell_rows"]:
-        if r["n"]:
-            nd, gd = r["no_docking"], r["good_docking"]
-            print(f"  {r['cell']} · {r['group']}: No Docking {nd['k']}/{r['n']}, Good Docking {gd['k']}/{r['n']}")
+    _print_cells(results, learn=spec.learn is not None)
     print(results["verdict"])
     return 0 if complete or args.report_only else 1
+
+
+def _print_cells(results: dict[str, Any], *, learn: bool) -> None:
+    """A line per cell (and group) with runs: its docking classes, or its behaviour's first measure."""
+    for r in results["cell_rows"]:
+        if r["n"] and learn:
+            key = results["measures"][0]
+            m = r["measures"][key]
+            print(f"  {r['cell']}: {key} median {m['median']:.1f}, mean {m['mean']:.1f} over {r['n']} runs")
+        elif r["n"]:
+            nd, gd = r["no_docking"], r["good_docking"]
+            print(f"  {r['cell']} · {r['group']}: No Docking {nd['k']}/{r['n']}, Good Docking {gd['k']}/{r['n']}")
 
 
 def configure_study(p: argparse.ArgumentParser) -> None:
@@ -144,7 +155,12 @@ def configure_study(p: argparse.ArgumentParser) -> None:
     p.add_argument("--factor", action="append", metavar="NAME=V1,V2,...",
                    help="a factor and its levels (repeatable): regime, rate, max_lead, model, runs, measure_epochs, "
                         "ga.NAME, world.NAME; replaces the file's factor or setting of that name")
-    p.add_argument("--runs", type=count_arg(1, 1000), help="runs per regime in every cell (default 10)")
+    p.add_argument("--learn", metavar="BEHAVIOUR",
+                   help="every cell a set of 'coevo learn --behaviour BEHAVIOUR' runs (docking or tracking), one per "
+                        "seed, instead of a regime comparison (the file's learn = ...); regime, rate, max_lead and "
+                        "model are then refused")
+    p.add_argument("--runs", type=count_arg(1, 1000), help="runs per regime in every cell (default 10; with --learn: "
+                   "seeds per cell)")
     p.add_argument("--model", choices=["best", "current", "recent"], help="partner model of every cell (default best)")
     p.add_argument("--measure-epochs", type=count_arg(1, 100_000), help="fresh epochs measuring each final robot "
                    "(default 100)")

@@ -13,6 +13,7 @@ runs           runs per regime in a cell (1-1000)                       ``--runs
 measure_epochs fresh epochs measuring each final robot                  ``--measure-epochs``
 ga.NAME        any GA setting                                           ``--ga NAME=VALUE``
 world.NAME     any world setting                                        ``--world NAME=VALUE``
+learn          the behaviour every cell learns: docking or tracking     ``coevo study --learn``
 ============== ======================================================== ===========================
 
 ``regime`` and ``rate`` vary *inside* a cell: a cell is one ``coevo compare`` (its regimes paired by seed, its
@@ -27,6 +28,13 @@ Seeds: a cell's base seed is the first 48 bits of BLAKE2b-64 of ``"BASE|LEVELS"`
 the cell then uses that seed + 1000 *i*, as ``coevo compare --seed CELL_SEED`` would.  So a cell's seeds depend
 only on the base seed and on what the cell is, not on the cell's place in the study or on the other cells: a
 level added to a factor leaves the other cells' seeds as they were.
+
+**Learning-run cells.**  With ``learn = B`` (``--learn B``) every cell is a set of ``coevo learn --behaviour B``
+runs instead of a comparison: ``runs`` of them, run *i* with the cell's base seed + 1000 *i* (the same rule), each
+given the cell's ``ga.*`` and ``world.*`` levels and ``measure_epochs``.  ``regime``, ``rate``, ``max_lead`` and
+``model`` are a comparison's and are refused by name (:data:`COMPARE_ONLY`); ``learn`` has one level (cells of two
+behaviours would have no measure in common).  A comparison study's declaration, and so its seeds and its
+``study.json``, is as it was: ``learn`` is a level only of the studies that declare it.
 """
 
 from __future__ import annotations
@@ -39,26 +47,34 @@ import json
 import math
 import re
 import tomllib
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from coevo.config import MODELS, DEFAULT_MAX_LEAD, GAConfig, build
 from coevo.console import Lead, count_arg, max_lead_arg, positive_float_arg, seed_arg
 from coevo.errors import ConfigError
-from coevo.experiments.compare.experiment import OFFLINE, REGIMES, CompareSpec
+from coevo.experiments.compare.experiment import OFFLINE, REGIMES, SEED_STRIDE, CompareSpec
+from coevo.tasks import get_task
+from coevo.tasks.base import check_ga
+from coevo.tasks.fuel import FuelTask
 from coevo.tasks.fuel.settings import WorldConfig
 
-__all__ = ["WITHIN_CELL", "NAMES", "StudySpec", "Cell", "declare", "parse_factor", "read_toml", "cells", "cell_seed",
-           "level_text"]
+__all__ = ["WITHIN_CELL", "NAMES", "COMPARE_ONLY", "LEARNABLE", "StudySpec", "Cell", "LearnSpec", "LearnCell",
+           "declare", "parse_factor", "read_toml", "cells", "learn_cells", "study_cells", "cell_seed", "level_text"]
 
 #: Factors that vary inside a cell (one comparison): its regimes, and its offline Executive's rates.
 WITHIN_CELL = ("regime", "rate")
 #: The names that are not a GA or world setting, in the order the docs list them.
-NAMES = ("regime", "rate", "max_lead", "model", "runs", "measure_epochs")
+NAMES = ("regime", "rate", "max_lead", "model", "runs", "measure_epochs", "learn")
+#: The names only a regime comparison has: a study of learning runs (``learn``) refuses them.
+COMPARE_ONLY = ("regime", "rate", "max_lead", "model")
+#: The behaviours a learning-run cell may learn: the fuel task's that learn offline with no partner rule set given
+#: (the Executive learns against fixed Tracking and Docking rule sets, which a study does not give).
+LEARNABLE = tuple(b for b in FuelTask.behaviours if not get_task(FuelTask.name).partners_needed(b, "independent"))
 #: What each name is when nothing declares it: ``coevo compare``'s defaults (rate: its default rates, left to it).
 DEFAULTS: dict[str, tuple[Any, ...]] = {"regime": ("mutual", "independent"), "runs": (10,),
                                         "max_lead": (DEFAULT_MAX_LEAD,), "model": ("best",), "measure_epochs": (100,)}
@@ -114,6 +130,12 @@ def _level(name: str, raw: Any, where: str) -> Any:
     if name == "model":
         if raw not in MODELS:
             raise ConfigError(f"{where}: unknown partner model {raw!r} (use {', '.join(MODELS)})")
+        return raw
+    if name == "learn":
+        if raw not in LEARNABLE:
+            why = ("the Executive learns against fixed Tracking and Docking rule sets, which a study's cells do not "
+                   "give" if raw == "executive" else "a study's cells learn the fuel task's behaviours")
+            raise ConfigError(f"{where}: learn = {raw!r}: {why}: learn {' or '.join(LEARNABLE)}")
         return raw
     if isinstance(raw, str):  # ga.NAME / world.NAME from the command line: JSON when it parses, as --ga does
         try:
@@ -217,6 +239,12 @@ class StudySpec:
         """The names with one level, and that level."""
         return {k: v[0] for k, v in self.levels if len(v) == 1}
 
+    @property
+    def learn(self) -> str | None:
+        """The behaviour every cell learns (a study of learning runs), or None (every cell a regime comparison)."""
+        learn = self.fixed.get("learn")
+        return None if learn is None else str(learn)
+
 
 def declare(*, toml: Mapping[str, Any] | None = None, source: str = "the study file", factors: Sequence[str] = (),
             settings: Mapping[str, Any] | None = None, seed: int | None = None) -> StudySpec:
@@ -225,30 +253,34 @@ def declare(*, toml: Mapping[str, Any] | None = None, source: str = "the study f
     or setting of that name).  Every cell is built and checked here (:func:`cells`); a ConfigError names what is bad."""
     toml = dict(toml or {})
     levels: dict[str, tuple[Any, ...]] = dict(DEFAULTS)
+    declared: dict[str, str] = {}  # name -> where its levels were last given (a learning-run study's refusals)
     file_settings = _flatten(toml.get("settings", {}))
     file_factors = _flatten(toml.get("factors", {}))
     for name, v in file_settings.items():
         where = f"{source}, [settings]"
         if isinstance(v, list):
             raise ConfigError(f"{where}: {name} = {v!r} is a list: put it under [factors]")
-        levels[name] = _levels(name, [v], where)
+        levels[name], declared[name] = _levels(name, [v], where), where
     for name, v in file_factors.items():
         where = f"{source}, [factors]"
         if name in file_settings:
             raise ConfigError(f"{where}: {name} is both a setting and a factor: keep one")
-        levels[name] = _levels(name, v if isinstance(v, list) else [v], where)
+        levels[name], declared[name] = _levels(name, v if isinstance(v, list) else [v], where), where
     for name, v in (settings or {}).items():
         if name in file_factors and len(levels[name]) > 1:
             raise ConfigError(f"{name} is a factor in {source} and a setting on the command line: use --factor "
                               f"{name}=... to replace its levels")
         levels[name] = _levels(name, [v], "command line")
+        declared[name] = f"--{name.replace('_', '-')}" if name in NAMES else "the command line"
     given: set[str] = set()
     for text in factors:
         name, raws = parse_factor(text)
         if name in given:
             raise ConfigError(f"--factor {name} is given twice: give all its levels in one --factor {name}=A,B")
         given.add(name)
-        levels[name] = _levels(name, raws, f"--factor {text}")
+        levels[name], declared[name] = _levels(name, raws, f"--factor {text}"), f"--factor {text}"
+    if "learn" in levels:
+        _learning_runs(levels, declared)
     if "seed" in toml and seed is None:
         try:
             seed = seed_arg(str(toml["seed"]))
@@ -259,17 +291,33 @@ def declare(*, toml: Mapping[str, Any] | None = None, source: str = "the study f
         raise ConfigError(f"{source}: name {name!r}: use letters, digits, '.', '_' or '-' (at most 64)")
     spec = StudySpec(name=name, seed=0 if seed is None else int(seed), levels=tuple(levels.items()),
                      description=str(toml.get("description", "")))
-    cells(spec)  # every cell's settings checked now, before anything runs
+    study_cells(spec)  # every cell's settings checked now, before anything runs
     return spec
 
 
+def _learning_runs(levels: dict[str, tuple[Any, ...]], declared: Mapping[str, str]) -> None:
+    """A study of learning runs: one behaviour, and none of a comparison's names (given ones refused by name, the
+    defaults dropped from ``levels``)."""
+    learn = levels["learn"]
+    if len(learn) > 1:
+        raise ConfigError(f"{declared['learn']}: learn = {', '.join(map(str, learn))}: a study learns one behaviour "
+                          "(a cell's measures are its behaviour's, so cells of two have nothing to compare): run one "
+                          "study for each")
+    bad = [f"{n} ({declared[n]})" for n in COMPARE_ONLY if n in declared]
+    if bad:
+        raise ConfigError(f"learn = {learn[0]}: a study of learning runs takes no {', '.join(bad)}: "
+                          f"{'that is' if len(bad) == 1 else 'those are'} a regime comparison's; remove "
+                          f"{'it' if len(bad) == 1 else 'them'}")
+    for n in COMPARE_ONLY:
+        levels.pop(n, None)
+
+
 @dataclass(frozen=True)
-class Cell:
-    """One cell: its folder's name, its between-cell levels, and the comparison it runs."""
+class _CellBase:
+    """What every cell has: its folder's name and its between-cell levels."""
 
     id: str
     levels: tuple[tuple[str, Any], ...]
-    spec: CompareSpec
 
     def level(self, name: str) -> Any:
         return dict(self.levels)[name]
@@ -277,6 +325,65 @@ class Cell:
     @property
     def label(self) -> str:
         return ", ".join(f"{k} {level_text(k, v)}" for k, v in self.levels) or "(one cell)"
+
+
+@dataclass(frozen=True)
+class Cell(_CellBase):
+    """One cell of a comparison study: its folder's name, its between-cell levels, and the comparison it runs."""
+
+    spec: CompareSpec
+
+
+class LearnSpec(BaseModel):
+    """A learning-run cell's runs: ``runs`` times ``coevo learn --behaviour BEHAVIOUR``, run *i* with seed
+    ``seed + 1000 i``, with these settings (checked as ``coevo learn`` would, before anything runs)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    behaviour: str
+    runs: int = Field(10, ge=1, le=1000, description="runs (seeds) in the cell")
+    seed: int = 0
+    measure_epochs: int = Field(100, ge=1, le=100_000)
+    world: WorldConfig = WorldConfig()
+    ga: GAConfig = GAConfig()
+
+    @field_validator("behaviour")
+    @classmethod
+    def _behaviour(cls, v: str) -> str:
+        if v not in LEARNABLE:
+            raise ValueError(f"a study's cells learn {' or '.join(LEARNABLE)}, not {v!r}")
+        return v
+
+    @field_validator("ga")
+    @classmethod
+    def _ga(cls, v: GAConfig) -> GAConfig:
+        try:
+            return check_ga(get_task(FuelTask.name), v)
+        except ConfigError as exc:
+            raise ValueError(str(exc)) from None
+
+    @property
+    def seeds(self) -> list[int]:
+        """Each run's seed, in run order (``coevo compare --seed``'s rule: + 1000 per replicate)."""
+        return [self.seed + i * SEED_STRIDE for i in range(self.runs)]
+
+    @classmethod
+    def make(cls, **values: Any) -> LearnSpec:
+        try:
+            return cls(**values)
+        except ValidationError as exc:
+            msgs = [f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors()]
+            raise ConfigError("learning-run settings: " + "; ".join(msgs)) from exc
+
+
+@dataclass(frozen=True)
+class LearnCell(_CellBase):
+    """One cell of a study of learning runs: its folder's name, its between-cell levels, its runs' settings, and the
+    ``coevo learn`` arguments that give them (the declared ``ga.*`` and ``world.*`` levels and measure_epochs; what
+    is not declared stays ``coevo learn``'s default, so Docking's own GA choices apply as they do there)."""
+
+    spec: LearnSpec
+    args: tuple[str, ...]
 
 
 def cell_seed(base: int, levels: Mapping[str, Any]) -> int:
@@ -295,25 +402,41 @@ def _cell_id(index: int, levels: Mapping[str, Any]) -> str:
     return f"{index:02d}-{text}"
 
 
-def cells(spec: StudySpec) -> list[Cell]:
-    """The cartesian product of the between-cell factors' levels, each built into a checked CompareSpec."""
+def _products(spec: StudySpec) -> Iterator[tuple[str, dict[str, Any], dict[str, Any], str, WorldConfig, GAConfig]]:
+    """Per cell, the cartesian product of the between-cell factors' levels in declared order: its id, its levels,
+    every name's one level in it, how messages name it, and its world and GA settings (checked)."""
     between = spec.between
     fixed = {k: v for k, v in spec.levels}
     n = math.prod(len(v) for v in between.values())
     if n > MAX_CELLS:
         raise ConfigError(f"the factors make {n} cells ({' x '.join(str(len(v)) for v in between.values())}); a study "
                           f"may have at most {MAX_CELLS}: split it, or vary fewer factors at once")
-    out = []
     for i, combo in enumerate(itertools.product(*between.values())):
         levels = dict(zip(between, combo, strict=True))
         one = {k: v[0] for k, v in fixed.items() if k not in WITHIN_CELL} | levels
         cid = _cell_id(i, levels)
         where = f"cell {cid}" if levels else "study settings"
         try:
-            world = build(WorldConfig, {k[6:]: v for k, v in one.items() if k.startswith("world.")})
-            ga = build(GAConfig, {k[3:]: v for k, v in one.items() if k.startswith("ga.")})
+            world = build(WorldConfig, _prefixed(one, "world."))
+            ga = build(GAConfig, _prefixed(one, "ga."))
         except ConfigError as exc:
             raise ConfigError(f"{where}: {exc}") from None
+        yield cid, levels, one, where, world, ga
+
+
+def _prefixed(one: Mapping[str, Any], prefix: str) -> dict[str, Any]:
+    return {k[len(prefix):]: v for k, v in one.items() if k.startswith(prefix)}
+
+
+def cells(spec: StudySpec) -> list[Cell]:
+    """A comparison study's cells: the cartesian product of the between-cell factors' levels, each built into a
+    checked CompareSpec.  A study of learning runs has :func:`learn_cells` instead (a ConfigError here)."""
+    if spec.learn is not None:
+        raise ConfigError(f"study {spec.name!r} is a study of learning runs (learn = {spec.learn}): its cells are "
+                          "learning runs, not comparisons")
+    fixed = {k: v for k, v in spec.levels}
+    out = []
+    for cid, levels, one, where, world, ga in _products(spec):
         regimes = tuple(fixed["regime"])
         if "rate" in fixed and OFFLINE not in regimes:
             raise ConfigError(f"rate: the rates of asynchrony are {OFFLINE}'s: add it to the regimes "
@@ -327,3 +450,28 @@ def cells(spec: StudySpec) -> list[Cell]:
             raise ConfigError(f"{where}: {exc}") from None
         out.append(Cell(cid, tuple(levels.items()), cs))
     return out
+
+
+def learn_cells(spec: StudySpec) -> list[LearnCell]:
+    """A study of learning runs' cells (``learn``): as :func:`cells`, each built into a checked LearnSpec."""
+    if spec.learn is None:
+        raise ConfigError(f"study {spec.name!r} is a study of regime comparisons: its cells are comparisons")
+    out = []
+    for cid, levels, one, where, world, ga in _products(spec):
+        try:
+            ls = LearnSpec.make(behaviour=spec.learn, runs=one["runs"], measure_epochs=one["measure_epochs"],
+                                world=world, ga=ga, seed=cell_seed(spec.seed, levels))
+        except ConfigError as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+        # JSON values, as coevo learn's --ga and --world read them back (a string stays a string, true a bool)
+        args = (*(f"--ga={k}={json.dumps(v)}" for k, v in _prefixed(one, "ga.").items()),
+                *(f"--world={k}={json.dumps(v)}" for k, v in _prefixed(one, "world.").items()),
+                f"--measure-epochs={ls.measure_epochs}")
+        out.append(LearnCell(cid, tuple(levels.items()), ls, args))
+    return out
+
+
+def study_cells(spec: StudySpec) -> list[Cell] | list[LearnCell]:
+    """The study's cells, whichever kind they are: :func:`learn_cells` for a study of learning runs, else
+    :func:`cells`."""
+    return learn_cells(spec) if spec.learn is not None else cells(spec)

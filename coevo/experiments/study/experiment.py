@@ -5,7 +5,9 @@ The folder (``--out``)::
     study.json          the declaration (StudySpec) and its cells, written first; --resume checks it
     cells/CELL/         one ``coevo compare`` folder per cell (compare.json, settings/, runs/): every cell's
                         replicates are exactly the comparison's, so ``coevo compare --report-only --out
-                        cells/CELL`` writes a cell's full comparison report
+                        cells/CELL`` writes a cell's full comparison report; in a study of learning runs
+                        (``learn``), the cell's settings (learn.json) and one ``coevo learn`` folder per seed
+                        (runs/BEHAVIOUR-seedN, as ``coevo seeds`` lays them out)
     logs/CELL@RUN.log   each replicate's log (the runner's)
     report.md, results.json, effect-FACTOR.png, cells.png    the study's report (:mod:`.report`)
     complete.json       written last, atomically, when every run finished and the report is written
@@ -16,15 +18,18 @@ Any run of ``coevo study`` on a folder removes the marker before it starts anyth
 
 All cells' replicates go to one :func:`~coevo.replicates.runner.run_replicates`, interleaved by replicate index
 (run 0 of every cell, then run 1, ...), so ``--jobs`` and ``--cluster`` are shared by the whole study and a study
-cut short is balanced across its cells.
+cut short is balanced across its cells.  A learning-run cell's replicates are ``coevo seeds``' own
+(:func:`coevo.experiments.seeds.experiment.replicates`): ``coevo learn`` writes its folder under a temporary name and
+renames it when done, so a run is finished only with its measures.json and timing.json there.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import shutil
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from functools import partial
 from pathlib import Path
@@ -32,24 +37,50 @@ from typing import Any
 
 from coevo.errors import RunDirError
 from coevo.experiments.compare.experiment import is_finished, jobs_of, prepare, replicates
-from coevo.experiments.study.declaration import Cell, StudySpec, cells
+from coevo.experiments.seeds.experiment import replicates as learn_replicates
+from coevo.experiments.study.declaration import Cell, LearnCell, StudySpec, study_cells
 from coevo.replicates.backends import Backend
 from coevo.replicates.replicate import Replicate as Job
 from coevo.replicates.runner import Progress, run_replicates
 from coevo.rundir.layout import ensure_dir, write_json
 
 __all__ = ["MARKER", "COMPLETE", "SEP", "prepare_study", "study_jobs", "run_study", "held_declaration", "mark_complete",
-           "is_complete", "StudyProgress", "CellProgress", "study_progress", "cell_dir"]
+           "is_complete", "StudyProgress", "CellProgress", "study_progress", "cell_dir", "learn_jobs", "LEARN_MARKER"]
 
 MARKER = "study.json"
 COMPLETE = "complete.json"
 #: Between a cell and a run in a replicate's name (``CELL@RUN``, its log ``logs/CELL@RUN.log``): a character no cell
 #: id or run id holds, and no "/", since the name also prefixes a Dask worker's temporary folder.
 SEP = "@"
+#: A learning-run cell's settings, in its folder (as compare.json is a comparison cell's).
+LEARN_MARKER = "learn.json"
 
 
-def cell_dir(out: Path, cell: Cell) -> Path:
+def cell_dir(out: Path, cell: Cell | LearnCell) -> Path:
     return Path(out) / "cells" / cell.id
+
+
+def learn_jobs(cell: LearnCell) -> list[Job]:
+    """A learning-run cell's runs as ``coevo seeds`` makes them, one ``coevo learn`` per seed, relative to the cell's
+    folder (``runs/BEHAVIOUR-seedN``)."""
+    return learn_replicates([cell.spec.behaviour], cell.spec.seeds, list(cell.args))
+
+
+def _prepare_learn_cell(folder: Path, cell: LearnCell) -> None:
+    """Write the cell's learn.json, or check the one there is this cell's."""
+    mine = {"spec": json.loads(cell.spec.model_dump_json()), "args": list(cell.args)}
+    f = folder / LEARN_MARKER
+    if f.exists():
+        try:
+            held = json.loads(f.read_text())
+            same = {k: held[k] for k in mine} == mine
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise RunDirError(f"{f} cannot be read ({exc}); choose another --out") from exc
+        if not same:
+            raise RunDirError(f"{f} holds another cell's settings; choose another --out")
+        return
+    ensure_dir(folder, what="a cell's folder")
+    write_json(f, {**mine, "created": time.time()})
 
 
 def _digest(spec: StudySpec) -> str:
@@ -77,10 +108,10 @@ def _differences(held: StudySpec, mine: StudySpec) -> list[str]:
     return diff
 
 
-def prepare_study(out: Path, spec: StudySpec, *, resume: bool) -> list[Cell]:
+def prepare_study(out: Path, spec: StudySpec, *, resume: bool) -> list[Cell] | list[LearnCell]:
     """Check ``out`` and set it up: a fresh study needs an empty or missing folder; ``resume`` needs this very study
     there (else a RunDirError naming what differs).  Removes the completion marker, writes study.json (fresh) and
-    every cell's compare.json; returns the cells."""
+    every cell's compare.json (learn.json); returns the cells."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise RunDirError(f"--out {str(out)!r} is a file, not a directory")
@@ -93,7 +124,7 @@ def prepare_study(out: Path, spec: StudySpec, *, resume: bool) -> list[Cell]:
     if not resume and out.is_dir() and any(out.iterdir()):
         more = "add --resume to continue it" if held is not None else "choose another --out"
         raise RunDirError(f"--out {str(out)!r} is not empty; {more}")
-    the_cells = cells(spec)
+    the_cells = study_cells(spec)
     ensure_dir(out, what="--out")
     (out / COMPLETE).unlink(missing_ok=True)  # from here on the folder is a study in progress
     if held is None:
@@ -101,7 +132,10 @@ def prepare_study(out: Path, spec: StudySpec, *, resume: bool) -> list[Cell]:
                                   "cells": [{"id": c.id, "levels": dict(c.levels), "seed": c.spec.seed}
                                             for c in the_cells]})
     for c in the_cells:
-        prepare(cell_dir(out, c), c.spec, resume=True)  # makes the cell's compare.json, or checks the one there
+        if isinstance(c, LearnCell):
+            _prepare_learn_cell(cell_dir(out, c), c)
+        else:
+            prepare(cell_dir(out, c), c.spec, resume=True)  # makes the cell's compare.json, or checks the one there
     return the_cells
 
 
@@ -110,23 +144,45 @@ def _in_cell(cell: str, fn: Callable[[Path], Any], root: Path) -> Any:
     return fn(Path(root) / "cells" / cell)
 
 
-def study_jobs(out: Path, the_cells: list[Cell]) -> list[Job]:
-    """Every cell's comparison replicates (:func:`~coevo.experiments.compare.experiment.jobs_of`), renamed
-    ``CELL@RUN`` and pointed at ``cells/CELL``, interleaved by replicate index."""
+def _afresh(job: Job, root: Path) -> list[str]:
+    """A learning run's command under the cell's folder ``root``, its folder removed first when it is there but not
+    finished (a copy torn when it came back from a worker): ``coevo learn`` refuses a folder that is not empty, and
+    what is there is not a run."""
+    if job.command is None:
+        raise TypeError(f"learning run {job.name} has no command")
+    d = Path(root) / job.output
+    if d.is_dir() and not job.finished(Path(root)):
+        shutil.rmtree(d)
+    return job.command(root)
+
+
+def _in_study(cell: str, job: Job, *, command: Callable[[Path], list[str]] | None) -> Job:
+    """A cell's replicate (relative to the cell's folder) as the study's: named ``CELL@RUN``, pointed at
+    ``cells/CELL``."""
+    pre = f"cells/{cell}/"
+    return Job(name=f"{cell}{SEP}{job.name}", output=pre + job.output, finished=partial(_in_cell, cell, job.finished),
+               command=None if command is None else partial(_in_cell, cell, command),
+               function=job.function, kwargs=job.kwargs, inputs=tuple(pre + i for i in job.inputs),
+               after=tuple(f"{cell}{SEP}{a}" for a in job.after), weight=job.weight, cost=job.cost,
+               progress=None if job.progress is None else partial(_in_cell, cell, job.progress))
+
+
+def study_jobs(out: Path, the_cells: Sequence[Cell | LearnCell]) -> list[Job]:
+    """Every cell's replicates, renamed ``CELL@RUN`` and pointed at ``cells/CELL``, interleaved by replicate index:
+    a comparison cell's (:func:`~coevo.experiments.compare.experiment.jobs_of`), a learning-run cell's
+    (:func:`learn_jobs`, run *i* of the cell's seeds at index *i*)."""
     keyed: list[tuple[int, int, int, Job]] = []
     for ci, c in enumerate(the_cells):
+        if isinstance(c, LearnCell):
+            for i, job in enumerate(learn_jobs(c)):
+                keyed.append((i, ci, 0, _in_study(c.id, job, command=partial(_afresh, job))))
+            continue
         for k, (rep, job) in enumerate(zip(replicates(c.spec), jobs_of(cell_dir(out, c), c.spec), strict=True)):
-            pre = f"cells/{c.id}/"
-            keyed.append((rep.index, ci, k, Job(
-                name=f"{c.id}{SEP}{job.name}", output=pre + job.output, finished=partial(_in_cell, c.id, job.finished),
-                command=None if job.command is None else partial(_in_cell, c.id, job.command),
-                function=job.function, kwargs=job.kwargs, inputs=tuple(pre + i for i in job.inputs),
-                after=tuple(f"{c.id}{SEP}{a}" for a in job.after), weight=job.weight, cost=job.cost,
-                progress=None if job.progress is None else partial(_in_cell, c.id, job.progress))))
+            keyed.append((rep.index, ci, k, _in_study(c.id, job, command=job.command)))
     return [j for *_, j in sorted(keyed, key=lambda t: t[:3])]
 
 
-def run_study(out: Path, the_cells: list[Cell], *, backend: Backend,
+def run_study(out: Path, the_cells: Sequence[Cell | LearnCell], *, backend: Backend,
               on_progress: Callable[[Progress], None] | None = None, poll: float = 1.0) -> Progress:
     """Run every unfinished replicate of the study on ``backend`` (the runner skips the finished ones)."""
     return run_replicates(study_jobs(Path(out), the_cells), Path(out), backend, on_progress=on_progress, poll=poll)
@@ -181,7 +237,12 @@ def study_progress(out: Path) -> StudyProgress:
     if spec is None:
         raise RunDirError(f"{str(out)!r} holds no study (no {MARKER})")
     per_cell = []
-    for c in cells(spec):
+    for c in study_cells(spec):
+        if isinstance(c, LearnCell):
+            jobs = learn_jobs(c)
+            done = sum(1 for j in jobs if j.finished(cell_dir(out, c)))
+            per_cell.append(CellProgress(c.id, dict(c.levels), done, len(jobs)))
+            continue
         reps = replicates(c.spec)
         done = sum(1 for r in reps if is_finished(cell_dir(out, c), r))
         per_cell.append(CellProgress(c.id, dict(c.levels), done, len(reps)))

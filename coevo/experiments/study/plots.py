@@ -1,4 +1,5 @@
-"""A study's figures (PNG, matplotlib as the comparison's): one effect plot per factor, and every cell's shares.
+"""A study's figures (PNG, matplotlib as the comparison's): one effect plot per factor, and every cell's shares (a
+study of learning runs: every cell's runs on its behaviour's first measure).
 
 An effect plot shows, per level of the factor, each measure's mean over the runs at that level with its 95 %
 interval (bootstrap for means, Wilson for shares), one line per stratum (regime or rate group), pooled over the
@@ -13,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["effect_figure", "cells_figure"]
+__all__ = ["effect_figure", "cells_figure", "learn_cells_figure"]
 
 
 def _pyplot() -> Any:
@@ -70,5 +71,29 @@ def cells_figure(rows: Sequence[Mapping[str, Any]], path: Path) -> None:
     ax.set_xlabel("share of the cell's runs (95 % Wilson interval)")
     ax.grid(alpha=0.3, axis="x")
     ax.legend(fontsize=8, loc="lower right")
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def learn_cells_figure(cells: Sequence[str], values: Mapping[str, Sequence[float]],
+                       summaries: Sequence[Mapping[str, Any]], title: str, path: Path) -> None:
+    """One row per cell of a study of learning runs: each run's value of one measure (a dot), the mean with its 95 %
+    bootstrap interval, and the median (a bar)."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(9, 1.2 + 0.4 * len(cells)), constrained_layout=True)
+    y = np.arange(len(cells))
+    for i, c in enumerate(cells):
+        v = np.array([x for x in values[c] if not np.isnan(x)], dtype=float)
+        ax.scatter(v, np.full(v.size, i + 0.15), s=14, color="tab:gray", alpha=0.7, label="a run" if i == 0 else None)
+    mean = np.array([r["mean"] for r in summaries], dtype=float)
+    err = np.vstack([np.nan_to_num(mean - np.array([r["low"] for r in summaries], dtype=float)),
+                     np.nan_to_num(np.array([r["high"] for r in summaries], dtype=float) - mean)])
+    ax.errorbar(mean, y, xerr=err, fmt="o", capsize=4, color="tab:blue", label="mean, 95 % interval")
+    ax.scatter([r["median"] for r in summaries], y, marker="|", s=200, color="tab:red", label="median")
+    ax.set_yticks(y, list(cells), fontsize=7)
+    ax.invert_yaxis()
+    ax.set_xlabel(title)
+    ax.grid(alpha=0.3, axis="x")
+    ax.legend(fontsize=8, loc="best")
     fig.savefig(path, dpi=90)
     plt.close(fig)

@@ -38,7 +38,7 @@ from coevo.experiments.study.experiment import cell_dir
 from coevo.experiments.study.intervals import Difference, difference_interval, share_difference, wilson
 from coevo.rundir.layout import write_json, write_text
 
-__all__ = ["MEASURES", "collect_cell", "collect_study", "cell_rows", "analyse", "write_report"]
+__all__ = ["MEASURES", "collect_cell", "collect_study", "cell_rows", "analyse", "factor_test", "adjust", "write_report"]
 
 #: The measures every factor is tested on: name -> (title, value of a run record, is it a 0/1 share?).
 MEASURES: dict[str, tuple[str, Callable[[dict[str, Any]], float], bool]] = {
@@ -123,20 +123,35 @@ def analyse(spec: StudySpec, records: list[dict[str, Any]]) -> list[dict[str, An
         by_level = {level_text(factor, lv): [x for x in xs if x["levels"].get(factor) == lv] for lv in levels}
         for measure, (_, value, share) in MEASURES.items():
             samples = {k: [v for v in (value(x) for x in rs) if not math.isnan(v)] for k, rs in by_level.items()}
-            present: dict[str, Sequence[float]] = {k: v for k, v in samples.items() if v}
-            if len(present) < 2:
-                continue
-            g = compare_groups(measure, present)
-            names = list(present)
-            diffs = [_difference(a, present[a], b, present[b], share) for i, a in enumerate(names) for b in names[i + 1:]]
-            bounds = [d.bound for d in diffs if not math.isnan(d.bound)]
-            tests.append({
-                "factor": factor, "stratum": stratum, "measure": measure, "share": share,
-                "levels": [{"level": k, **_summary(samples[k], share)} for k in by_level],
-                "h": g.h, "p": g.p_value, "epsilon2": g.epsilon2, "magnitude": g.magnitude, "n": g.n,
-                "largest_difference": max(bounds) if bounds else float("nan"),
-                "differences": [d.as_dict() for d in diffs],
-            })
+            t = factor_test(factor, stratum, measure, samples, share=share)
+            if t is not None:
+                tests.append(t)
+    return adjust(tests)
+
+
+def factor_test(factor: str, stratum: str, measure: str, samples: dict[str, list[float]], *,
+                share: bool) -> dict[str, Any] | None:
+    """One factor's test on one measure in one stratum (``samples``: each level's values, NaN left out, in the
+    factor's order): Kruskal–Wallis across the levels with runs, its ε², each level's summary and every two levels'
+    difference; None when fewer than two levels have runs."""
+    present: dict[str, Sequence[float]] = {k: v for k, v in samples.items() if v}
+    if len(present) < 2:
+        return None
+    g = compare_groups(measure, present)
+    names = list(present)
+    diffs = [_difference(a, present[a], b, present[b], share) for i, a in enumerate(names) for b in names[i + 1:]]
+    bounds = [d.bound for d in diffs if not math.isnan(d.bound)]
+    return {
+        "factor": factor, "stratum": stratum, "measure": measure, "share": share,
+        "levels": [{"level": k, **_summary(samples[k], share)} for k in samples],
+        "h": g.h, "p": g.p_value, "epsilon2": g.epsilon2, "magnitude": g.magnitude, "n": g.n,
+        "largest_difference": max(bounds) if bounds else float("nan"),
+        "differences": [d.as_dict() for d in diffs],
+    }
+
+
+def adjust(tests: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """``tests`` with their p-values corrected together with Holm's method (``p_holm``) and ``detected`` at 5 %."""
     for t, p in zip(tests, holm([float(t["p"]) for t in tests]), strict=True):
         t["p_holm"] = p
         t["detected"] = p < ALPHA
@@ -192,7 +207,12 @@ def _verdict(spec: StudySpec, cell_rows: list[dict[str, Any]], tests: list[dict[
 
 
 def write_report(out: Path, spec: StudySpec, *, elapsed: float | None = None) -> dict[str, Any]:
-    """Write results.json, report.md and the figures; returns the results.  A RunDirError when no run finished."""
+    """Write results.json, report.md and the figures; returns the results.  A RunDirError when no run finished.
+    A study of learning runs has its own report (:mod:`.learn_report`)."""
+    if spec.learn is not None:
+        from coevo.experiments.study.learn_report import write_learn_report
+
+        return write_learn_report(out, spec, elapsed=elapsed)
     out = Path(out)
     the_cells, records = collect_study(out, spec)
     if not records:
