@@ -31,7 +31,7 @@ from coevo.experiments.seeds.experiment import TARGETS
 from coevo.experiments.study import plots
 from coevo.experiments.study.declaration import LearnCell, StudySpec, learn_cells, level_text
 from coevo.experiments.study.experiment import cell_dir, learn_jobs
-from coevo.experiments.study.report import _finite, _fmt_mean, _unit, adjust, factor_test
+from coevo.experiments.study.report import strict_json, format_mean, difference_unit, adjust, factor_test
 from coevo.rundir.layout import write_json, write_text
 
 __all__ = ["LEARN_MEASURES", "collect_learn_cell", "learn_cell_rows", "analyse_learning", "write_learn_report"]
@@ -115,14 +115,14 @@ def _verdict(behaviour: str, tests: list[dict[str, Any]], finished: int, expecte
         parts.append(f"**Partial**: {finished} of {expected} runs finished; the numbers below are from those.")
     for t in sorted(tests, key=lambda t: not t["detected"]):
         title = titles[t["measure"]]
-        levels = "; ".join(f"{r['level']}: {_fmt_mean(r, False)}" for r in t["levels"])
+        levels = "; ".join(f"{r['level']}: {format_mean(r, False)}" for r in t["levels"])
         if t["detected"]:
             parts.append(f"- **{t['factor']} changes {behaviour}'s {title}** ({levels}; Kruskal–Wallis "
                          f"H = {t['h']:.2f}, p = {format_p(t['p'])}, Holm-adjusted {format_p(t['p_holm'])}; ε² = "
                          f"{t['epsilon2']:.2f}, {t['magnitude']}).")
         else:
             res = "" if math.isnan(t["largest_difference"]) else (
-                f"; a difference between two levels beyond {_unit(False, t['largest_difference'])} is excluded by "
+                f"; a difference between two levels beyond {difference_unit(False, t['largest_difference'])} is excluded by "
                 "every pair's 95 % interval")
             parts.append(f"- No detectable effect of {t['factor']} on {behaviour}'s {title} (Holm-adjusted "
                          f"p = {format_p(t['p_holm'])}; {levels}{res}).")
@@ -155,7 +155,7 @@ def write_learn_report(out: Path, spec: StudySpec, *, elapsed: float | None = No
         "runs_expected": expected, "runs_finished": len(records), "cell_rows": rows, "tests": tests,
         "verdict": verdict, "caveat": caveat, "elapsed_seconds": elapsed, "figures": figures, "runs": records,
     }
-    write_json(out / "results.json", _finite(results))
+    write_json(out / "results.json", strict_json(results))
     write_text(out / "report.md", _markdown(spec, the_cells, rows, tests, verdict, caveat, figures, len(records),
                                             expected, elapsed))
     return results
@@ -214,7 +214,7 @@ def _markdown(spec: StudySpec, the_cells: list[LearnCell], rows: list[dict[str, 
         vals = []
         for k, _ in measures:
             m = r["measures"][k]
-            vals += [_fmt_mean(m, False), "–" if math.isnan(m["median"]) else f"{m['median']:.2f}"]
+            vals += [format_mean(m, False), "–" if math.isnan(m["median"]) else f"{m['median']:.2f}"]
         lines.append(f"| {r['cell']} | {r['seed']} | {r['n']}/{r['runs_expected']} | " + " | ".join(vals) + " |")
     lines.append("")
     if tests:
@@ -226,9 +226,9 @@ def _markdown(spec: StudySpec, the_cells: list[LearnCell], rows: list[dict[str, 
                   "| factor | measure | levels (mean [95 %]; median) | H | p | Holm p | ε² | largest difference |",
                   "|---|---|---|---|---|---|---|---|"]
         for t in tests:
-            levels = "; ".join(f"{r['level']}: {_fmt_mean(r, False)}; {r['median']:.2f}" if r["n"] else
+            levels = "; ".join(f"{r['level']}: {format_mean(r, False)}; {r['median']:.2f}" if r["n"] else
                                f"{r['level']}: –" for r in t["levels"])
-            big = "–" if math.isnan(t["largest_difference"]) else _unit(False, t["largest_difference"])
+            big = "–" if math.isnan(t["largest_difference"]) else difference_unit(False, t["largest_difference"])
             lines.append(f"| {t['factor']} | {titles[t['measure']]} | {levels} | {t['h']:.2f} | {format_p(t['p'])} | "
                          f"{format_p(t['p_holm'])} | {t['epsilon2']:.2f} ({t['magnitude']}) | {big} |")
         lines.append("")

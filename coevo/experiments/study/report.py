@@ -38,7 +38,8 @@ from coevo.experiments.study.experiment import cell_dir
 from coevo.experiments.study.intervals import Difference, difference_interval, share_difference, wilson
 from coevo.rundir.layout import write_json, write_text
 
-__all__ = ["MEASURES", "collect_cell", "collect_study", "cell_rows", "analyse", "factor_test", "adjust", "write_report"]
+__all__ = ["MEASURES", "collect_cell", "collect_study", "cell_rows", "analyse", "factor_test", "adjust", "write_report",
+           "strict_json", "format_mean", "difference_unit"]
 
 #: The measures every factor is tested on: name -> (title, value of a run record, is it a 0/1 share?).
 MEASURES: dict[str, tuple[str, Callable[[dict[str, Any]], float], bool]] = {
@@ -164,7 +165,7 @@ def _difference(a: str, xa: Sequence[float], b: str, xb: Sequence[float], share:
     return difference_interval(a, xa, b, xb, seed=7)
 
 
-def _fmt_mean(row: dict[str, Any], share: bool) -> str:
+def format_mean(row: dict[str, Any], share: bool) -> str:
     if row["n"] == 0:
         return "–"
     if share:
@@ -174,7 +175,7 @@ def _fmt_mean(row: dict[str, Any], share: bool) -> str:
     return f"{row['mean']:.2f} [{row['low']:.2f}, {row['high']:.2f}]"
 
 
-def _unit(share: bool, x: float) -> str:
+def difference_unit(share: bool, x: float) -> str:
     return f"{100 * x:.0f} percentage points" if share else f"{x:.2f}"
 
 
@@ -185,14 +186,14 @@ def _verdict(spec: StudySpec, cell_rows: list[dict[str, Any]], tests: list[dict[
         parts.append(f"**Partial**: {finished} of {expected} runs finished; the numbers below are from those.")
     for t in sorted(tests, key=lambda t: not t["detected"]):
         title = MEASURES[t["measure"]][0]
-        levels = "; ".join(f"{r['level']}: {_fmt_mean(r, t['share'])}" for r in t["levels"])
+        levels = "; ".join(f"{r['level']}: {format_mean(r, t['share'])}" for r in t["levels"])
         if t["detected"]:
             parts.append(f"- **{t['factor']} changes {title.lower()}** in {t['stratum']} ({levels}; Kruskal–Wallis "
                          f"H = {t['h']:.2f}, p = {format_p(t['p'])}, Holm-adjusted {format_p(t['p_holm'])}; ε² = "
                          f"{t['epsilon2']:.2f}, {t['magnitude']}).")
         else:
             res = "" if math.isnan(t["largest_difference"]) else (
-                f"; a difference between two levels beyond {_unit(t['share'], t['largest_difference'])} is "
+                f"; a difference between two levels beyond {difference_unit(t['share'], t['largest_difference'])} is "
                 "excluded by every pair's 95 % interval")
             parts.append(f"- No detectable effect of {t['factor']} on {title.lower()} in {t['stratum']} (Holm-adjusted "
                          f"p = {format_p(t['p_holm'])}; {levels}{res}).")
@@ -234,20 +235,20 @@ def write_report(out: Path, spec: StudySpec, *, elapsed: float | None = None) ->
         "runs": [{k: x[k] for k in ("cell", "run", "group", "seed", "class", "measures", "levels", "seconds")}
                  | {"executive_end": _executive_end(x)} for x in records],
     }
-    write_json(out / "results.json", _finite(results))
+    write_json(out / "results.json", strict_json(results))
     write_text(out / "report.md", _markdown(spec, the_cells, rows, tests, verdict, caveat, figures, len(records),
                                             expected, elapsed))
     return results
 
 
-def _finite(x: Any) -> Any:
+def strict_json(x: Any) -> Any:
     """NaN as null: results.json is strict JSON (a browser's JSON.parse refuses NaN)."""
     if isinstance(x, float):
         return None if math.isnan(x) or math.isinf(x) else x
     if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
+        return {k: strict_json(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
+        return [strict_json(v) for v in x]
     return x
 
 
@@ -295,7 +296,7 @@ def _markdown(spec: StudySpec, the_cells: list[Cell], rows: list[dict[str, Any]]
     for r in rows:
         lines.append(f"| {r['cell']} | {r['group']} | {r['seed']} | {r['n']}/{r['runs_expected']} | "
                      f"{wilson(r['good_docking']['k'], r['n']).text()} | {wilson(r['no_docking']['k'], r['n']).text()} | "
-                     f"{_fmt_mean(r['executive_end'], False)} | {_fmt_mean(r['average_epoch_length'], False)} |")
+                     f"{format_mean(r['executive_end'], False)} | {format_mean(r['average_epoch_length'], False)} |")
     lines += ["", "## Table 1 per cell, with 95 % Wilson intervals", ""]
     for c in the_cells:
         mine = [r for r in rows if r["cell"] == c.id and r["n"]]
@@ -319,8 +320,8 @@ def _markdown(spec: StudySpec, the_cells: list[Cell], rows: list[dict[str, Any]]
                   "| factor | stratum | measure | levels (mean [95 %]) | H | p | Holm p | ε² | largest difference |",
                   "|---|---|---|---|---|---|---|---|---|"]
         for t in tests:
-            levels = "; ".join(f"{r['level']}: {_fmt_mean(r, t['share'])}" for r in t["levels"])
-            big = "–" if math.isnan(t["largest_difference"]) else _unit(t["share"], t["largest_difference"])
+            levels = "; ".join(f"{r['level']}: {format_mean(r, t['share'])}" for r in t["levels"])
+            big = "–" if math.isnan(t["largest_difference"]) else difference_unit(t["share"], t["largest_difference"])
             lines.append(f"| {t['factor']} | {t['stratum']} | {MEASURES[t['measure']][0]} | {levels} | {t['h']:.2f} | "
                          f"{format_p(t['p'])} | {format_p(t['p_holm'])} | {t['epsilon2']:.2f} ({t['magnitude']}) | {big} |")
         lines.append("")
