@@ -198,7 +198,7 @@ def _markdown(spec: StudySpec, the_cells: list[LearnCell], rows: list[dict[str, 
     lines += [
         f"A study of learning runs: {len(the_cells)} cell{'s' * (len(the_cells) != 1)}, each {each} of `coevo learn "
         f"--behaviour {behaviour}`, one per seed. {finished} of {expected} runs finished"
-        + (f", {elapsed / 60:.1f} min" if elapsed else "") + f"; base seed {spec.seed}.", "",
+        + (f" (the last coevo study command on it took {elapsed / 60:.1f} min)" if elapsed else "") + f"; base seed {spec.seed}.", "",
         f"Factors: {factors}. Fixed: {fixed}. GA: {c0.ga.generations} generations, population {c0.ga.population}, "
         f"{c0.ga.episodes} episodes per evaluation; each final policy measured on {c0.measure_epochs} fresh epochs.", "",
     ]

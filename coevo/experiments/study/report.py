@@ -280,7 +280,7 @@ def _markdown(spec: StudySpec, the_cells: list[Cell], rows: list[dict[str, Any]]
         lines += [spec.description, ""]
     lines += [
         f"{len(the_cells)} cells, {finished} of {expected} runs finished"
-        + (f", {elapsed / 60:.1f} min" if elapsed else "") + f"; base seed {spec.seed}.", "",
+        + (f" (the last coevo study command on it took {elapsed / 60:.1f} min)" if elapsed else "") + f"; base seed {spec.seed}.", "",
         f"Factors: {factors}. Fixed: {fixed}. GA: {c0.ga.generations} generations, population {c0.ga.population}, "
         f"{c0.ga.episodes} episodes per evaluation.", "",
     ]
