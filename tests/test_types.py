@@ -1,7 +1,7 @@
 """The type checker over the package, with the settings of ``[tool.mypy]`` in pyproject.toml.
 
 The core and the service (rules, GA, wire, broker, workers) are checked strictly; the rest with mypy's
-defaults; the modules not clean yet are listed there and leave the list when they are.
+defaults; no module is excused (``ignore_errors``), and a strict package's never may be.
 """
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ from coevo.policy.rules import RuleSet
 from coevo.tasks.base import ChildRng, Evaluation, Evaluator, Partners, Tick
 from coevo.tasks.fuel.behaviours import TASK_DOCK, TASK_TRACK, Behaviour
 from coevo.tasks.fuel.measures import measure
-from coevo.tasks.fuel.runner import Outcome, Rules, Trivial, run_lanes
+from coevo.tasks.fuel.runner import Outcome, Rules, Trace, Trivial, run_lanes
 from coevo.tasks.fuel.settings import WorldConfig
 from coevo.tasks.fuel.world import BatchWorld, compiled_loops
 
@@ -80,6 +80,8 @@ class FuelEvaluator(Evaluator):
         L = P * per
         world = self._world(L)
         own = Rules(CompiledPolicies(policies), np.repeat(np.arange(P), per))
+        tracking: Rules | None
+        docking: Rules | None
         if beh == Behaviour.EXECUTIVE:
             if partners.get("tracking") is None or partners.get("docking") is None:
                 raise ConfigError("the Executive learns against Tracking and Docking rule sets; give both")
@@ -140,7 +142,7 @@ class FuelEvaluator(Evaluator):
         if kernels is None:
             return [self._experience(out, slice(i * per, (i + 1) * per), k) for i in range(P)]
         mine = out.played & (out.task == (TASK_TRACK if self.behaviour == Behaviour.TRACKING else TASK_DOCK))
-        tr = out.trace
+        tr = _trace(out)
         e, fired, payoff, d, bins, rule, full, episode = kernels.experiences(per, mine, out.fired, out.payoff, tr.rule,
                                                                              tr.bins, tr.full)
         q = self.ga.high_payoff_quantile
@@ -161,7 +163,7 @@ class FuelEvaluator(Evaluator):
             payoff = out.payoff[lanes]
         epmap = np.full(mine.shape, -1, dtype=np.int64)  # (l, K) -> episode index
         epmap[mine] = np.arange(int(mine.sum()))
-        tr = out.trace
+        tr = _trace(out)
         if beh == Behaviour.EXECUTIVE:
             rule = tr.rule[:, lanes]  # (K, l)
             ep = epmap.T
@@ -180,6 +182,13 @@ class FuelEvaluator(Evaluator):
             episode=ep[sel],
             high_quantile=self.ga.high_payoff_quantile,
         )
+
+
+def _trace(out: Outcome) -> Trace:
+    """The learner's decisions in ``out``: a run without a learner has none to learn from."""
+    if out.trace is None:
+        raise ConfigError("this outcome holds no learner's decisions: run_lanes was given no learner")
+    return out.trace
 
 
 # Worlds by (thread, settings, lanes), the most recently used last.  A world carries nothing from one

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 from types import ModuleType
 
 import numpy as np
@@ -64,6 +65,13 @@ class Rules:
     @staticmethod
     def single(compiled: CompiledPolicies, lanes: int) -> Rules:
         return Rules(compiled, np.zeros(lanes, dtype=np.int64))
+
+    @cached_property
+    def commands(self) -> tuple[np.ndarray, np.ndarray]:
+        """Turn rate and speed of every (policy, rank), flat at ``policy * 64 + rank``: one gather per command
+        instead of indexing the (P, 64, A) action table and then the value lists; made once per controller."""
+        a = self.compiled.actions.reshape(-1, self.compiled.actions.shape[-1])
+        return _TURN[a[:, 0]], _SPEED[a[:, 1]]
 
 
 @dataclass
@@ -110,12 +118,16 @@ def _check(name: str, c: Trivial | Rules | None, lanes: int, behaviour: Behaviou
             raise ConfigError(f"{name} lane_policy has shape {c.lane_policy.shape}, expected ({lanes},)")
 
 
+_Group = tuple[Behaviour, Rules, np.ndarray | None, np.ndarray]  # a controller, its lanes (None: all), their policies
+
+
 @dataclass
 class _Controls:
     """The controllers of one run and what the learner's decisions are logged into."""
 
     executive: Trivial | Rules
-    roles: list[tuple[int, Behaviour, Rules | None]]  # (task, behaviour, controller) of Tracking and Docking
+    roles: list[tuple[int, Behaviour, Rules]]  # (task, behaviour, controller) of Tracking and Docking, if given
+    missing: list[tuple[int, Behaviour]]  # (task, behaviour) of those not given: the Executive may not pick them
     learner: Behaviour | None
     conflict: str
     rng: np.random.Generator
@@ -148,7 +160,7 @@ class _Lanes:
         self.e_pen = np.zeros(L * K, dtype=np.int64)
         self.e_eps = np.zeros(L * K, dtype=np.int64)
         self.e_cmp = np.zeros(L * K, dtype=bool)
-        self.trace = None
+        self.trace: Trace | None = None  # made exactly when there is a learner
         if learner is not None:
             S = schema(learner).n_sensors
             shape = (K, L) if learner == Behaviour.EXECUTIVE else (K, T, L)
@@ -205,8 +217,9 @@ def run_lanes(
     _check("executive", executive, L, Behaviour.EXECUTIVE)
     _check("tracking", tracking, L, Behaviour.TRACKING)
     _check("docking", docking, L, Behaviour.DOCKING)
-    c = _Controls(executive, [(TASK_TRACK, Behaviour.TRACKING, tracking), (TASK_DOCK, Behaviour.DOCKING, docking)],
-                  learner, conflict, rng, record)
+    roles = [(TASK_TRACK, Behaviour.TRACKING, tracking), (TASK_DOCK, Behaviour.DOCKING, docking)]
+    c = _Controls(executive, [(t, b, ctrl) for t, b, ctrl in roles if ctrl is not None],
+                  [(t, b) for t, b, ctrl in roles if ctrl is None], learner, conflict, rng, record)
     if record is not None:
         record.open(L, K, T)
     for k in range(K):
@@ -239,13 +252,13 @@ def _choose_tasks(s: _Lanes, c: _Controls, k: int, live: np.ndarray) -> None:
             rule = ex.compiled.rule_index(pol, rank)
         if c.record is not None:
             c.record.decision(k, live, s.task[live, k], rule)
-        if c.learner == Behaviour.EXECUTIVE:
-            tr = s.trace
+        tr = s.trace
+        if c.learner == Behaviour.EXECUTIVE and tr is not None:
             tr.bins[k, live], tr.rule[k, live], tr.full[k, live] = bins, rule, full
             s.fired[live, k] |= _ONE << rule.astype(np.uint64)
     lane_task = s.task[:, k].astype(np.int64)
-    for role, beh, ctrl in c.roles:
-        if ctrl is None and (lane_task[live] == role).any():
+    for role, beh in c.missing:
+        if (lane_task[live] == role).any():
             raise ConfigError(f"the Executive picked {beh} but no {beh} policy was given")
     s.played[live, k] = True
     s.epoch_of[live, k] = s.ep_id[live]
@@ -258,8 +271,9 @@ def _play_episode(s: _Lanes, c: _Controls, k: int, live: np.ndarray) -> None:
     s.min_steps[:] = 0.0
     dock_lanes = live[lane_task[live] == TASK_DOCK]
     s.min_steps[dock_lanes] = world.min_dock_steps(dock_lanes)
-    # Which controllers run, on which lanes (all lanes at once when one controller has them all).
-    groups = []
+    # Which controllers run, on which lanes (all lanes at once when one controller has them all); a task without
+    # its controller has no lanes (_choose_tasks refuses it).
+    groups: list[_Group] = []
     for role, beh, ctrl in c.roles:
         lanes = np.flatnonzero(lane_task == role)
         if lanes.size:
@@ -284,14 +298,15 @@ def _play_episode(s: _Lanes, c: _Controls, k: int, live: np.ndarray) -> None:
             break
         if only_active:
             beh, ctrl, _, pol = groups[0]
-            lanes = None if active.all() else np.flatnonzero(active)
-            bins = world._sense_bins(ctrl.compiled.schema, lanes)
-            _decide(s, c, k, t, active, None, beh, ctrl, lanes, pol if lanes is None else pol[lanes], turn, speed,
-                    all_active=True, bins=bins)
+            sensed = None if active.all() else np.flatnonzero(active)
+            bins = world._sense_bins(ctrl.compiled.schema, sensed)
+            _decide(s, c, k, t, active, beh, ctrl, sensed, pol if sensed is None else pol[sensed], bins, turn, speed,
+                    all_active=True)
         else:
             obs = world.observe(names)
             for beh, ctrl, sel, pol in groups:
-                _decide(s, c, k, t, active, obs, beh, ctrl, sel, pol, turn, speed)
+                bins = ctrl.compiled.schema.discretise(obs)
+                _decide(s, c, k, t, active, beh, ctrl, sel, pol, bins if sel is None else bins[sel], turn, speed)
         noise = c.rng.normal(0.0, s.cfg.target_turn_sd, s.g)[s.slot]
         ev = world.step(active, turn, speed, noise)
         s.steps[:, k] += active
@@ -313,7 +328,8 @@ _NO_TRACE = (np.zeros((0, 0, 0, 0), np.uint8), np.zeros((0, 0, 0), np.int16), np
              np.zeros((0, 0), np.uint64))
 
 
-def _play_compiled(s: _Lanes, c: _Controls, k: int, groups: list, active: np.ndarray, kernels: ModuleType) -> None:
+def _play_compiled(s: _Lanes, c: _Controls, k: int, groups: list[_Group], active: np.ndarray,
+                   kernels: ModuleType) -> None:
     """Episode ``k``'s steps in compiled loops (:mod:`.kernels`): with strongest-rule conflict resolution and
     nothing recorded, each controller senses and decides on its active lanes only (a standing lane's command is
     never used, and 'strongest' draws no random numbers): the same decisions as :func:`_decide`'s, the same
@@ -325,8 +341,9 @@ def _play_compiled(s: _Lanes, c: _Controls, k: int, groups: list, active: np.nda
     names = {n for beh, *_ in groups for n in schema(beh).sensor_names}
     need = [bool(names & d) for d in _DIRECTIONS]
     slots, nd = np.where(need, np.cumsum(need) - 1, -1).astype(np.int64), sum(need)
+    tr = s.trace
     per_group = [(sensor_tables(ctrl.compiled.schema), _policy_tables(ctrl), c.learner == beh,
-                  (s.trace.bins, s.trace.rule, s.trace.full, s.fired) if c.learner == beh else _NO_TRACE)
+                  (tr.bins, tr.rule, tr.full, s.fired) if c.learner == beh and tr is not None else _NO_TRACE)
                  for beh, ctrl, _, _ in groups]
     idx, bounds = np.empty(L, dtype=np.int64), np.empty(len(groups) + 1, dtype=np.int64)
     dy, dx, ang = np.empty(3 * L), np.empty(3 * L), np.empty(3 * L)
@@ -353,34 +370,20 @@ def _policy_tables(ctrl: Rules) -> tuple:
     sensor, valid rules, each lane's policy, turn and speed of every (policy, rank), rank -> rule."""
     cp = ctrl.compiled
     _, S, B = cp.table.shape
-    turn_of, speed_of = _command_tables(cp)
+    turn_of, speed_of = ctrl.commands
     return (cp.table.reshape(-1), S * B, B, cp.valid, ctrl.lane_policy.astype(np.int64, copy=False), turn_of, speed_of,
             cp.rank_to_rule)
 
 
-def _command_tables(compiled: CompiledPolicies) -> tuple[np.ndarray, np.ndarray]:
-    """Turn rate and speed of every (policy, rank), flat at ``policy * 64 + rank``: one gather per command
-    instead of indexing the (P, 64, A) action table and then the value lists; made once per compiled set."""
-    tables = getattr(compiled, "_commands", None)
-    if tables is None:
-        a = compiled.actions.reshape(-1, compiled.actions.shape[-1])
-        tables = compiled._commands = (_TURN[a[:, 0]], _SPEED[a[:, 1]])
-    return tables
-
-
-def _decide(s: _Lanes, c: _Controls, k: int, t: int, active: np.ndarray, obs: dict[str, np.ndarray], beh: Behaviour,
-            ctrl: Rules, sel: np.ndarray | None, pol: np.ndarray, turn: np.ndarray, speed: np.ndarray, *,
-            all_active: bool = False, bins: np.ndarray | None = None) -> None:
+def _decide(s: _Lanes, c: _Controls, k: int, t: int, active: np.ndarray, beh: Behaviour, ctrl: Rules,
+            sel: np.ndarray | None, pol: np.ndarray, bins: np.ndarray, turn: np.ndarray, speed: np.ndarray, *,
+            all_active: bool = False) -> None:
     """One controller's decisions at step ``t`` on its lanes (``sel``; None: all); the learner's are logged.
 
-    ``obs`` holds every lane's sensors, or ``bins`` their bins; with ``all_active`` only those of ``sel``
-    (None: all lanes), all of them active."""
-    if bins is None:
-        bins = ctrl.compiled.schema.discretise(obs)
-        if sel is not None and not all_active:
-            bins = bins[sel]
+    ``bins`` are the sensor bins of the lanes of ``sel`` (None: all lanes); with ``all_active`` all of
+    them are active."""
     rank, full = ctrl.compiled.decide(pol, bins, conflict=c.conflict, rng=c.rng)
-    turn_of, speed_of = _command_tables(ctrl.compiled)
+    turn_of, speed_of = ctrl.commands
     where = slice(None) if sel is None else sel
     flat = pol * _RANKS + rank
     turn[where] = turn_of.take(flat)
@@ -395,8 +398,8 @@ def _decide(s: _Lanes, c: _Controls, k: int, t: int, active: np.ndarray, obs: di
         lanes, rule, bins, full = lanes[mine], ctrl.compiled.rule_index(pol[mine], rank[mine]), bins[mine], full[mine]
     if c.record is not None:
         c.record.fired(k, t, lanes, rule)
-    if c.learner == beh:
-        tr = s.trace
+    tr = s.trace
+    if c.learner == beh and tr is not None:
         tr.bins[k, t, lanes], tr.rule[k, t, lanes], tr.full[k, t, lanes] = bins, rule, full
         s.fired[lanes, k] |= _ONE << rule.astype(np.uint64)
 
