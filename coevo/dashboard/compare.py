@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from coevo.errors import RunDirError
+from coevo.dashboard.model import mtime
 
 if TYPE_CHECKING:
     from coevo.experiments.compare.experiment import CompareSpec
@@ -34,11 +35,25 @@ if TYPE_CHECKING:
 __all__ = ["ComparisonFiles"]
 
 
-def _mtime(p: Path) -> float:
-    try:
-        return p.stat().st_mtime
-    except OSError:
-        return 0.0
+class VerdictFile:
+    """The verdict in a report's results.json (a comparison's or a study's), read again only when the file changes:
+    ``{"text", "finished", "expected"}``, or None before it is written whole."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._held: tuple[float, dict[str, Any] | None] = (-1.0, None)  # (mtime, what it says)
+
+    def read(self) -> dict[str, Any] | None:
+        changed = mtime(self.path)
+        if changed != self._held[0]:
+            try:
+                data = json.loads(self.path.read_text(encoding="utf-8"))
+                held = {"text": str(data["verdict"]), "finished": int(data["runs_finished"]),
+                        "expected": int(data["runs_expected"])}
+            except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError, TypeError, ValueError):
+                held = None
+            self._held = (changed, held)
+        return self._held[1]
 
 
 class ComparisonFiles:
@@ -70,7 +85,7 @@ class ComparisonFiles:
         self._tails: dict[tuple[str, str], Any] = {}  # (run, behaviour) -> the Tail of its curve.jsonl
         self._rows: dict[tuple[str, str], list[dict[str, Any]]] = {}  # ... and the rows read so far
         self._bands: dict[tuple[int, str], tuple[tuple[str, ...], dict[str, list[float]] | None]] = {}
-        self._results: tuple[float, dict[str, Any] | None] = (-1.0, None)  # results.json: (mtime, what it says)
+        self._verdict = VerdictFile(self.out / "results.json")
 
     def run_dirs(self) -> list[Path]:
         """The live replicates' run directories that exist so far (their curves go on the page)."""
@@ -99,8 +114,8 @@ class ComparisonFiles:
                 pass
         if not d.exists() and not log.exists():
             return "waiting", ""
-        latest = max([_mtime(log), _mtime(d)] + [_mtime(w / "curve.jsonl") for w in paths.workers_dir.glob("*")]
-                     + [_mtime(f) for f in paths.logs_dir.glob("*.log")])
+        latest = max([mtime(log), mtime(d)] + [mtime(w / "curve.jsonl") for w in paths.workers_dir.glob("*")]
+                     + [mtime(f) for f in paths.logs_dir.glob("*.log")])
         if now - latest < self.stale:
             return "running", ""
         return "failed", f"no progress for {now - latest:.0f} s; see {log}"
@@ -203,20 +218,6 @@ class ComparisonFiles:
                 "low": low[keep].tolist(), "high": high[keep].tolist(),
                 "n": (~np.isnan(m)).sum(axis=0)[keep].astype(int).tolist()}
 
-    def _verdict(self) -> dict[str, Any] | None:
-        """The report's verdict from results.json, if it has been written: ``{"text", "finished", "expected"}``."""
-        f = self.out / "results.json"
-        mtime = _mtime(f)
-        if mtime != self._results[0]:
-            try:
-                data = json.loads(f.read_text(encoding="utf-8"))
-                held = {"text": str(data["verdict"]), "finished": int(data["runs_finished"]),
-                        "expected": int(data["runs_expected"])}
-            except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError, TypeError, ValueError):
-                held = None
-            self._results = (mtime, held)
-        return self._results[1]
-
     def states(self) -> list[dict[str, Any]]:
         """Each replicate's state (done, running, failed, waiting), why (a failed one), Table 1 class (a done one)
         and worker generations of the total: ``{"run", "group", "state", "why", "class", "generations", "of"}``."""
@@ -259,6 +260,6 @@ class ComparisonFiles:
                 "table1": {g: count(c) for g, c in classes.items()},
                 "table1_report": {g: REPORT_COUNTS[g] for g in classes if g in REPORT_COUNTS},
                 "executive_curve": {g: executive_curve(c) for g, c in curves.items() if c},
-                "verdict": self._verdict(), "caveat": caveat, "panels": self._panels(rows),
+                "verdict": self._verdict.read(), "caveat": caveat, "panels": self._panels(rows),
                 "regimes": [r for r in self.spec.regimes if r != OFFLINE],  # the live ones: those with curves
                 "lengths": {f"{run}/{b}": len(r) for (run, b), r in sorted(self._rows.items())}}

@@ -32,7 +32,7 @@ from typing import Any
 
 from coevo.errors import RunDirError
 
-__all__ = ["Curve", "RunView", "View", "Tail", "RunFiles", "BusSource", "LocalRuns", "Dashboard", "classify_dir", "is_run", "STALE"]
+__all__ = ["Curve", "RunView", "View", "Tail", "RunFiles", "BusSource", "LocalRuns", "Dashboard", "classify_dir", "is_run", "STALE", "mtime"]
 
 log = logging.getLogger(__name__)
 
@@ -268,7 +268,7 @@ class _WorkerFiles:
         meta = self.meta or {}
         behaviour = str(meta.get("behaviour", self.paths.dir.name))
         done = _read_json(self.paths.done) if self.paths.done.exists() else None
-        fresh = now - max(self.curve_tail.mtime, self.adoptions.mtime, _mtime(self.paths.worker_json)) < stale
+        fresh = now - max(self.curve_tail.mtime, self.adoptions.mtime, mtime(self.paths.worker_json)) < stale
         state = "done" if done is not None else "running" if fresh else "stopped"
         measures = {k: col[-1] for k, col in self.curve.measures.items() if col and col[-1] is not None}
         ga = meta.get("ga")
@@ -284,7 +284,8 @@ class _WorkerFiles:
                 "state": state, "heartbeat_age": None}
 
 
-def _mtime(p: Path) -> float:
+def mtime(p: Path) -> float:
+    """When ``p`` last changed (0 when it cannot be read)."""
     try:
         return Path(p).stat().st_mtime
     except OSError:

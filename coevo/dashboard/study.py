@@ -25,26 +25,19 @@ files moved in the last ``stale`` seconds, and stopped after; one whose log has 
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from coevo.dashboard.compare import ComparisonFiles
+from coevo.dashboard.compare import ComparisonFiles, VerdictFile
+from coevo.dashboard.model import mtime
 from coevo.errors import ConfigError, RunDirError
 
 __all__ = ["StudyFiles", "CELL_STATES"]
 
 #: A cell's states, as the page names them.
 CELL_STATES = ("finished", "running", "stopped", "waiting", "not started")
-
-
-def _mtime(p: Path) -> float:
-    try:
-        return p.stat().st_mtime
-    except OSError:
-        return 0.0
 
 
 def _said(log: Path) -> str | None:
@@ -96,7 +89,7 @@ class StudyFiles:
         self._known: dict[str, dict[str, dict[str, Any]]] = {c.id: {} for c in self.cells}  # cell -> run -> record
         # cell -> (its finished runs, its rows, what could not be read of them)
         self._rows: dict[str, tuple[tuple[str, ...], list[dict[str, Any]], str]] = {}
-        self._results: tuple[float, dict[str, Any] | None] = (-1.0, None)  # results.json: (mtime, what it says)
+        self._verdict = VerdictFile(self.out / "results.json")
 
     def _cell_rows(self, cell: Any, finished: tuple[str, ...], problems: list[str]) -> list[dict[str, Any]]:
         """The report's rows of ``cell`` (one per group), made again only when its finished runs changed.  While a
@@ -155,28 +148,14 @@ class StudyFiles:
             rows.append({"run": job.name, "state": state, "why": why})
         return rows
 
-    def _verdict(self) -> dict[str, Any] | None:
-        """The study's report's verdict from results.json, once written: ``{"text", "finished", "expected"}``."""
-        f = self.out / "results.json"
-        mtime = _mtime(f)
-        if mtime != self._results[0]:
-            try:
-                data = json.loads(f.read_text(encoding="utf-8"))
-                held = {"text": str(data["verdict"]), "finished": int(data["runs_finished"]),
-                        "expected": int(data["runs_expected"])}
-            except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError, TypeError, ValueError):
-                held = None
-            self._results = (mtime, held)
-        return self._results[1]
-
     def _latest(self) -> float:
         """When any of the study's own files last moved (its declaration, the replicates' logs, the report)."""
         try:
             logs = list((self.out / "logs").iterdir())
         except OSError:
             logs = []
-        return max([_mtime(self.out / n) for n in ("study.json", "results.json", "complete.json")]
-                   + [_mtime(p) for p in logs])
+        return max([mtime(self.out / n) for n in ("study.json", "results.json", "complete.json")]
+                   + [mtime(p) for p in logs])
 
     def read(self, shown: list[str]) -> dict[str, Any]:
         """The study as the page shows it: ``{"dir", "name", "description", "kind" (comparison or learn), "behaviour"
@@ -235,6 +214,6 @@ class StudyFiles:
                 "factors": factors, "state": state, "why": why, "runs_done": progress.runs_done,
                 "runs_total": progress.runs_total, "cells_done": progress.cells_done,
                 "cells_total": progress.cells_total, "complete": progress.complete, "counts": totals, "cells": cells,
-                "verdict": self._verdict(), "caveat": caveat, "problems": problems, "default": default,
+                "verdict": self._verdict.read(), "caveat": caveat, "problems": problems, "default": default,
                 "shown": {cid: self.files[cid].read(states[cid]) for cid in dict.fromkeys([default, *shown])
                           if cid in self.files}}
