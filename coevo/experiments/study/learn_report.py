@@ -31,7 +31,7 @@ from coevo.experiments.seeds.experiment import TARGETS
 from coevo.experiments.study import plots
 from coevo.experiments.study.declaration import LearnCell, StudySpec, learn_cells, level_text
 from coevo.experiments.study.experiment import cell_dir, learn_jobs
-from coevo.experiments.study.report import strict_json, format_mean, difference_unit, adjust, factor_test
+from coevo.experiments.study.report import adjust, difference_unit, factor_test, format_mean, strict_json, verdict_lines
 from coevo.rundir.layout import write_json, write_text
 
 __all__ = ["LEARN_MEASURES", "collect_learn_cell", "learn_cell_rows", "analyse_learning", "write_learn_report"]
@@ -110,24 +110,7 @@ def analyse_learning(spec: StudySpec, records: list[dict[str, Any]]) -> list[dic
 
 def _verdict(behaviour: str, tests: list[dict[str, Any]], finished: int, expected: int) -> str:
     titles = dict(LEARN_MEASURES[behaviour])
-    parts = []
-    if finished < expected:
-        parts.append(f"**Partial**: {finished} of {expected} runs finished; the numbers below are from those.")
-    for t in sorted(tests, key=lambda t: not t["detected"]):
-        title = titles[t["measure"]]
-        levels = "; ".join(f"{r['level']}: {format_mean(r, False)}" for r in t["levels"])
-        if t["detected"]:
-            parts.append(f"- **{t['factor']} changes {behaviour}'s {title}** ({levels}; Kruskal–Wallis "
-                         f"H = {t['h']:.2f}, p = {format_p(t['p'])}, Holm-adjusted {format_p(t['p_holm'])}; ε² = "
-                         f"{t['epsilon2']:.2f}, {t['magnitude']}).")
-        else:
-            res = "" if math.isnan(t["largest_difference"]) else (
-                f"; a difference between two levels beyond {difference_unit(False, t['largest_difference'])} is excluded by "
-                "every pair's 95 % interval")
-            parts.append(f"- No detectable effect of {t['factor']} on {behaviour}'s {title} (Holm-adjusted "
-                         f"p = {format_p(t['p_holm'])}; {levels}{res}).")
-    if not tests:
-        parts.append("No factor has two levels with finished runs: nothing to test; the cells' numbers are below.")
+    parts = verdict_lines(tests, lambda t: (f"{behaviour}'s {titles[t['measure']]}", ""), finished, expected)
     return "\n".join(p if p.startswith("- ") else f"\n{p}\n" for p in parts).strip()
 
 

@@ -39,7 +39,7 @@ from coevo.experiments.study.intervals import Difference, difference_interval, s
 from coevo.rundir.layout import write_json, write_text
 
 __all__ = ["MEASURES", "collect_cell", "collect_study", "cell_rows", "analyse", "factor_test", "adjust", "write_report",
-           "strict_json", "format_mean", "difference_unit"]
+           "strict_json", "format_mean", "difference_unit", "verdict_lines"]
 
 #: The measures every factor is tested on: name -> (title, value of a run record, is it a 0/1 share?).
 MEASURES: dict[str, tuple[str, Callable[[dict[str, Any]], float], bool]] = {
@@ -181,30 +181,41 @@ def difference_unit(share: bool, x: float) -> str:
 
 def _verdict(spec: StudySpec, cell_rows: list[dict[str, Any]], tests: list[dict[str, Any]], finished: int,
              expected: int) -> str:
-    parts = []
-    if finished < expected:
-        parts.append(f"**Partial**: {finished} of {expected} runs finished; the numbers below are from those.")
-    for t in sorted(tests, key=lambda t: not t["detected"]):
-        title = MEASURES[t["measure"]][0]
-        levels = "; ".join(f"{r['level']}: {format_mean(r, t['share'])}" for r in t["levels"])
-        if t["detected"]:
-            parts.append(f"- **{t['factor']} changes {title.lower()}** in {t['stratum']} ({levels}; Kruskal–Wallis "
-                         f"H = {t['h']:.2f}, p = {format_p(t['p'])}, Holm-adjusted {format_p(t['p_holm'])}; ε² = "
-                         f"{t['epsilon2']:.2f}, {t['magnitude']}).")
-        else:
-            res = "" if math.isnan(t["largest_difference"]) else (
-                f"; a difference between two levels beyond {difference_unit(t['share'], t['largest_difference'])} is "
-                "excluded by every pair's 95 % interval")
-            parts.append(f"- No detectable effect of {t['factor']} on {title.lower()} in {t['stratum']} (Holm-adjusted "
-                         f"p = {format_p(t['p_holm'])}; {levels}{res}).")
-    if not tests:
-        parts.append("No factor has two levels with finished runs: nothing to test; the cells' numbers are below.")
+    parts = verdict_lines(tests, lambda t: (MEASURES[t["measure"]][0].lower(), f" in {t['stratum']}"), finished,
+                          expected)
     starved = [r for r in cell_rows if r["n"] and r["no_docking"]["k"] * 2 > r["n"]]
     if starved:
         parts.append("Docking starved (No Docking) in most runs of: " + "; ".join(
             f"{r['cell']} · {r['group']} ({r['no_docking']['k']}/{r['n']}, 95 % "
             f"{100 * r['no_docking']['low']:.0f}–{100 * r['no_docking']['high']:.0f} %)" for r in starved) + ".")
     return "\n".join(p if p.startswith("- ") else f"\n{p}\n" for p in parts).strip()
+
+
+def verdict_lines(tests: list[dict[str, Any]], subject: Callable[[dict[str, Any]], tuple[str, str]], finished: int,
+                  expected: int) -> list[str]:
+    """The verdict's lines: partial or not, then each test in words (the detected first).  ``subject(test)`` names
+    what it measured in two parts, the second left out of the bold (e.g. "average epoch length (episodes)",
+    " in mutual")."""
+    parts = []
+    if finished < expected:
+        parts.append(f"**Partial**: {finished} of {expected} runs finished; the numbers below are from those.")
+    for t in sorted(tests, key=lambda t: not t["detected"]):
+        share = bool(t.get("share", False))
+        what, where = subject(t)
+        levels = "; ".join(f"{r['level']}: {format_mean(r, share)}" for r in t["levels"])
+        if t["detected"]:
+            parts.append(f"- **{t['factor']} changes {what}**{where} ({levels}; Kruskal–Wallis "
+                         f"H = {t['h']:.2f}, p = {format_p(t['p'])}, Holm-adjusted {format_p(t['p_holm'])}; ε² = "
+                         f"{t['epsilon2']:.2f}, {t['magnitude']}).")
+        else:
+            res = "" if math.isnan(t["largest_difference"]) else (
+                f"; a difference between two levels beyond {difference_unit(share, t['largest_difference'])} is "
+                "excluded by every pair's 95 % interval")
+            parts.append(f"- No detectable effect of {t['factor']} on {what}{where} (Holm-adjusted "
+                         f"p = {format_p(t['p_holm'])}; {levels}{res}).")
+    if not tests:
+        parts.append("No factor has two levels with finished runs: nothing to test; the cells' numbers are below.")
+    return parts
 
 
 def write_report(out: Path, spec: StudySpec, *, elapsed: float | None = None) -> dict[str, Any]:
