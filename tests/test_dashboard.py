@@ -518,7 +518,6 @@ def test_the_page_in_headless_chromium_follows_a_real_run(tmp_path: Path) -> Non
     from procs import coevo_proc, poll, stop
 
     from coevo.runs.discover import answers
-    from coevo.runs.local import free_port
 
     browser = _browser(tmp_path)
     procs: list[subprocess.Popen] = []
@@ -645,10 +644,9 @@ def test_a_20_run_comparison_opens_with_its_headline_above_the_fold_in_headless_
     """A real 20-run Table 1 comparison (coevo compare, tiny settings: ~2 min on 2 cores) opened at a laptop's
     1280 x 800: the legend, a band per regime and Table 1 with the report's counts are drawn inside the first screen,
     Table 1's counts are the report's (REPORT_COUNTS) and the runs' (results.json), and the verdict is the report's."""
-    from procs import coevo_proc, poll, stop
+    from procs import poll, stop
 
     from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS
-    from coevo.runs.local import free_port
 
     browser = _browser(tmp_path)  # before the comparison: no browser, no three minutes spent
     dash = None
@@ -1070,9 +1068,8 @@ def test_200_page_loads_at_once_leave_it_answering_and_its_memory_bounded(tmp_pa
     from collections import Counter
     from concurrent.futures import ThreadPoolExecutor
 
-    from procs import coevo_proc, poll, stop
+    from procs import poll, stop
 
-    from coevo.runs.local import free_port
 
     log = tmp_path / "dashboard.log"
     dash, port = _dashboard_proc(str(_run_dir(tmp_path)), log=log)

@@ -29,26 +29,25 @@ import zenoh
 from procs import SMALL, coevo_proc, ctrl_c_heard, poll, stop
 
 from coevo.agents.checkpoint import load_checkpoint, save_checkpoint
-from coevo.rundir.layout import WorkerPaths
-
-CHECKPOINT = WorkerPaths(Path(".")).checkpoint.name
 from coevo.agents.models import PartnerModels
 from coevo.bus import keys
+from coevo.bus.messages import MAX_BYTES, PolicyUpdate, Status, encode
 from coevo.bus.session import make_config, open_session
+from coevo.bus.status import StatusBoard
 from coevo.config import GAConfig
 from coevo.errors import RunDirError
 from coevo.ga import GA
+from coevo.policy import random_ruleset
+from coevo.rundir.layout import WorkerPaths
+from coevo.rundir.settings import RunSettings
 from coevo.runs.check import check_run
+from coevo.runs.local import LocalRun
 from coevo.tasks import get_task
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.settings import WorldConfig
 
+CHECKPOINT = WorkerPaths(Path(".")).checkpoint.name
 FUEL = get_task("fuel")
-from coevo.bus.messages import MAX_BYTES, PolicyUpdate, Status, encode
-from coevo.bus.status import StatusBoard
-from coevo.policy import random_ruleset
-from coevo.runs.local import LocalRun
-from coevo.rundir.settings import RunSettings
 
 pytestmark = pytest.mark.service  # starts brokers, workers or whole runs as processes: run with --all
 
@@ -332,7 +331,6 @@ def _policy(run: str = "bad", behaviour: str = "tracking", **over) -> dict:
     base = PolicyUpdate(run=run, behaviour=behaviour, worker="t-x", version=1, generation=1, fitness=0.5, episodes=10,
                         rules=rs.to_dict(), sent_at=time.time()).model_dump(mode="json")
     return {**base, **over}
-
 
 MALFORMED = {
     "not_msgpack": b"\xc1\xc1 not msgpack",

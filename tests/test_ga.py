@@ -8,17 +8,26 @@ import pytest
 from coevo.config import GAConfig
 from coevo.errors import ConfigError
 from coevo.ga import GA, FixedRate
+from coevo.ga.engine import _narrow_in
+from coevo.ga.operators import (
+    Experience,
+    cover,
+    crossover,
+    delete,
+    generalise,
+    select_parents,
+    specialise,
+    split,
+)
+from coevo.policy import RuleSet, parse_ruleset, random_ruleset
+from coevo.policy.rules import interval_width
+from coevo.policy.strength import update_strengths
 from coevo.tasks import get_task
 from coevo.tasks.base import ga_settings
 from coevo.tasks.fuel.evaluate import FuelEvaluator as Evaluator
 from coevo.tasks.fuel.settings import WorldConfig
 
 FUEL = get_task("fuel")
-from coevo.ga.engine import _narrow_in
-from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise, split
-from coevo.policy import RuleSet, parse_ruleset, random_ruleset
-from coevo.policy.rules import interval_width
-from coevo.policy.strength import update_strengths
 
 
 def _exp(fired: list[int], payoff: list[float], states: list[tuple[list[int], int, bool, int]], s: int) -> Experience:

@@ -9,16 +9,16 @@ from coevo.agents.models import PartnerModels
 from coevo.config import GAConfig
 from coevo.errors import ConfigError
 from coevo.ga import GA
+from coevo.policy import parse_ruleset
+from coevo.policy.rules import interval_width
 from coevo.tasks import get_task
+from coevo.tasks.fuel import default_ruleset
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.evaluate import FuelEvaluator as Evaluator
+from coevo.tasks.fuel.robot import docking_from_random_starts
 from coevo.tasks.fuel.settings import WorldConfig
 
 FUEL = get_task("fuel")
-from coevo.policy import parse_ruleset
-from coevo.policy.rules import interval_width
-from coevo.tasks.fuel import default_ruleset
-from coevo.tasks.fuel.robot import docking_from_random_starts
 
 DOCK_SENSORS = {"dock_bearing"}
 TRACK_SENSORS = {"target_range", "target_bearing"}

@@ -8,10 +8,13 @@ from __future__ import annotations
 import signal
 import subprocess
 import sys
+import threading
 import time
+from pathlib import Path
 
 import pytest
 
+from coevo.broker.server import Broker
 from coevo.bus.lifecycle import Lifecycle
 from coevo.bus.session import make_config
 
@@ -87,3 +90,28 @@ def test_a_stop_signal_ends_the_work_even_when_its_interrupt_is_dropped(sig: sig
         if p.poll() is None:
             p.kill()
             p.wait()
+
+
+def test_a_broker_closing_under_a_status_put_keeps_its_session_till_the_end(tmp_path: Path) -> None:
+    # The broker's report thread reads the store's accounts, then puts each run's status.  Here it is held between
+    # the two until close() has begun: its put must meet the session (or SessionGone), never a broker without one.
+    closing, errors = threading.Event(), []
+    hook = threading.excepthook
+    threading.excepthook = lambda args: errors.append(args.exc_value)
+    try:
+        broker = Broker(make_config(mode="router", listen=["tcp/127.0.0.1:0"], connect_timeout=None), tmp_path,
+                        status_every=0.01, open_runs=True)
+
+        def held() -> dict[str, tuple[dict[str, int], dict[str, int], int]]:
+            closing.wait(10)
+            return {"run-a": ({}, {}, 0)}
+
+        broker.store.accounts = held  # type: ignore[method-assign]
+        with broker:
+            time.sleep(0.05)  # the report thread is waiting in held()
+            threading.Timer(0.05, closing.set).start()  # once close() is under way
+        broker.close()  # again: nothing more happens
+    finally:
+        threading.excepthook = hook
+    assert closing.is_set()
+    assert errors == []

@@ -43,9 +43,17 @@ import msgpack
 from coevo.broker.store import PolicyStore, Quota
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
-from coevo.bus.messages import MAX_BYTES, BrokerStatus, CaseUpdate, PolicyUpdate
 from coevo.bus.lifecycle import Lifecycle, main_of
-from coevo.bus.session import Config, LivelinessToken, Query, Sample, Session, SessionGone, config_from_args
+from coevo.bus.messages import MAX_BYTES, BrokerStatus, CaseUpdate, PolicyUpdate
+from coevo.bus.session import (
+    Config,
+    LivelinessToken,
+    Query,
+    Sample,
+    Session,
+    SessionGone,
+    config_from_args,
+)
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import CoevoError, MessageError
 from coevo.rundir.layout import RunPaths
@@ -169,7 +177,7 @@ class Broker:
         want = keys.BROKER_DEGRADED if self.store.degraded else keys.BROKER
         with self._token_lock:
             life = self._life
-            if want == self._token_key or life is None:  # unchanged, or closing
+            if want == self._token_key or life is None or life.stop.is_set():  # unchanged, or closing
                 return
             try:
                 token = life.session.liveliness().declare_token(want)
@@ -189,13 +197,18 @@ class Broker:
 
     def close(self) -> None:
         """Its token, subscribers and queryables end, then its threads (the store drains what was queued), then
-        the session; the store's log is flushed.  Idempotent."""
-        life, self._life = self._life, None
+        the session; the store's log is flushed.  Idempotent.
+
+        The life stays reachable until it has ended: a status put that the report thread has under way meets the
+        session (or SessionGone once it closes), never a broker without one; its ``stop``, set first, tells
+        :meth:`_sync_token` not to declare a token on a session that is closing."""
+        life = self._life
         if life is None:
             return
         try:
             life.close()
         finally:
+            self._life = None
             self.store.flush_log()
 
     def _drop_token(self) -> None:

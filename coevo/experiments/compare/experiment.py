@@ -40,24 +40,29 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
-from coevo.config import MODELS
+from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig
+from coevo.errors import ConfigError, RunDirError
 from coevo.replicates.backends import Backend
 from coevo.replicates.replicate import Replicate as Job
 from coevo.replicates.runner import Progress, run_replicates
+from coevo.rundir.layout import LearnPaths, RunPaths, ensure_dir, write_json
 from coevo.rundir.settings import RunSettings
 from coevo.tasks import get_task, split_settings
 from coevo.tasks.base import check_ga
 from coevo.tasks.fuel import FuelTask
-
-REGIMES = FuelTask.regimes
-from coevo.config import DEFAULT_MAX_LEAD
-from coevo.config import GAConfig
-from coevo.errors import ConfigError, RunDirError
-from coevo.rundir.layout import LearnPaths, RunPaths, ensure_dir, write_json
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.settings import WorldConfig
+
+REGIMES = FuelTask.regimes
 
 __all__ = ["CompareSpec", "Replicate", "prepare", "replicates", "groups", "run_all", "jobs_of", "default_jobs", "OFFLINE",
            "DEFAULT_RATES"]
