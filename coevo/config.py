@@ -240,10 +240,10 @@ def saved_ga(data: Mapping[str, Any]) -> dict[str, Any]:
     return {**SAVED_GA_BEFORE, **data}
 
 
-def build(model: type[_M], values: dict[str, Any] | None = None, **overrides: Any) -> _M:
+def build(model: type[_M], values: dict[str, Any] | None = None, *, what: str = "", **overrides: Any) -> _M:
     """Construct a settings model, turning validation failures into :class:`ConfigError`.
 
-    The message names every bad field and the value it got, e.g.
+    The message names the settings (``what``, else the model's class), every bad field and the value it got, e.g.
     ``GAConfig: population=0: Input should be greater than or equal to 2``.
     """
     data = dict(values or {})
@@ -257,4 +257,4 @@ def build(model: type[_M], values: dict[str, Any] | None = None, **overrides: An
             value = data.get(str(err["loc"][0])) if err["loc"] else None
             shown = f"{field}={value!r}" if err["loc"] else field
             parts.append(f"{shown}: {err['msg']}")
-        raise ConfigError(f"{model.__name__}: " + "; ".join(parts)) from exc
+        raise ConfigError(f"{what or model.__name__}: " + "; ".join(parts)) from exc

@@ -16,29 +16,12 @@ from coevo.cli import build_parser, main
 from coevo.config import GAConfig
 from coevo.console import ga_settings
 from coevo.errors import ConfigError
-from coevo.experiments.evolvability.bitga import (
-    GENOME_BITS,
-    RunParams,
-    breed,
-    decode,
-    gene_of,
-    run_batch,
-)
+from coevo.experiments.evolvability.bitga import GENOME_BITS, RunParams, breed, decode, gene_of, run_batch
 from coevo.experiments.evolvability.experiment import GridSpec
-from coevo.experiments.evolvability.landscape import (
-    CLASSES,
-    DynamicLandscape,
-    LandscapeSpec,
-)
+from coevo.experiments.evolvability.landscape import CLASSES, DynamicLandscape, LandscapeSpec
 from coevo.experiments.evolvability.report import shift_windows
 from coevo.ga import GA
-from coevo.ga.mutation import (
-    FixedHypermutation,
-    GeneticHypermutation,
-    GeneticRate,
-    control_rate,
-    model_from_config,
-)
+from coevo.ga.mutation import FixedHypermutation, GeneticHypermutation, GeneticRate, control_rate, model_from_config
 from coevo.rundir.settings import RunSettings
 from coevo.tasks import get_task
 from coevo.tasks.fuel.settings import WorldConfig

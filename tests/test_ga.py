@@ -9,16 +9,7 @@ from coevo.config import GAConfig
 from coevo.errors import ConfigError
 from coevo.ga import GA, FixedRate
 from coevo.ga.engine import _narrow_in
-from coevo.ga.operators import (
-    Experience,
-    cover,
-    crossover,
-    delete,
-    generalise,
-    select_parents,
-    specialise,
-    split,
-)
+from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise, split
 from coevo.policy import RuleSet, parse_ruleset, random_ruleset
 from coevo.policy.rules import interval_width
 from coevo.policy.strength import update_strengths

@@ -45,15 +45,7 @@ from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.lifecycle import Lifecycle, main_of
 from coevo.bus.messages import MAX_BYTES, BrokerStatus, CaseUpdate, PolicyUpdate
-from coevo.bus.session import (
-    Config,
-    LivelinessToken,
-    Query,
-    Sample,
-    Session,
-    SessionGone,
-    config_from_args,
-)
+from coevo.bus.session import Config, LivelinessToken, Query, Sample, Session, SessionGone, config_from_args
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import CoevoError, MessageError
 from coevo.rundir.layout import RunPaths

@@ -40,16 +40,9 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from pydantic import (
-    BaseModel,
-    ConfigDict,
-    Field,
-    ValidationError,
-    field_validator,
-    model_validator,
-)
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig
+from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig, build
 from coevo.errors import ConfigError, RunDirError
 from coevo.replicates.backends import Backend
 from coevo.replicates.replicate import Replicate as Job
@@ -156,11 +149,7 @@ class CompareSpec(BaseModel):
 
     @classmethod
     def make(cls, **values: Any) -> CompareSpec:
-        try:
-            return cls(**values)
-        except ValidationError as exc:
-            msgs = [f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors()]
-            raise ConfigError("comparison settings: " + "; ".join(msgs)) from exc
+        return build(cls, values, what="comparison settings")
 
 
 @dataclass(frozen=True)

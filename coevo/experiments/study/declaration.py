@@ -52,7 +52,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from coevo.config import MODELS, DEFAULT_MAX_LEAD, GAConfig, build
 from coevo.console import Lead, count_arg, max_lead_arg, positive_float_arg, seed_arg
@@ -369,11 +369,7 @@ class LearnSpec(BaseModel):
 
     @classmethod
     def make(cls, **values: Any) -> LearnSpec:
-        try:
-            return cls(**values)
-        except ValidationError as exc:
-            msgs = [f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors()]
-            raise ConfigError("learning-run settings: " + "; ".join(msgs)) from exc
+        return build(cls, values, what="learning-run settings")
 
 
 @dataclass(frozen=True)
