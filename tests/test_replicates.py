@@ -69,6 +69,23 @@ def test_the_runner_runs_reports_failures_with_reasons_and_resumes(tmp_path: Pat
     assert again.runs_done == 2 and set(again.failed) == {"b", "c"}
 
 
+def test_coevo_seeds_jobs_counts_learners_and_a_study_counts_live_runs() -> None:
+    # coevo seeds --jobs N runs N learners at once (its timing target is per core); a study's --jobs counts live
+    # runs, of which an offline learner is half.
+    from coevo.experiments.seeds.door import replicates as door_replicates
+    from coevo.experiments.seeds.experiment import replicates as learn_replicates
+
+    one = LocalBackend(1)
+    try:
+        for rep in (learn_replicates(["docking"], [0], [], weight=2)[0],
+                    door_replicates([0], generations=2, world={}, failed=[], ga={})[0]):
+            assert one.room(0, rep) and not one.room(rep.weight, rep), rep.name
+        half = learn_replicates(["docking"], [0], [])[0]
+        assert one.room(half.weight, half) and not one.room(2 * half.weight, half)
+    finally:
+        one.close()
+
+
 def test_replicates_must_name_what_they_wait_for() -> None:
     with pytest.raises(ValueError, match="not in the list"):
         run_replicates([job("a", after=("zz",))], Path("/nonexistent"), LocalBackend(1))

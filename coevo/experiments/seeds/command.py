@@ -54,7 +54,7 @@ def cmd_seeds(args: argparse.Namespace) -> int:
     ensure_dir(out, what="--out")
     behaviours = args.behaviours or ["docking", "tracking"]
     seeds = list(range(args.first_seed, args.first_seed + (args.seeds or DEFAULT_SEEDS[args.task])))
-    reps = replicates(behaviours, seeds, extra)
+    reps = replicates(behaviours, seeds, extra, weight=2)  # --jobs counts learners here: one core each
     backend = backend_of(args, default_jobs=1)
     print(f"learning over seeds in {out}: {len(reps)} runs, {backend.description}", flush=True)
     t0 = time.time()

@@ -132,10 +132,11 @@ def _finished(seed: int, root: Path) -> bool:
 
 def replicates(seeds: list[int], *, generations: int, world: dict[str, Any], failed: list[str],
                ga: dict[str, Any]) -> list[Replicate]:
-    """One seed per replicate (one process, one core: weight 1)."""
+    """One seed per replicate: one process, one core, and a whole ``--jobs`` slot (weight 2), since ``coevo seeds``
+    counts seeds at once (its timing target is per core)."""
     return [Replicate(name=_name(s), output=f"runs/{_name(s)}", finished=partial(_finished, s), function=run_seed,
                       kwargs={"seed": s, "generations": generations, "world": world, "failed": failed, "ga": ga},
-                      weight=1, cost=2 * generations)
+                      weight=2, cost=2 * generations)
             for s in seeds]
 
 

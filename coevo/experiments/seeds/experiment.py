@@ -42,10 +42,11 @@ def _finished(behaviour: str, seed: int, root: Path) -> bool:
     return (d / "measures.json").exists() and (d / "timing.json").exists()
 
 
-def replicates(behaviours: list[str], seeds: list[int], extra: list[str]) -> list[Replicate]:
-    """One ``coevo learn`` per behaviour and seed (an offline learner keeps one core busy: weight 1)."""
+def replicates(behaviours: list[str], seeds: list[int], extra: list[str], *, weight: int = 1) -> list[Replicate]:
+    """One ``coevo learn`` per behaviour and seed.  An offline learner keeps one core busy: half a live run's slot
+    (weight 1) where ``--jobs`` counts live runs, as in a study; ``coevo seeds`` counts learners (weight 2)."""
     return [Replicate(name=_name(b, s), output=f"runs/{_name(b, s)}", finished=partial(_finished, b, s),
-                      command=partial(_argv, b, s, tuple(extra)), weight=1)
+                      command=partial(_argv, b, s, tuple(extra)), weight=weight)
             for b in behaviours for s in seeds]
 
 
