@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-import time
-
 import json
+import os
+import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -330,3 +331,27 @@ def test_a_listen_endpoint_that_cannot_be_a_runs_broker_is_one_line_before_anyth
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and err[0].startswith("ConfigError: ") and endpoint in err[0], err
     assert not (tmp_path / "root").exists()
+
+
+def test_a_learn_killed_mid_run_leaves_a_staged_copy_that_the_next_one_removes(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    args = ("learn", "--behaviour", "docking", "--population", "4", "--episodes", "10", "--ga", "best_episodes=10",
+            "--measure-epochs", "3", "--out", str(out), "--quiet")
+    p = subprocess.Popen([sys.executable, "-m", "coevo", *args, "--generations", "500"])
+    try:
+        deadline = time.monotonic() + 120
+        while not list(tmp_path.glob(".run.*.partial/.owner")) and time.monotonic() < deadline:
+            time.sleep(0.1)
+    finally:
+        p.kill()
+        p.wait()
+    [killed] = tmp_path.glob(".run.*.partial")  # a killed process cannot remove its copy
+    live = tmp_path / ".run.live.partial"  # one that a running process of this host writes (this one)
+    away = tmp_path / ".run.away.partial"  # one of another host sharing the folder: not ours to judge
+    for d, owner in ((live, f"{socket.gethostname()} {os.getpid()}"), (away, f"elsewhere {p.pid}")):
+        d.mkdir()
+        (d / ".owner").write_text(owner)
+    r = coevo(*args, "--generations", "1")
+    assert r.returncode == 0, r.stderr
+    assert not killed.exists() and live.exists() and away.exists()
+    assert (out / "measures.json").exists() and not (out / ".owner").exists()

@@ -21,9 +21,11 @@ half-written directory under the name asked for; files are written atomically
 from __future__ import annotations
 
 import csv
+import glob
 import json
 import os
 import shutil
+import socket
 import tempfile
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -343,9 +345,31 @@ def read_json(path: Path, *, what: str) -> dict[str, Any]:
     return data
 
 
+#: In a staged directory, who is writing it: "HOST PID" (so that a later one can tell an abandoned copy).
+_OWNER = ".owner"
+
+
+def _abandoned(tmp: Path) -> bool:
+    """Whether the staged directory ``tmp`` was left by a process of this host that no longer lives (killed, so
+    it could not remove it).  One of another host, or without an owner, is never taken for abandoned."""
+    try:
+        host, pid = (tmp / _OWNER).read_text(encoding="utf-8").split()
+        if host != socket.gethostname():
+            return False
+        os.kill(int(pid), 0)
+    except ProcessLookupError:
+        return True
+    except (OSError, ValueError):  # no owner file, unreadable, or a process of another user: leave it
+        return False
+    return False
+
+
 @contextmanager
 def staged_dir(final: Path) -> Iterator[Path]:
-    """Yield a temporary directory that becomes ``final`` only if the block succeeds."""
+    """Yield a temporary directory that becomes ``final`` only if the block succeeds.
+
+    A stop signal removes it; a killed process cannot, so the copies that killed processes of this host left
+    beside ``final`` are removed when the next one starts."""
     final = Path(final)
     if final.exists() and not final.is_dir():
         raise RunDirError(f"output directory {str(final)!r} is a file; choose another --out")
@@ -353,8 +377,12 @@ def staged_dir(final: Path) -> Iterator[Path]:
         raise RunDirError(f"output directory {str(final)!r} already exists and is not empty; choose another --out")
     try:
         final.parent.mkdir(parents=True, exist_ok=True)
+        for old in final.parent.glob(f".{glob.escape(final.name)}.*.partial"):
+            if old.is_dir() and _abandoned(old):
+                shutil.rmtree(old, ignore_errors=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".partial", dir=final.parent))
         tmp.chmod(0o777 & ~_UMASK)  # mkdtemp makes it private; the finished directory is as open as any other
+        (tmp / _OWNER).write_text(f"{socket.gethostname()} {os.getpid()}", encoding="utf-8")
     except OSError as exc:
         raise RunDirError(f"cannot create output directory {str(final)!r}: {exc.strerror or exc}") from exc
     try:
@@ -362,6 +390,7 @@ def staged_dir(final: Path) -> Iterator[Path]:
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    (tmp / _OWNER).unlink()
     if final.exists():
         final.rmdir()
     os.replace(tmp, final)
