@@ -17,10 +17,15 @@ from typing import Any
 from coevo.errors import RunDirError
 from coevo.replicates.replicate import Replicate
 
-__all__ = ["REPORT_SETTINGS", "below_report", "held_spec", "prepare_out", "open_out", "run_with_progress"]
+__all__ = ["REPORT_SETTINGS", "below_report", "held_spec", "open_out", "plural", "prepare_out", "run_with_progress"]
 
 #: The settings the report's findings rest on (Appendix A): per agent and generation, and runs per regime.
 REPORT_SETTINGS = {"generations": 50, "population": 50, "episodes": 90, "runs a regime": 10}
+
+
+def plural(n: int, noun: str) -> str:
+    """``n`` and the noun in its number: "1 run", "2 runs" (for the nouns the reports count, all regular)."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
 
 
 def below_report(settings: dict[str, int]) -> str:

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from coevo.experiments.common import plural
+
 __all__ = ["PANELS", "figure_for_regime", "figure_regimes", "figure_rates"]
 
 # (title, behaviour, curve column, y label, y scale)
@@ -71,7 +73,8 @@ def figure_for_regime(curves: Curves, regime: str, path: Path) -> None:
             for row in m:
                 ax.plot(g, row, color="0.75", linewidth=0.7)
             ax.fill_between(g, np.nanmin(m, axis=0), np.nanmax(m, axis=0), color="tab:blue", alpha=0.12)
-            ax.plot(g, np.nanmean(m, axis=0), color="tab:blue", linewidth=2, label=f"mean of {m.shape[0]} runs")
+            ax.plot(g, np.nanmean(m, axis=0), color="tab:blue", linewidth=2,
+                    label=f"mean of {plural(m.shape[0], 'run')}")
             ax.legend(loc="upper left", fontsize=8)
         _axis(ax, title, ylabel, top)
     fig.suptitle(f"{regime.capitalize()} regime: learning and performance")
@@ -93,7 +96,7 @@ def figure_regimes(by_regime: Mapping[str, Curves], path: Path) -> None:
             mean = np.nanmean(m, axis=0)
             sd = np.nanstd(m, axis=0)
             ax.fill_between(g, mean - sd, mean + sd, color=colour, alpha=0.15)
-            ax.plot(g, mean, color=colour, linewidth=2, label=f"{regime} (mean ± s.d., {m.shape[0]} runs)")
+            ax.plot(g, mean, color=colour, linewidth=2, label=f"{regime} (mean ± s.d., {plural(m.shape[0], 'run')})")
         _axis(ax, title, ylabel, top)
         ax.legend(loc="upper left", fontsize=8)
     fig.suptitle("Regimes compared")
@@ -118,7 +121,7 @@ def figure_rates(by_group: Mapping[str, Curves], path: Path) -> None:
                 continue
             colour, line = styles[g]
             ax.plot(np.arange(1, m.shape[1] + 1), np.nanmean(m, axis=0), color=colour, linestyle=line, linewidth=2,
-                    label=f"{g} ({m.shape[0]} runs)")
+                    label=f"{g} ({plural(m.shape[0], 'run')})")
         _axis(ax, title, ylabel, top, xlabel="Executive generation")
         ax.legend(loc="upper right", fontsize=7)
     fig.suptitle("The Executive learning on recorded Tracking/Docking histories, by rate of asynchrony (means)")

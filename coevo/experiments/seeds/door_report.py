@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from coevo.experiments.common import plural
 from coevo.experiments.seeds.door import result_file, rounded
 
 __all__ = ["REPORT", "write_report"]
@@ -115,7 +116,7 @@ def _figures(out: Path, runs: list[dict[str, Any]], spec: dict[str, Any]) -> Non
     fig, ax = plt.subplots(figsize=(7, 4))
     for row in c:
         ax.plot(x, row, color="0.8", lw=0.6)
-    ax.plot(x, c.mean(axis=0), color="tab:blue", lw=2, label=f"mean of {len(runs)} seeds (ours)")
+    ax.plot(x, c.mean(axis=0), color="tab:blue", lw=2, label=f"mean of {plural(len(runs), 'seed')} (ours)")
     ax.axvline(g, color="black", ls=":", lw=1)
     ax.plot([0, g, g, 2 * g], [REPORT[k] for k in KEYS], "s", color="tab:red", label="the report's numbers (Figure 3 text)")
     ax.set(xlabel="generation", ylabel="successes out of 100 trials", ylim=(0, 100))
