@@ -187,7 +187,7 @@ def play(cfg: WorldConfig, ex: RuleSet, tr: RuleSet, dk: RuleSet, epochs: int, s
                 obj, detail = hit(world, rec, k, s, lane)
                 if obj == "?":
                     tally.unclassified += 1
-                end_cause = f"collision: {beh} hit {obj}"
+                end_cause = f"collision: {beh} hit {obj}" + (" (right after docking)" if kind == "after docking" else "")
                 tally.collisions.append({
                     "behaviour": beh, "object": obj, "detail": detail, "kind": kind,
                     "after docking": kind == "after docking", "step": s, "speed": float(rec.speed[k, s, lane]),
