@@ -518,6 +518,13 @@ class BatchWorld:
                        _as_lanes(self._contacts[_WALL]), _as_lanes(self._contacts[_DOCK]), self._settling, self.speed,
                        self.turn, self.fuel, self._event_consts, events)
 
+    def last_contacts(self) -> tuple[np.ndarray, np.ndarray]:
+        """The lanes whose robot began touching a wall, and the dock, at the last step: sorted, unique, copies.
+        Read-only, for tools that ask what a robot hit (``benchmarks/loss_anatomy.py``): a dock contact there
+        is a docking or a collision as :meth:`step`'s events say, and a Target contact is its distance test."""
+        return (np.unique(np.asarray(self._contacts[_WALL], dtype=np.int64)),
+                np.unique(np.asarray(self._contacts[_DOCK], dtype=np.int64)))
+
     def _park(self, lanes: list[int]) -> None:
         """Move robots that touched a wall or the dock to their arena's centre, in pymunk only.
 
