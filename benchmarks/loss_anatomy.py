@@ -2,6 +2,7 @@
 
     python benchmarks/loss_anatomy.py RUN_DIR [RUN_DIR ...] [--epochs 300] [--seed 5]
         [--lineups own,learned,learned hand,learned,learned hand,hand,hand] [--diagnostics DIR] [--per-run]
+        [--json FILE]
 
 For each finished ``coevo compare`` / ``coevo run`` directory (its ``run.json`` and ``workers/*/best.rules``) it plays
 ``--epochs`` fresh epochs of the robot under each line-up (Executive, Tracking, Docking: ``own`` / ``hand`` for the
@@ -19,7 +20,13 @@ start, see diagnostics/README.md) and classifies, pooled over the runs:
   docking (the robot just in front of the dock), the step, the commanded speed, the fuel;
 - every Docking call: the Target's range, the angle between the Target's and the dock's bearings from the robot,
   the dock's range, and how it ended (docked, hit what, time up, dry);
-- the epochs that ended dry, by the behaviour in control.
+- the epochs that ended dry, by the behaviour in control;
+- Tracking's episodes by what they started from (an epoch start, right after a docking, after Tracking) and the
+  Target's range then (the share right after a docking is how often Tracking starts where no Independent training
+  puts it; docs/docking-learning.md, Round 10, C).
+
+``--json FILE`` writes each run's figures per line-up (payoff, AEL, loss per cause, episodes and collisions by
+behaviour and start), to pair runs of two configurations.
 
 Run ``i`` of the list plays its epochs from seed ``--seed + i`` under every line-up (the same starts and Target
 noise for each line-up of a run).  Nothing is learned or written; the world's numbers are those of ``coevo``'s own
@@ -30,6 +37,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import json
 import statistics
 from collections import Counter, defaultdict
 from dataclasses import dataclass, field
@@ -98,6 +106,33 @@ class Tally:
     calls: list[dict] = field(default_factory=list)
     dry: Counter[str] = field(default_factory=Counter)
     unclassified: int = 0
+    target_range: defaultdict[str, list[float]] = field(default_factory=lambda: defaultdict(list))  # Tracking's start kind -> Target ranges at its start
+
+    def add(self, other: Tally) -> None:
+        """Pool ``other`` (one run's records) into this one."""
+        self.epochs += other.epochs
+        self.tracked += other.tracked
+        self.played_steps += other.played_steps
+        self.unclassified += other.unclassified
+        for mine, theirs in ((self.episodes, other.episodes), (self.events, other.events),
+                             (self.cut_slots, other.cut_slots), (self.dry, other.dry)):
+            mine.update(theirs)
+        for cause, v in other.loss.items():
+            self.loss[cause] += v
+        for kind, rs in other.target_range.items():
+            self.target_range[kind] += rs
+        self.payoffs += other.payoffs
+        self.lengths += other.lengths
+        self.collisions += other.collisions
+        self.calls += other.calls
+
+    def summary(self) -> dict:
+        """One run's figures for ``--json``: payoff, AEL, the payoff lost per cause, episodes and collisions by
+        behaviour and what the episode started from."""
+        return {"payoff": float(np.mean(self.payoffs)), "ael": float(np.mean(self.lengths)), "epochs": self.epochs,
+                "loss": {c: v / self.epochs for c, v in self.loss.items()}, "episodes": dict(self.episodes),
+                "collisions": dict(Counter(f"{c['behaviour']} | {c['kind']} | {c['object']}" for c in self.collisions)),
+                "dry epochs": sum(self.dry.values())}
 
 
 def start_kind(out: Outcome, lane: int, k: int) -> str:
@@ -177,6 +212,9 @@ def play(cfg: WorldConfig, ex: RuleSet, tr: RuleSet, dk: RuleSet, epochs: int, s
             s, tracked = int(out.steps[lane, k]), int(out.tracked[lane, k])
             tally.episodes[beh] += 1
             tally.episodes[f"{beh} | {kind}"] += 1
+            if task == TASK_TRACK:
+                tally.target_range[kind].append(float(np.hypot(rec.tx[k, 0, lane] - rec.rx[k, 0, lane],
+                                                               rec.ty[k, 0, lane] - rec.ry[k, 0, lane])))
             tally.tracked += tracked
             tally.played_steps += T
             cause = f"Tracking, out of range ({kind})" if task == TASK_TRACK else "Docking episodes: steps"
@@ -279,6 +317,11 @@ def report(lineup: str, t: Tally, runs: int) -> None:
     details = Counter(f"{c['behaviour']} hit {c['object']}: {c['detail']}" for c in t.collisions if c["detail"])
     if details:
         print("\nWalls and dock, in detail: " + "; ".join(f"{k} {v}" for k, v in details.most_common()) + ".")
+    n_tr = t.episodes["Tracking"]
+    print("\nTracking's episodes by what they started from (the Target's range at the start, median and quartiles): "
+          + "; ".join(f"{kd} {len(rs)} ({100 * len(rs) / max(1, n_tr):.1f} %, {np.median(rs):.0f} in, "
+                      f"{np.percentile(rs, 25):.0f}-{np.percentile(rs, 75):.0f})"
+                      for kd, rs in sorted(t.target_range.items(), key=lambda kv: -len(kv[1]))) + ".")
     kinds = Counter((c["behaviour"], c["kind"]) for c in t.collisions)
     print("\nCollisions per episode by what the episode started from: " + "; ".join(
         f"{b} {kd}: {v} of {t.episodes[f'{b} | {kd}']} ({100 * v / max(1, t.episodes[f'{b} | {kd}']):.2f} %)"
@@ -325,6 +368,7 @@ def main() -> None:
     ap.add_argument("--diagnostics", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "diagnostics",
                     help="the folder of the hand-written rule sets (default ../shared/diagnostics)")
     ap.add_argument("--per-run", action="store_true", help="also print one line per run and line-up")
+    ap.add_argument("--json", type=Path, help="also write each run's figures per line-up to this file (for pairing runs)")
     a = ap.parse_args()
     if a.epochs < 1:
         ap.error(f"--epochs must be at least 1, got {a.epochs}")
@@ -353,14 +397,20 @@ def main() -> None:
         loaded.append((run, cfg, own))
     tallies = {",".join(p): Tally() for p in lineups}
     per_run: list[str] | None = [] if a.per_run else None
+    figures: list[dict] = []
     for i, (run, cfg, own) in enumerate(loaded):
         for p in lineups:
             pick = [hand if w == "hand" else own for w in p]
+            one = Tally()
             try:
                 play(cfg, pick[0]["executive"], pick[1]["tracking"], pick[2]["docking"], a.epochs, a.seed + i,
-                     tallies[",".join(p)], per_run, f"{run.name} [{','.join(p)}]")
+                     one, per_run, f"{run.name} [{','.join(p)}]")
             except CoevoError as exc:
                 raise SystemExit(f"{run}: {type(exc).__name__}: {exc}") from None
+            tallies[",".join(p)].add(one)
+            figures.append({"run": str(run), "lineup": ",".join(p), "seed": a.seed + i, **one.summary()})
+    if a.json is not None:
+        a.json.write_text(json.dumps(figures, indent=1) + "\n")
     print(f"Seeds {a.seed}..{a.seed + len(loaded) - 1}, {a.epochs} epochs per run and line-up.")
     for lu, t in tallies.items():
         report(lu, t, len(loaded))
