@@ -13,6 +13,7 @@ import shutil
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -633,6 +634,26 @@ def _dashboard_proc(*args: str, log: Path) -> tuple[subprocess.Popen, int]:
     raise AssertionError("no free port for the dashboard after 5 tries")
 
 
+def _first_screen(browser: Any, port: int, script: str, ready: Callable[[dict[str, Any]], Any], what: str,
+                  shot: Path, env: str) -> dict[str, Any]:
+    """The page at ``port`` on a 1280 x 800 screen once ``ready`` says it is drawn: ``script``'s boxes after the last
+    layout pass.  A screenshot is kept at ``shot`` (and copied where ``env`` names, for the docs)."""
+    from procs import poll
+
+    browser.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
+                            {"width": 1280, "height": 800, "deviceScaleFactor": 1, "mobile": False})
+    browser.get(f"http://127.0.0.1:{port}/")
+    poll(lambda: (b := browser.execute_script(script)) and ready(b) and b, 60,
+         lambda: f"{what}: {browser.execute_script(script)}")
+    time.sleep(1.0)  # the last layout pass
+    page = browser.execute_script(script)
+    assert page["viewport"] == [1280, 800], page["viewport"]
+    browser.save_screenshot(str(shot))
+    if os.environ.get(env):
+        shutil.copy(shot, os.environ[env])
+    return page
+
+
 def _above_the_fold(box: list[float], viewport: list[int]) -> bool:
     left, top, right, bottom = box
     return 0 <= left < right <= viewport[0] and 0 <= top <= bottom <= viewport[1]
@@ -644,7 +665,7 @@ def test_a_20_run_comparison_opens_with_its_headline_above_the_fold_in_headless_
     """A real 20-run Table 1 comparison (coevo compare, tiny settings: ~2 min on 2 cores) opened at a laptop's
     1280 x 800: the legend, a band per regime and Table 1 with the report's counts are drawn inside the first screen,
     Table 1's counts are the report's (REPORT_COUNTS) and the runs' (results.json), and the verdict is the report's."""
-    from procs import poll, stop
+    from procs import stop
 
     from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS
 
@@ -658,20 +679,12 @@ def test_a_20_run_comparison_opens_with_its_headline_above_the_fold_in_headless_
         results = json.loads((out / "results.json").read_text())
         assert results["runs_finished"] == 20
         dash, port = _dashboard_proc(str(out), log=tmp_path / "dashboard.log")
-        browser.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
-                                {"width": 1280, "height": 800, "deviceScaleFactor": 1, "mobile": False})
-        browser.get(f"http://127.0.0.1:{port}/")
-        page = poll(lambda: (b := browser.execute_script(HEADLINE_BOXES)) and b.get("table1") and
-                    len({x["name"] for x in b["bands"]}) == 2 and b["legends"] and b, 60,
-                    lambda: f"Table 1, the legends and the bands drawn: {browser.execute_script(HEADLINE_BOXES)}")
-        time.sleep(1.0)  # the last layout pass
-        page = browser.execute_script(HEADLINE_BOXES)
-        viewport = page["viewport"]
-        assert viewport == [1280, 800], viewport
         shot = tmp_path / "comparison.png"
-        browser.save_screenshot(str(shot))
-        if os.environ.get("COEVO_DASHBOARD_COMPARE_SCREENSHOT"):  # docs/dashboard-compare.png is made this way
-            shutil.copy(shot, os.environ["COEVO_DASHBOARD_COMPARE_SCREENSHOT"])
+        page = _first_screen(browser, port, HEADLINE_BOXES,
+                             lambda b: b.get("table1") and len({x["name"] for x in b["bands"]}) == 2 and b["legends"],
+                             "Table 1, the legends and the bands drawn", shot,
+                             "COEVO_DASHBOARD_COMPARE_SCREENSHOT")  # docs/dashboard-compare.png is made this way
+        viewport = page["viewport"]
 
         # Table 1: inside the first screen, a column of the runs' counts and one of the report's per regime
         assert _above_the_fold(page["table1"], viewport), page["table1"]
@@ -887,20 +900,12 @@ class TestAStudyOnThePage:
         try:
             assert study["proc"].wait(timeout=600) == 0
             results = json.loads((study["out"] / "results.json").read_text())
-            browser.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
-                                    {"width": 1280, "height": 800, "deviceScaleFactor": 1, "mobile": False})
-            browser.get(f"http://127.0.0.1:{study['port']}/")
-            poll(lambda: (b := browser.execute_script(STUDY_BOXES)) and b.get("table") and b.get("cell_table1") and
-                 "finished" in b.get("progress_text", "") and b, 60,
-                 lambda: f"the study's headline drawn: {browser.execute_script(STUDY_BOXES)}")
-            time.sleep(1.0)  # the last layout pass
-            page = browser.execute_script(STUDY_BOXES)
+            page = _first_screen(browser, study["port"], STUDY_BOXES,
+                                 lambda b: b.get("table") and b.get("cell_table1") and
+                                 "finished" in b.get("progress_text", ""),
+                                 "the study's headline drawn", tmp_path / "study.png",
+                                 "COEVO_DASHBOARD_STUDY_SCREENSHOT")  # docs/dashboard-study.png is made this way
             viewport = page["viewport"]
-            assert viewport == [1280, 800], viewport
-            shot = tmp_path / "study.png"
-            browser.save_screenshot(str(shot))
-            if os.environ.get("COEVO_DASHBOARD_STUDY_SCREENSHOT"):  # docs/dashboard-study.png is made this way
-                shutil.copy(shot, os.environ["COEVO_DASHBOARD_STUDY_SCREENSHOT"])
             for what in ("progress", "table", "selector"):  # the headline, and the way to a cell, on the first screen
                 assert _above_the_fold(page[what], viewport), (what, page[what])
             assert "4 of 4 runs finished" in page["progress_text"] and "the study: finished" in page["progress_text"]

@@ -275,6 +275,17 @@ def _summaries(out: Path) -> dict[str, bytes]:
     return {str(f.relative_to(out)): f.read_bytes() for f in out.glob("cells/*/runs/*/summary.json")}
 
 
+def _resume_keeps_what_was_done(out: Path, kept: dict[str, bytes], *, timeout: float) -> None:
+    """``coevo study --resume`` of a 2 x 2 study (its declaration, held) runs only what is missing and completes it."""
+    r = coevo("study", "--out", str(out), "--resume", "--quiet", "--jobs", "2", timeout=timeout)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert f"{len(kept)} of 4 runs already done, {4 - len(kept)} to run" in r.stdout
+    for name, body in kept.items():  # finished runs are not redone
+        assert (out / name).read_bytes() == body, name
+    progress = study_progress(out)
+    assert progress.complete and (progress.cells_done, progress.runs_done) == (2, 4)
+
+
 @pytest.mark.service
 @pytest.mark.slow
 def test_a_tiny_study_killed_with_a_signal_resumes_and_reports(tmp_path: Path) -> None:
@@ -297,14 +308,7 @@ def test_a_tiny_study_killed_with_a_signal_resumes_and_reports(tmp_path: Path) -
     assert again.returncode == 2 and "add --resume" in again.stderr
     other = coevo("study", "--out", str(out), "--resume", "--quiet", *TINY[:-1], "4")
     assert other.returncode == 2 and "differs in: seed" in other.stderr
-    r = coevo("study", "--out", str(out), "--resume", "--quiet", "--jobs", "2", timeout=400)  # its declaration, held
-    assert r.returncode == 0, r.stdout + r.stderr
-    assert f"{len(kept)} of 4 runs already done, {4 - len(kept)} to run" in r.stdout
-    for name, body in kept.items():  # finished runs are not redone
-        assert (out / name).read_bytes() == body, name
-
-    progress = study_progress(out)
-    assert progress.complete and (progress.cells_done, progress.runs_done) == (2, 4)
+    _resume_keeps_what_was_done(out, kept, timeout=400)
     res = json.loads((out / "results.json").read_text())
     assert res["runs_finished"] == res["runs_expected"] == 4
     assert {r["cell"] for r in res["cell_rows"]} == {"00-max_lead=1", "01-max_lead=off"}
@@ -493,7 +497,7 @@ def test_a_tiny_learning_study_killed_resumes_and_reports_its_runs_measures(tmp_
         return study_progress(out).runs_done if (out / "study.json").exists() else 0
 
     deadline = time.monotonic() + 120
-    while runs_done() == 0:  # --jobs 1 runs two learning runs at once (half a slot each): two more wait
+    while runs_done() == 0:  # a study's --jobs 1 runs two learning runs at once (half a slot each): two more wait
         assert p.poll() is None and time.monotonic() < deadline, p.communicate()
         time.sleep(0.1)
     os.killpg(p.pid, signal.SIGKILL)  # the study and the run under way, as a crash would
@@ -509,13 +513,7 @@ def test_a_tiny_learning_study_killed_resumes_and_reports_its_runs_measures(tmp_
     (out / torn.output / "config.json").write_text("{")  # a half-written run: not counted, run again
     assert study_progress(out).runs_done == len(kept)
 
-    r = coevo("study", "--out", str(out), "--resume", "--quiet", "--jobs", "2", timeout=300)  # its declaration, held
-    assert r.returncode == 0, r.stdout + r.stderr
-    assert f"{len(kept)} of 4 runs already done, {4 - len(kept)} to run" in r.stdout
-    for name, body in kept.items():  # finished runs are not redone
-        assert (out / name).read_bytes() == body, name
-    progress = study_progress(out)
-    assert progress.complete and (progress.cells_done, progress.runs_done) == (2, 4)
+    _resume_keeps_what_was_done(out, kept, timeout=300)
 
     res = json.loads((out / "results.json").read_text())
     assert res["kind"] == "learn" and res["runs_finished"] == res["runs_expected"] == 4
