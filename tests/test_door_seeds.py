@@ -94,3 +94,21 @@ def test_generations_world_and_ga_reach_every_coevo_learn_of_the_fuel_task(tmp_p
                                         "population 4 (the report's 50), episodes 4 (the report's 90)")
     report = (out / "report.md").read_text()
     assert summary["caveat"] in report and "nan" not in report
+
+
+def test_a_resumed_coevo_seeds_runs_again_a_learning_run_left_torn(tmp_path: Path) -> None:
+    # A run's folder that is there but not finished (a copy torn on its way back from a cluster's worker) is not a
+    # run: coevo learn would refuse the folder, so the resume removes it and runs that seed again.
+    out = tmp_path / "fuel"
+    args = ["seeds", "--seeds", "2", "--behaviours", "docking", "--generations", "1", "--ga", "population=4",
+            "--ga", "episodes=4", "--quiet", "--out", str(out)]
+    assert main(args) == 0
+    kept = (out / "runs" / "docking-seed0" / "measures.json").read_bytes()
+    torn = out / "runs" / "docking-seed1"
+    for f in torn.iterdir():
+        if f.name != "config.json":
+            f.unlink()
+    assert main([*args, "--resume"]) == 0
+    assert (out / "runs" / "docking-seed0" / "measures.json").read_bytes() == kept  # the finished run is not redone
+    assert (torn / "measures.json").exists() and (torn / "best.rules").exists()
+    assert json.loads((out / "summary.json").read_text())["runs_finished"] == 2

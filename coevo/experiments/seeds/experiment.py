@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 import statistics
 import sys
 from functools import partial
@@ -32,7 +33,12 @@ def _name(behaviour: str, seed: int) -> str:
 
 
 def _argv(behaviour: str, seed: int, extra: tuple[str, ...], root: Path) -> list[str]:
+    """The ``coevo learn`` of this seed, its folder removed first when it is there but not finished (a copy torn when
+    it came back from a cluster's worker): ``coevo learn`` refuses a folder that is not empty, and what is there is
+    not a run."""
     d = Path(root) / "runs" / _name(behaviour, seed)
+    if d.is_dir() and not _finished(behaviour, seed, root):
+        shutil.rmtree(d)
     return [sys.executable, "-m", "coevo", "learn", "--behaviour", behaviour, "--seed", str(seed), "--out", str(d),
             "--quiet", *extra]
 

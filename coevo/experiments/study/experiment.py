@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import shutil
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -144,24 +143,12 @@ def _in_cell(cell: str, fn: Callable[[Path], Any], root: Path) -> Any:
     return fn(Path(root) / "cells" / cell)
 
 
-def _afresh(job: Job, root: Path) -> list[str]:
-    """A learning run's command under the cell's folder ``root``, its folder removed first when it is there but not
-    finished (a copy torn when it came back from a worker): ``coevo learn`` refuses a folder that is not empty, and
-    what is there is not a run."""
-    if job.command is None:
-        raise TypeError(f"learning run {job.name} has no command")
-    d = Path(root) / job.output
-    if d.is_dir() and not job.finished(Path(root)):
-        shutil.rmtree(d)
-    return job.command(root)
-
-
-def _in_study(cell: str, job: Job, *, command: Callable[[Path], list[str]] | None) -> Job:
+def _in_study(cell: str, job: Job) -> Job:
     """A cell's replicate (relative to the cell's folder) as the study's: named ``CELL@RUN``, pointed at
     ``cells/CELL``."""
     pre = f"cells/{cell}/"
     return Job(name=f"{cell}{SEP}{job.name}", output=pre + job.output, finished=partial(_in_cell, cell, job.finished),
-               command=None if command is None else partial(_in_cell, cell, command),
+               command=None if job.command is None else partial(_in_cell, cell, job.command),
                function=job.function, kwargs=job.kwargs, inputs=tuple(pre + i for i in job.inputs),
                after=tuple(f"{cell}{SEP}{a}" for a in job.after), weight=job.weight, cost=job.cost,
                progress=None if job.progress is None else partial(_in_cell, cell, job.progress))
@@ -175,10 +162,10 @@ def study_jobs(out: Path, the_cells: Sequence[Cell | LearnCell]) -> list[Job]:
     for ci, c in enumerate(the_cells):
         if isinstance(c, LearnCell):
             for i, job in enumerate(learn_jobs(c)):
-                keyed.append((i, ci, 0, _in_study(c.id, job, command=partial(_afresh, job))))
+                keyed.append((i, ci, 0, _in_study(c.id, job)))
             continue
         for k, (rep, job) in enumerate(zip(replicates(c.spec), jobs_of(cell_dir(out, c), c.spec), strict=True)):
-            keyed.append((rep.index, ci, k, _in_study(c.id, job, command=job.command)))
+            keyed.append((rep.index, ci, k, _in_study(c.id, job)))
     return [j for *_, j in sorted(keyed, key=lambda t: t[:3])]
 
 
