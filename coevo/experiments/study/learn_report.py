@@ -25,13 +25,14 @@ from pathlib import Path
 from typing import Any
 
 from coevo.errors import RunDirError
-from coevo.experiments.common import below_report
+from coevo.experiments.common import below_report, plural
 from coevo.experiments.compare.stats import format_p, mean_interval
 from coevo.experiments.seeds.experiment import TARGETS
 from coevo.experiments.study import plots
 from coevo.experiments.study.declaration import LearnCell, StudySpec, learn_cells, level_text
 from coevo.experiments.study.experiment import cell_dir, learn_jobs
-from coevo.experiments.study.report import adjust, difference_unit, factor_test, format_mean, strict_json, verdict_lines
+from coevo.experiments.study.report import (adjust, difference_unit, factor_test, format_mean, report_head, strict_json,
+                                          verdict_lines)
 from coevo.rundir.layout import write_json, write_text
 
 __all__ = ["LEARN_MEASURES", "collect_learn_cell", "learn_cell_rows", "analyse_learning", "write_learn_report"]
@@ -171,25 +172,14 @@ def _markdown(spec: StudySpec, the_cells: list[LearnCell], rows: list[dict[str, 
     measures = LEARN_MEASURES[behaviour]
     titles = dict(measures)
     c0 = the_cells[0].spec
-    fixed = ", ".join(f"{k} {level_text(k, v)}" for k, v in spec.fixed.items() if k != "learn") or "none"
-    factors = "; ".join(f"{k}: {', '.join(level_text(k, v) for v in lv)}" for k, lv in spec.factors.items()) or "none"
-    lines = [f"# Study `{spec.name}`", ""]
-    if spec.description:
-        lines += [spec.description, ""]
     runs = sorted({c.spec.runs for c in the_cells})  # (runs may be a factor)
-    each = f"{runs[0]} run{'s' * (runs[0] != 1)}" if len(runs) == 1 else f"{runs[0]} to {runs[-1]} runs"
-    lines += [
-        f"A study of learning runs: {len(the_cells)} cell{'s' * (len(the_cells) != 1)}, each {each} of `coevo learn "
-        f"--behaviour {behaviour}`, one per seed. {finished} of {expected} runs finished"
-        + (f" (the last coevo study command on it took {elapsed / 60:.1f} min)" if elapsed else "") + f"; base seed {spec.seed}.", "",
-        f"Factors: {factors}. Fixed: {fixed}. GA: {c0.ga.generations} generations, population {c0.ga.population}, "
-        f"{c0.ga.episodes} episodes per evaluation; each final policy measured on {c0.measure_epochs} fresh epochs.", "",
-    ]
-    if caveat:
-        lines += [caveat, ""]
-    lines += ["## Verdict", "", verdict, "",
-              "## Cells", "",
-              "Each measure of the cell's runs' best policies (their measures.json): the mean with its 95 % bootstrap "
+    each = plural(runs[0], "run") if len(runs) == 1 else f"{runs[0]} to {runs[-1]} runs"
+    lines = report_head(spec, f"A study of learning runs: {plural(len(the_cells), 'cell')}, each "
+                              f"{each} of `coevo learn --behaviour {behaviour}`, one per seed. {finished} of {expected} "
+                              "runs finished", elapsed,
+                        f"GA: {c0.ga.generations} generations, population {c0.ga.population}, {c0.ga.episodes} episodes "
+                        f"per evaluation; each final policy measured on {c0.measure_epochs} fresh epochs.", caveat, verdict)
+    lines += ["Each measure of the cell's runs' best policies (their measures.json): the mean with its 95 % bootstrap "
               "interval, and the median.", "",
               "| cell | cell seed | runs | " + " | ".join(f"{t} mean [95 %] | median" for _, t in measures) + " |",
               "|---|---|---|" + "---|---|" * len(measures)]

@@ -280,26 +280,31 @@ def _figures(out: Path, spec: StudySpec, tests: list[dict[str, Any]], rows: list
     return files
 
 
-def _markdown(spec: StudySpec, the_cells: list[Cell], rows: list[dict[str, Any]], tests: list[dict[str, Any]],
-              verdict: str, caveat: str, figures: list[str], finished: int, expected: int,
-              elapsed: float | None) -> str:
-    c0 = the_cells[0].spec
-    fixed = ", ".join(f"{k} {level_text(k, v)}" for k, v in spec.fixed.items()) or "none"
+def report_head(spec: StudySpec, count: str, elapsed: float | None, settings: str, caveat: str,
+                verdict: str) -> list[str]:
+    """report.md's lines down to its "## Cells" heading, for either kind of study: the title and description,
+    ``count`` (what ran and finished) with the time taken and the base seed, the factors and the fixed levels
+    (``learn`` is what kind of study it is, said in ``count``) before ``settings``, the caveat and the verdict."""
+    fixed = ", ".join(f"{k} {level_text(k, v)}" for k, v in spec.fixed.items() if k != "learn") or "none"
     factors = "; ".join(f"{k}: {', '.join(level_text(k, v) for v in lv)}" for k, lv in spec.factors.items()) or "none"
     lines = [f"# Study `{spec.name}`", ""]
     if spec.description:
         lines += [spec.description, ""]
-    lines += [
-        f"{len(the_cells)} cells, {finished} of {expected} runs finished"
-        + (f" (the last coevo study command on it took {elapsed / 60:.1f} min)" if elapsed else "") + f"; base seed {spec.seed}.", "",
-        f"Factors: {factors}. Fixed: {fixed}. GA: {c0.ga.generations} generations, population {c0.ga.population}, "
-        f"{c0.ga.episodes} episodes per evaluation.", "",
-    ]
+    lines += [count + (f" (the last coevo study command on it took {elapsed / 60:.1f} min)" if elapsed else "")
+              + f"; base seed {spec.seed}.", "", f"Factors: {factors}. Fixed: {fixed}. {settings}", ""]
     if caveat:
         lines += [caveat, ""]
-    lines += ["## Verdict", "", verdict, "",
-              "## Cells", "",
-              "Shares are k/n with the 95 % Wilson interval; means with the 95 % bootstrap interval. Executive end: "
+    return lines + ["## Verdict", "", verdict, "", "## Cells", ""]
+
+
+def _markdown(spec: StudySpec, the_cells: list[Cell], rows: list[dict[str, Any]], tests: list[dict[str, Any]],
+              verdict: str, caveat: str, figures: list[str], finished: int, expected: int,
+              elapsed: float | None) -> str:
+    c0 = the_cells[0].spec
+    lines = report_head(spec, f"{len(the_cells)} cells, {finished} of {expected} runs finished", elapsed,
+                        f"GA: {c0.ga.generations} generations, population {c0.ga.population}, {c0.ga.episodes} "
+                        "episodes per evaluation.", caveat, verdict)
+    lines += ["Shares are k/n with the 95 % Wilson interval; means with the 95 % bootstrap interval. Executive end: "
               "the Executive's best fitness at the last generation (the report's learning curve's end); AEL: Average "
               "Epoch Length in episodes.", "",
               "| cell | group | cell seed | runs | Good Docking | No Docking | Executive end | AEL |",
