@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from coevo.errors import CoevoError
+from coevo.experiments.common import plural
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import parse_ruleset
 from coevo.rundir.settings import RunSettings
@@ -54,7 +55,7 @@ from coevo.tasks.fuel.recorder import Recorder
 from coevo.tasks.fuel.robot import controllers
 from coevo.tasks.fuel.runner import Outcome, run_lanes
 from coevo.tasks.fuel.settings import WorldConfig
-from coevo.tasks.fuel.world import DOCK_HEADING, BatchWorld
+from coevo.tasks.fuel.world import DOCK_HEADING, BatchWorld, signed_deg
 
 HAND = {"executive": "executive-dock-below-40.rules", "tracking": "tracking-handwritten.rules",
         "docking": "docking-handwritten.rules"}
@@ -183,7 +184,7 @@ def hit(world: BatchWorld, rec: Probe, k: int, s: int, lane: int) -> tuple[str, 
 def bearing_gap(x: float, y: float, tx: float, ty: float, dock: np.ndarray) -> float:
     """Degrees between the Target's and the dock's bearings as the robot at (x, y) sees them, 0-180."""
     a = np.degrees(np.arctan2(ty - y, tx - x) - np.arctan2(dock[1] - y, dock[0] - x))
-    return float(abs((a + 180.0) % 360.0 - 180.0))
+    return float(abs(signed_deg(a)))
 
 
 def play(cfg: WorldConfig, ex: RuleSet, tr: RuleSet, dk: RuleSet, epochs: int, seed: int, tally: Tally,
@@ -282,7 +283,7 @@ def _med(xs: list[float]) -> str:
 def report(lineup: str, t: Tally, runs: int) -> None:
     n_ep = t.epochs
     pay = np.mean(t.payoffs)
-    print(f"\n### {lineup.replace(',', ', ')} ({runs} runs, {n_ep} epochs)\n")
+    print(f"\n### {lineup.replace(',', ', ')} ({plural(runs, "run")}, {n_ep} epochs)\n")
     print(f"Executive payoff {pay:.3f} (median over runs {statistics.median(t.payoffs):.3f}), "
           f"loss {1 - pay:.3f}; AEL {np.mean(t.lengths):.2f}; episodes: Tracking {t.episodes['Tracking']}, "
           f"Docking {t.episodes['Docking']}.")
