@@ -283,7 +283,7 @@ def _med(xs: list[float]) -> str:
 def report(lineup: str, t: Tally, runs: int) -> None:
     n_ep = t.epochs
     pay = np.mean(t.payoffs)
-    print(f"\n### {lineup.replace(',', ', ')} ({plural(runs, "run")}, {n_ep} epochs)\n")
+    print(f"\n### {lineup.replace(',', ', ')} ({plural(runs, 'run')}, {n_ep} epochs)\n")
     print(f"Executive payoff {pay:.3f} (median over runs {statistics.median(t.payoffs):.3f}), "
           f"loss {1 - pay:.3f}; AEL {np.mean(t.lengths):.2f}; episodes: Tracking {t.episodes['Tracking']}, "
           f"Docking {t.episodes['Docking']}.")
