@@ -132,6 +132,29 @@ def test_a_run_saved_while_dockings_settings_were_ga_settings_reads_them_as_worl
     assert CompareSpec.model_validate(held) == spec  # as the dashboard reads it
 
 
+def test_a_comparison_saved_before_a_world_setting_existed_resumes_as_it_ran(tmp_path: Path) -> None:
+    """compare.json holds the settings of its day: a world setting added since is read at its value from before
+    (saved_before) or its default, so --resume takes the comparison back instead of calling it a different one
+    (it compared the raw dicts, so any world setting added after a comparison was saved refused its resume)."""
+    from coevo.experiments.compare.experiment import CompareSpec, prepare
+
+    spec = CompareSpec.make(runs=1)
+    held = json.loads(spec.model_dump_json())
+    assert "target_speed" not in WorldConfig.saved_before and "docking_target_sensors" in WorldConfig.saved_before
+    del held["world"]["target_speed"]  # a setting with no value from before: its default
+    out = tmp_path / "cmp"
+    (out / "runs").mkdir(parents=True)
+    (out / "compare.json").write_text(json.dumps({"spec": held, "created": 0.0}))
+    assert prepare(out, spec, resume=True)
+    assert CompareSpec.saved(held) == spec  # as the dashboard reads it
+
+    del held["world"]["docking_target_sensors"]  # saved before Round 7: it learned with the Target's sensors
+    (out / "compare.json").write_text(json.dumps({"spec": held, "created": 0.0}))
+    with pytest.raises(RunDirError, match="differs in: world"):
+        prepare(out, spec, resume=True)
+    assert prepare(out, CompareSpec.make(runs=1, world={"docking_target_sensors": True}), resume=True)
+
+
 def test_dockings_settings_given_as_ga_settings_are_still_read_as_world_settings() -> None:
     from coevo.tasks import split_settings
 

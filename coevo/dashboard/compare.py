@@ -74,7 +74,7 @@ class ComparisonFiles:
         if spec is None:
             marker = read_json(self.out / "compare.json", what="comparison (its compare.json)")
             try:
-                spec = CompareSpec.model_validate(marker["spec"])
+                spec = CompareSpec.saved(marker["spec"])
             except (KeyError, TypeError, ValidationError) as exc:
                 raise RunDirError(f"{self.out / 'compare.json'} is not a comparison's settings: "
                                   f"{str(exc).splitlines()[0]}") from None

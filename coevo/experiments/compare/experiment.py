@@ -40,7 +40,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig, build
 from coevo.errors import ConfigError, RunDirError
@@ -49,7 +49,7 @@ from coevo.replicates.replicate import Replicate as Job
 from coevo.replicates.runner import Progress, run_replicates
 from coevo.rundir.layout import LearnPaths, RunPaths, ensure_dir, write_json
 from coevo.rundir.settings import RunSettings
-from coevo.tasks import get_task, split_settings
+from coevo.tasks import get_task, saved_settings, split_settings
 from coevo.tasks.base import check_ga
 from coevo.tasks.fuel import FuelTask
 from coevo.tasks.fuel.behaviours import Behaviour
@@ -151,6 +151,13 @@ class CompareSpec(BaseModel):
     def make(cls, **values: Any) -> CompareSpec:
         return build(cls, values, what="comparison settings")
 
+    @classmethod
+    def saved(cls, data: Any) -> CompareSpec:
+        """A comparison's settings as its compare.json saved them, read as it ran: every setting added since filled
+        in with its value from before (:func:`coevo.tasks.saved_settings`), the rest with its default.  Raises
+        pydantic's ValidationError for what is not a comparison's settings."""
+        return cls.model_validate(saved_settings(data) if isinstance(data, dict) else data)
+
 
 @dataclass(frozen=True)
 class Replicate:
@@ -235,8 +242,8 @@ def prepare(out: Path, spec: CompareSpec, *, resume: bool) -> list[Replicate]:
         if not marker.exists():
             raise RunDirError(f"--out {str(out)!r} is not empty and holds no comparison (no compare.json); choose another --out")
         try:
-            held = _settings_now(json.loads(marker.read_text())["spec"])
-        except (OSError, json.JSONDecodeError, KeyError, TypeError, ConfigError) as exc:
+            held = _spec_json(CompareSpec.saved(json.loads(marker.read_text())["spec"]))
+        except (OSError, json.JSONDecodeError, KeyError, TypeError, ConfigError, ValidationError) as exc:
             raise RunDirError(f"{marker} cannot be read ({exc}); choose another --out") from exc
         mine = _spec_json(spec)
         if held != mine:
