@@ -1,6 +1,8 @@
 from __future__ import annotations
 
 import os
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,6 +25,22 @@ def small_ga() -> GAConfig:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(1234)
+
+
+# ---------------------------------------------------------------- bytecode, once
+def pytest_configure(config: pytest.Config) -> None:
+    """Under PYTHONDONTWRITEBYTECODE (set on this kind of machine), Python never caches coevo's compiled modules (an
+    editable install has none: pip compiles only what it copies), so each of the suite's hundreds of processes
+    compiled them all again: ~0.3 CPU-seconds a worker, broker or command, a third of a tiny run's start.  The
+    controller compiles them once, before the xdist workers start; a module edited later is compiled again on
+    import, as always (the cache records its source's time and size)."""
+    if sys.dont_write_bytecode and not hasattr(config, "workerinput"):
+        import compileall
+
+        import coevo
+
+        for where in (Path(coevo.__file__).parent, Path(__file__).parent):
+            compileall.compile_dir(where, quiet=1)
 
 
 # ---------------------------------------------------------------- the two test sets
@@ -80,3 +98,27 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object:
 
     config.option.loadscopereorder = False  # collection order, not the largest class first
     return OneAtATime(config, log)
+
+
+# ---------------------------------------------------------------- where the suite's CPU goes
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> object:
+    """With COEVO_TEST_CPU=FILE, each test's CPU-seconds (setup, call and teardown; this process and the processes
+    it started and reaped, which is all of them: a test waits for what it starts) and wall seconds are appended to
+    FILE as ``cpu wall nodeid``.  The suite is bound by CPU on 2 cores, so this, not --durations, says where its time
+    goes (docs/development.md)."""
+    path = os.environ.get("COEVO_TEST_CPU")
+    if not path:
+        yield
+        return
+    import resource
+    import time
+
+    def cpu() -> float:
+        return sum(u.ru_utime + u.ru_stime for u in (resource.getrusage(resource.RUSAGE_SELF),
+                                                     resource.getrusage(resource.RUSAGE_CHILDREN)))
+
+    c0, w0 = cpu(), time.monotonic()
+    yield
+    with open(path, "a", encoding="utf-8") as f:
+        f.write(f"{cpu() - c0:.2f} {time.monotonic() - w0:.2f} {item.nodeid}\n")
