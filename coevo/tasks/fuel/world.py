@@ -303,13 +303,14 @@ class BatchWorld:
         self,
         lanes: np.ndarray | list[int],
         *,
-        robot: tuple[float, float] | None = None,
-        heading: float | None = None,
-        target: tuple[float, float] | None = None,
-        target_heading: float | None = None,
-        fuel: float | None = None,
+        robot: tuple[float | np.ndarray, float | np.ndarray] | None = None,
+        heading: float | np.ndarray | None = None,
+        target: tuple[float | np.ndarray, float | np.ndarray] | None = None,
+        target_heading: float | np.ndarray | None = None,
+        fuel: float | np.ndarray | None = None,
     ) -> None:
-        """Put lanes into a given state (arena coordinates, degrees): for tests and tools."""
+        """Put lanes into a given state (arena coordinates, degrees): for tests and tools.  Each value is one for
+        all of ``lanes`` or an array of one per lane."""
         lanes = np.asarray(lanes, dtype=np.int64)
         if robot is not None:
             self.rx[lanes], self.ry[lanes] = robot
