@@ -254,7 +254,8 @@ def build(model: type[_M], values: dict[str, Any] | None = None, *, what: str = 
         parts = []
         for err in exc.errors():
             field = ".".join(str(p) for p in err["loc"]) or "(settings)"
-            value = data.get(str(err["loc"][0])) if err["loc"] else None
+            # a nested setting (world.arena) shows its own value, not the whole of its parent's
+            value = err.get("input") if len(err["loc"]) > 1 else data.get(str(err["loc"][0])) if err["loc"] else None
             shown = f"{field}={value!r}" if err["loc"] else field
             parts.append(f"{shown}: {err['msg']}")
         raise ConfigError(f"{what or model.__name__}: " + "; ".join(parts)) from exc

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -153,6 +154,13 @@ def test_a_comparison_saved_before_a_world_setting_existed_resumes_as_it_ran(tmp
     with pytest.raises(RunDirError, match="differs in: world"):
         prepare(out, spec, resume=True)
     assert prepare(out, CompareSpec.make(runs=1, world={"docking_target_sensors": True}), resume=True)
+
+    # what is not a comparison's settings is refused in one line naming the bad value itself
+    for spec_json, needle in (({**held, "world": {"arena": "big"}}, "world.arena='big'"), ([1, 2], "got list")):
+        (out / "compare.json").write_text(json.dumps({"spec": spec_json, "created": 0.0}))
+        with pytest.raises(RunDirError, match=re.escape(needle)) as said:
+            prepare(out, spec, resume=True)
+        assert "\n" not in str(said.value)
 
 
 def test_dockings_settings_given_as_ga_settings_are_still_read_as_world_settings() -> None:

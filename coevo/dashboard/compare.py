@@ -26,7 +26,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from coevo.errors import RunDirError
+from coevo.errors import ConfigError, RunDirError
 from coevo.dashboard.model import mtime
 
 if TYPE_CHECKING:
@@ -64,8 +64,6 @@ class ComparisonFiles:
         """``spec``: the comparison's settings when they are known already (a study's cell: from its declaration,
         so a cell whose compare.json is not written yet is shown too), else read from ``out/compare.json``;
         ``log_of``: where a replicate's log is, by its run id (default ``out/logs/RUN.log``)."""
-        from pydantic import ValidationError
-
         from coevo.experiments.compare.experiment import CompareSpec, replicates
         from coevo.rundir.layout import read_json
 
@@ -75,7 +73,7 @@ class ComparisonFiles:
             marker = read_json(self.out / "compare.json", what="comparison (its compare.json)")
             try:
                 spec = CompareSpec.saved(marker["spec"])
-            except (KeyError, TypeError, ValidationError) as exc:
+            except (KeyError, TypeError, ConfigError) as exc:
                 raise RunDirError(f"{self.out / 'compare.json'} is not a comparison's settings: "
                                   f"{str(exc).splitlines()[0]}") from None
         self.spec = spec

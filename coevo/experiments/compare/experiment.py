@@ -40,7 +40,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig, build
 from coevo.errors import ConfigError, RunDirError
@@ -155,8 +155,10 @@ class CompareSpec(BaseModel):
     def saved(cls, data: Any) -> CompareSpec:
         """A comparison's settings as its compare.json saved them, read as it ran: every setting added since filled
         in with its value from before (:func:`coevo.tasks.saved_settings`), the rest with its default.  Raises
-        pydantic's ValidationError for what is not a comparison's settings."""
-        return cls.model_validate(saved_settings(data) if isinstance(data, dict) else data)
+        ConfigError, in one line naming the bad value, for what is not a comparison's settings."""
+        if not isinstance(data, dict):
+            raise ConfigError(f"saved comparison settings: a JSON object expected, got {type(data).__name__}")
+        return build(cls, saved_settings(data), what="saved comparison settings")
 
 
 @dataclass(frozen=True)
@@ -243,7 +245,7 @@ def prepare(out: Path, spec: CompareSpec, *, resume: bool) -> list[Replicate]:
             raise RunDirError(f"--out {str(out)!r} is not empty and holds no comparison (no compare.json); choose another --out")
         try:
             held = _spec_json(CompareSpec.saved(json.loads(marker.read_text())["spec"]))
-        except (OSError, json.JSONDecodeError, KeyError, TypeError, ConfigError, ValidationError) as exc:
+        except (OSError, json.JSONDecodeError, KeyError, TypeError, ConfigError) as exc:
             raise RunDirError(f"{marker} cannot be read ({exc}); choose another --out") from exc
         mine = _spec_json(spec)
         if held != mine:
