@@ -31,9 +31,9 @@ def rng() -> np.random.Generator:
 def pytest_configure(config: pytest.Config) -> None:
     """Under PYTHONDONTWRITEBYTECODE (set on this kind of machine), Python never caches coevo's compiled modules (an
     editable install has none: pip compiles only what it copies), so each of the suite's hundreds of processes
-    compiled them all again: ~0.3 CPU-seconds a worker, broker or command, a third of a tiny run's start.  The
-    controller compiles them once, before the xdist workers start; a module edited later is compiled again on
-    import, as always (the cache records its source's time and size)."""
+    compiled the modules it imports again: a tiny five-process run cost 3.9 CPU-seconds, 3.5 with them compiled
+    (docs/development.md).  The controller compiles them once, before the xdist workers start; a module edited later
+    is compiled again on import, as always (the cache records its source's time and size)."""
     if sys.dont_write_bytecode and not hasattr(config, "workerinput"):
         import compileall
 
