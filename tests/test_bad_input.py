@@ -18,10 +18,12 @@ from __future__ import annotations
 import argparse
 import contextlib
 import faulthandler
+import importlib
 import io
 import itertools
 import re
 import signal
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -76,8 +78,20 @@ def places(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> dict[str, Path]:
     for mod, name in (("coevo.runs.local", "run_local"), ("coevo.runs.chaos", "run_chaos"),
                       ("coevo.experiments.compare.experiment", "run_all"), ("coevo.experiments.earl.experiment", "run_grid"),
                       ("coevo.experiments.earl.td.runs", "run_task"), ("coevo.replicates.runner", "run_replicates")):
-        monkeypatch.setattr(f"{mod}.{name}", _reached(name))
+        _stand_in(monkeypatch, mod, name)
     return p
+
+
+def _stand_in(monkeypatch: pytest.MonkeyPatch, mod: str, name: str) -> None:
+    """``mod.name`` replaced by :func:`_reached`'s stand-in, and so is every copy a loaded coevo module took with
+    ``from mod import name``: another test module's imports (test_study's, test_evolvability's) load
+    ``coevo.experiments.study.experiment`` before this fixture runs, and that module's own ``run_replicates`` then
+    ran real studies in the sweep until the CPU alarm stopped them (26 CPU-s instead of 1)."""
+    real = getattr(importlib.import_module(mod), name)
+    stand_in = _reached(name)
+    for module in [m for n, m in sys.modules.items() if n == "coevo" or n.startswith("coevo.")]:
+        if getattr(module, name, None) is real:
+            monkeypatch.setattr(module, name, stand_in)
 
 
 def _reached(name: str):
