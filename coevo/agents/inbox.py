@@ -59,7 +59,7 @@ class Inbox:
         self.refetch = True  # ask the store for the partners' latest before the next generation
         self._fetched: list[tuple[str, bytes]] = []  # partner policies fetched from the store
         self._partner_key = keys.current if models.kind == "current" else keys.policy
-        self._subs: list[Any] = []
+        self._subs: list[Ring] = []
         self._control: Ring | None = None
 
     def __enter__(self) -> Inbox:

@@ -22,13 +22,13 @@ import threading
 import time
 from pathlib import Path
 from collections.abc import Callable
-from typing import IO, Any
+from typing import IO
 
 import msgpack
 
 from coevo.bus import keys
 from coevo.bus.messages import BrokerStatus, PolicyUpdate
-from coevo.bus.session import Publisher, Sample, Session, is_put, query
+from coevo.bus.session import CallbackSubscriber, Publisher, Sample, Session, is_put, query
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import MessageError
 from coevo.rundir.layout import append_durably, read_store
@@ -48,7 +48,7 @@ class BrokerWatch:
         self.back = threading.Event()  # the broker (re)appeared: ask its store what it holds
         self.refused = threading.Event()  # the broker stores nothing of this open run (it holds no key for it)
         self._run = run if gate.open else None  # a keyed run's broker holds its key: coevo keygen put it there
-        self._subs: list[Any] = []
+        self._subs: list[CallbackSubscriber] = []
 
     def __enter__(self) -> BrokerWatch:
         self._subs.append(self._session.liveliness().declare_subscriber(keys.BROKER, self._on_token, history=True))

@@ -29,6 +29,7 @@ from __future__ import annotations
 import json
 import logging
 import time
+from contextlib import AbstractContextManager
 from functools import partial
 from pathlib import Path
 from typing import IO, Any
@@ -221,7 +222,7 @@ class Worker:
     def pacer(self, session: Session) -> Pacer:
         return Pacer(session, self.run_id, self.models.needed, max_lead=self.max_lead)
 
-    def services(self, session: Session, broker: BrokerWatch) -> list[Any]:
+    def services(self, session: Session, broker: BrokerWatch) -> list[AbstractContextManager[object]]:
         """More context managers the generation loop runs inside (a subclass's subscriptions)."""
         return []
 

@@ -35,7 +35,7 @@ from coevo.bus.messages import Message, PolicyUpdate
 from coevo.bus.trust import OPEN, Gate
 from coevo.errors import ConfigError, MessageError, ServiceError
 
-__all__ = ["Session", "Sample", "Query", "Config", "Publisher", "LivelinessToken", "SessionGone", "fetch_latest", "DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
+__all__ = ["Session", "Sample", "Query", "Config", "Publisher", "LivelinessToken", "CallbackSubscriber", "ChannelSubscriber", "SessionGone", "fetch_latest", "DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
            "drain", "drain_messages", "is_put", "make_config", "open_session", "put_control", "query", "ring_subscriber", "sigterm_as_exit",
            "GatedSession", "Ring", "query_messages"]
 
@@ -145,7 +145,7 @@ class Security:
             conf.insert_json5(key, json.dumps(value))
 
 
-def _endpoints(section: Any, mode: str) -> list[str]:
+def _endpoints(section: dict[str, Any] | None, mode: str) -> list[str]:
     """A config's ``listen``/``connect`` endpoints for ``mode``: a list, or a per-mode dict of lists."""
     eps = (section or {}).get("endpoints") or []
     if isinstance(eps, dict):
@@ -269,6 +269,9 @@ Query = zenoh.Query
 Config = zenoh.Config
 Publisher = zenoh.Publisher
 LivelinessToken = zenoh.LivelinessToken
+#: A subscriber whose samples go to a callback (its handler is None), and one whose samples wait in a channel.
+CallbackSubscriber = zenoh.Subscriber[None]
+ChannelSubscriber = zenoh.Subscriber[zenoh.handlers.Handler[zenoh.Sample]]
 
 
 class GatedSession:
@@ -357,13 +360,13 @@ class Ring:
     """A ring subscriber, the gate its messages pass (the session's) and its own memory of what it took
     (:class:`~coevo.bus.freshness.Seen`: a replay is refused per receiver)."""
 
-    def __init__(self, subscriber: Any, gate: Gate) -> None:
+    def __init__(self, subscriber: ChannelSubscriber, gate: Gate) -> None:
         from coevo.bus.freshness import Seen
 
         self.subscriber, self.gate = subscriber, gate
         self.seen = Seen()
 
-    def try_recv(self) -> Any:
+    def try_recv(self) -> Sample | None:
         return self.subscriber.try_recv()
 
     def undeclare(self) -> None:
@@ -380,7 +383,7 @@ def ring_subscriber(session: Session, key: str, capacity: int) -> Ring:
     return Ring(session.declare_subscriber(key, zenoh.handlers.RingChannel(capacity)), getattr(session, "gate", OPEN))
 
 
-def drain(subscriber: Any, limit: int) -> list[tuple[str, bytes]]:
+def drain(subscriber: Ring, limit: int) -> list[tuple[str, bytes]]:
     """Up to ``limit`` waiting samples of a ring subscriber as (key, payload), oldest first; never blocks."""
     out: list[tuple[str, bytes]] = []
     while len(out) < limit:
@@ -391,7 +394,7 @@ def drain(subscriber: Any, limit: int) -> list[tuple[str, bytes]]:
     return out
 
 
-def drain_messages(subscriber: Any, limit: int,
+def drain_messages(subscriber: Ring, limit: int,
                    reject: Callable[[MessageError, str], None] | None = None) -> list[tuple[str, Message]]:
     """Like :func:`drain`, decoded through the ring's gate (key, roster, versions); bad ones go to ``reject``,
     else to the gate's own ``reject`` (or are skipped)."""

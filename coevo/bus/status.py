@@ -30,16 +30,23 @@ import logging
 import sys
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from coevo.bus import keys
 from coevo.bus.messages import BrokerStatus, ExecutionStatus, Status
 from coevo.bus.session import drain_messages, is_put, ring_subscriber, Sample, Session, SessionGone
 from coevo.errors import MessageError
 
-__all__ = ["DEFAULT_STALL", "WorkerView", "RobotView", "StatusBoard", "status_table", "PlainStatus", "StatusDisplay", "follow"]
+if TYPE_CHECKING:  # rich is imported where a table is drawn, not by every process that reads a board
+    from rich.console import Console, ConsoleOptions, RenderableType, RenderResult
+    from rich.live import Live
+
+    from coevo.bus.session import Config
+    from coevo.bus.trust import Gate
+
+__all__ = ["DEFAULT_STALL", "WorkerView", "RobotView", "StatusBoard", "status_table", "PlainStatus", "StatusDisplay", "StatusTable", "PlainLines", "follow"]
 
 log = logging.getLogger(__name__)
 
@@ -366,7 +373,7 @@ class _StatusView:
                      for row in rows]
         self.styles = [_STATE_STYLE.get(row[7].split(",")[0]) for row in rows]  # 'alive, restarted 2x': alive's
 
-    def __rich_console__(self, console: Any, options: Any) -> Any:
+    def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
         from rich import box
         from rich.table import Table
 
@@ -384,7 +391,7 @@ class _StatusView:
         yield t
 
 
-def status_table(board: StatusBoard, title: str) -> Any:
+def status_table(board: StatusBoard, title: str) -> RenderableType:
     """The live status as a rich renderable that fits the console, down to 80 columns: a row per worker and the broker.
 
     Short headers, no vertical rules, and cells that wrap only between words: no column
@@ -392,6 +399,16 @@ def status_table(board: StatusBoard, title: str) -> Any:
     ``wrong_behaviour``), the widest ones give way first.
     """
     return _StatusView(_status_rows(board), title)
+
+
+#: What draws the live table of a board: ``table(board, title)``, a rich renderable.
+StatusTable = Callable[["StatusBoard", str], "RenderableType"]
+
+
+class PlainLines(Protocol):
+    """What writes a board as plain lines for a log or a pipe: those that changed since the last call."""
+
+    def lines(self, board: StatusBoard) -> list[str]: ...
 
 
 class PlainStatus:
@@ -426,14 +443,14 @@ class StatusDisplay:
     """Shows a board on the terminal as it changes: a live table on a terminal, plain lines in a log
     or a pipe (no box drawing, no redraws), JSON lines with ``json``, nothing with ``quiet``."""
 
-    def __init__(self, title: str, *, json_lines: bool = False, quiet: bool = False, table: Any = None,
-                 plain: Any = None) -> None:
+    def __init__(self, title: str, *, json_lines: bool = False, quiet: bool = False, table: StatusTable | None = None,
+                 plain: PlainLines | None = None) -> None:
         """``table(board, title)`` and ``plain.lines(board)`` draw it (default: :func:`status_table`, :class:`PlainStatus`)."""
         self.title, self.json_lines, self.quiet = title, json_lines, quiet
         self.live = not (json_lines or quiet) and sys.stdout.isatty()
-        self._table = table or status_table
-        self._plain = plain or PlainStatus()
-        self._rich: Any = None
+        self._table: StatusTable = table or status_table
+        self._plain: PlainLines = plain or PlainStatus()
+        self._rich: Live | None = None
 
     def __enter__(self) -> StatusDisplay:
         if self.live:
@@ -460,8 +477,8 @@ class StatusDisplay:
             self._rich = None
 
 
-def follow(conf: Any, run: str, show: Any, *, every: float, stall: float = DEFAULT_STALL,
-           duration: float | None = None, gate: Any = None, until: Any = None) -> None:
+def follow(conf: Config, run: str, show: Callable[[StatusBoard], None], *, every: float, stall: float = DEFAULT_STALL,
+           duration: float | None = None, gate: Gate | None = None, until: Callable[[], object] | None = None) -> None:
     """``coevo status``: follow ``run``'s workers, calling ``show(board)`` when something changed (or every
     ``every`` s), for ``duration`` s, until ``until()`` is true (checked every ``every`` s) or until SIGINT/SIGTERM."""
     from coevo.bus.session import open_session, sigterm_as_exit

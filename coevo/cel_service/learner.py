@@ -35,6 +35,7 @@ import json
 import logging
 import math
 import time
+from contextlib import AbstractContextManager
 from typing import IO, Any
 
 from coevo.agents.inbox import Inbox
@@ -179,7 +180,7 @@ class CelLearner(Worker):
                           max_lead=self.max_lead, patience=self.cel.patience,
                           grace=self.cel.patience if self._m.generation_no else math.inf)  # a fresh learner: start order free
 
-    def services(self, session: Session, broker: BrokerWatch) -> list[Any]:
+    def services(self, session: Session, broker: BrokerWatch) -> list[AbstractContextManager[object]]:
         self._session, self._broker = session, broker
         self._caps = _Capabilities(session, self.run_id, self._reject)
         self._case_log = open(self.paths.cases, "a", encoding="utf-8")

@@ -9,14 +9,19 @@ log or a pipe, one line whenever something in it changed.
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import TYPE_CHECKING
 
 from coevo.tasks.door import DOOR
+
+if TYPE_CHECKING:
+    from rich.console import Console, ConsoleOptions, RenderResult
+
+    from coevo.bus.status import StatusBoard, StatusTable
 
 __all__ = ["cel_facts", "cel_table", "CelPlain"]
 
 
-def cel_facts(board: Any, trials_per_generation: int) -> list[tuple[str, str]]:
+def cel_facts(board: StatusBoard, trials_per_generation: int) -> list[tuple[str, str]]:
     """(what, value) rows of the run's state."""
     learner = next((w for w in board.snapshot() if w["behaviour"] == DOOR), None)
     robot = next(iter(board.robots_view()), None)
@@ -47,7 +52,7 @@ class _View:
     def __init__(self, rows: list[tuple[str, str]], title: str) -> None:
         self.rows, self.title = rows, title
 
-    def __rich_console__(self, console: Any, options: Any) -> Any:
+    def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
         from rich import box
         from rich.table import Table
 
@@ -60,7 +65,7 @@ class _View:
         yield t
 
 
-def cel_table(trials_per_generation: int) -> Any:
+def cel_table(trials_per_generation: int) -> StatusTable:
     """A ``table(board, title)`` for :class:`~coevo.bus.status.StatusDisplay`."""
     return lambda board, title: _View(cel_facts(board, trials_per_generation), title)
 
@@ -72,7 +77,7 @@ class CelPlain:
         self.K = trials_per_generation
         self._last = ""
 
-    def lines(self, board: Any) -> list[str]:
+    def lines(self, board: StatusBoard) -> list[str]:
         text = "; ".join(f"{what} {value}" for what, value in cel_facts(board, self.K))
         if text == self._last:
             return []
