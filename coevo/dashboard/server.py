@@ -19,13 +19,20 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sized
 from typing import TYPE_CHECKING, Any
 
 from coevo.dashboard import render
 from coevo.dashboard.model import Dashboard, View, follow
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # bokeh is imported when a page is made, not when the module is
+    from bokeh.document import Document
+    from bokeh.models import ColumnDataSource, LayoutDOM
+    from bokeh.models.annotations import LegendItem
+    from bokeh.models.renderers import GlyphRenderer
+    from bokeh.plotting import figure
+    from bokeh.server.views.static_handler import StaticHandler
+    from tornado.httputil import HTTPServerRequest
     from tornado.ioloop import IOLoop
 
 __all__ = ["make_document", "serve"]
@@ -38,12 +45,12 @@ REDRAW = 300  # ms between a page's checks of the model's version
 class _Page:
     """One browser page: its Bokeh models, updated from the dashboard's view."""
 
-    def __init__(self, doc: Any, dash: Dashboard, problems: list[str]) -> None:
+    def __init__(self, doc: Document, dash: Dashboard, problems: list[str]) -> None:
         from bokeh.layouts import column, row
         from bokeh.models.widgets import Div  # (where the typed stubs see it; bokeh.models re-exports it)
 
         self.doc, self.dash, self.problems = doc, dash, problems
-        self.version: Any = -1
+        self.version: tuple[int, tuple[str, ...]] | None = None  # the view and problems drawn last
         self.title = Div(text="", name="title", sizing_mode="stretch_width")
         self.banner = Div(text="", name="problems", sizing_mode="stretch_width")
         self.runs = Div(text="", name="runs", sizing_mode="stretch_width")
@@ -53,8 +60,8 @@ class _Page:
         self.fitness_row = row(sizing_mode="stretch_width")
         self.measures_row = row(sizing_mode="stretch_width")
         self.external_row = row(sizing_mode="stretch_width")
-        self.plots: dict[tuple[str, str], Any] = {}  # (behaviour, what) -> ColumnDataSource
-        self.figures: dict[tuple[str, str], Any] = {}
+        self.plots: dict[tuple[str, str], ColumnDataSource] = {}  # (behaviour, what) -> its lines
+        self.figures: dict[tuple[str, str], figure] = {}
         doc.title = dash.title
         self.regimes: _Regimes | None = None
         self.study: _Study | None = None
@@ -83,7 +90,7 @@ class _Page:
         doc.add_root(layout)  # over all of its models (seconds for a comparison's hundred), one here costs nothing
         doc.add_periodic_callback(self.update, REDRAW)
 
-    def _figure(self, name: str, title: str, y_label: str) -> tuple[Any, Any]:
+    def _figure(self, name: str, title: str, y_label: str) -> tuple[figure, ColumnDataSource]:
         from bokeh.models import ColumnDataSource, HoverTool
 
         src = ColumnDataSource({"xs": [], "ys": [], "run": [], "line": [], "color": [], "dash": [], "width": []},
@@ -94,10 +101,14 @@ class _Page:
                                           ("value", "$snap_y{0.000}")], line_policy="nearest"))
         return fig, src
 
-    def _source(self, behaviour: str, what: str, title: str = "") -> Any:
+    def _source(self, behaviour: str, what: str, title: str = "") -> ColumnDataSource:
         key = (behaviour, what)
         if key in self.plots and title:
-            self.figures[key].title.text = title
+            from bokeh.models.annotations import Title
+
+            shown = self.figures[key].title
+            if isinstance(shown, Title):  # (always: _plain_figure gives it one)
+                shown.text = title
         if key not in self.plots:
             if what == "fitness":
                 fig, src = self._figure(f"curve-{behaviour}", f"{behaviour}: best fitness (thick: the published best)",
@@ -123,7 +134,7 @@ class _Page:
         with self.doc.models.freeze():  # the document's models walked once, after every change
             self._draw(view)
 
-    def _draw(self, view: Any) -> None:
+    def _draw(self, view: View) -> None:
         if self.study is not None:
             self.title.text = render.study_title_html(view)
             self.banner.text = render.problems_html(view, self.problems)
@@ -156,7 +167,7 @@ class _Page:
             self._source("", "external").data = ext
 
 
-def _plain_figure(name: str, title: str, y_label: str, *, height: int) -> Any:
+def _plain_figure(name: str, title: str, y_label: str, *, height: int) -> figure:
     """A figure of something per generation: whole-number generation ticks, and the page's tools."""
     from bokeh.models import BasicTicker
     from bokeh.plotting import figure
@@ -167,7 +178,7 @@ def _plain_figure(name: str, title: str, y_label: str, *, height: int) -> Any:
     return fig
 
 
-def _folded(label: str, body: Any) -> list[Any]:
+def _folded(label: str, body: LayoutDOM) -> list[LayoutDOM]:
     """``body`` behind a button that shows and hides it, folded at first.  A button, not an HTML ``<details>``: the
     tables are redrawn as the runs go on, and a ``<details>`` inside them would fold again at every redraw; the
     button's state is the page's own."""
@@ -206,13 +217,13 @@ class _Regimes:
                   sizing_mode="stretch_width")
         self.controls = row(self.picker, key, sizing_mode="stretch_width")
         self.panels = list(PANELS)
-        self.figures: list[Any] = []
-        self.sources: dict[tuple[int, str], tuple[Any, Any]] = {}  # (panel, group) -> (band source, lines source)
-        self.renderers: dict[str, list[Any]] = {}  # group -> its renderers in every panel
-        self.items: list[tuple[int, str, Any]] = []  # (panel, group, its legend entry)
+        self.figures: list[figure] = []
+        self.sources: dict[tuple[int, str], tuple[ColumnDataSource, ColumnDataSource]] = {}  # (panel, group) -> (band, lines)
+        self.renderers: dict[str, list[GlyphRenderer[Any]]] = {}  # group -> its renderers in every panel
+        self.items: list[tuple[int, str, LegendItem]] = []  # (panel, group, its legend entry)
         self.labels: dict[tuple[int, str], str] = {}  # ... and its text now
         self.groups: list[str] = []
-        self.view: Any = None
+        self.view: View | None = None
         figs = [_plain_figure(f"panel-{beh}-{col}", title, ylabel, height=270)
                 for title, beh, col, ylabel, _ in self.panels]
         self.figures = figs
@@ -233,7 +244,7 @@ class _Regimes:
         from bokeh.models import ColumnDataSource, CustomJS, HoverTool
         from bokeh.models.annotations import Legend, LegendItem
 
-        mine = []
+        mine: list[GlyphRenderer[Any]] = []
         for i, fig in enumerate(self.figures):
             band = ColumnDataSource({k: [] for k in ("generation", "mean", "low", "high", "n", "regime")},
                                     name=f"band-{i}-{group}")
@@ -256,8 +267,10 @@ class _Regimes:
                                       # as the Property itself (Padding, not PaddingType): an int is refused there,
                                       # though it is what the property takes
                                       margin=0, spacing=12, glyph_width=16, border_line_alpha=0), "above")
-            item = LegendItem(label=value(group), renderers=[mean, area, runs])
-            fig.legend[0].items.append(item)
+            item = LegendItem(label=value(group), renderers=[mean, area, runs])  # type: ignore[list-item]  # the stub's
+            # GlyphRenderer[Glyph] is invariant in its glyph: a line's renderer is refused where any glyph's is taken
+            fig.legend[0].items.append(item)  # type: ignore[arg-type]  # bokeh 3.9's stub types the items as the
+            # (label, renderers) pairs the property also takes, not the LegendItem it holds
             self.items.append((i, group, item))
             self.sources[(i, group)] = (band, lines)
             mine += [area, mean, runs]
@@ -268,7 +281,7 @@ class _Regimes:
             r.js_on_change("visible", sync)
         self.renderers[group] = mine
 
-    def update(self, view: Any, *, table1: str | None = None, verdict: str | None = None) -> None:
+    def update(self, view: View, *, table1: str | None = None, verdict: str | None = None) -> None:
         """Draw the view's comparison; ``table1`` and ``verdict``: the headline's two boxes, when not the
         comparison's own (a study's cell: its Table 1 with intervals, and how to have its own report)."""
         c = view.comparison
@@ -306,9 +319,9 @@ class _Regimes:
     def _redraw(self) -> None:
         from bokeh.core.properties import value
 
-        if self.view is None:
+        c = self.view.comparison if self.view is not None else None
+        if not c:
             return
-        c = self.view.comparison
         picked = set(self.picker.value)
         for i, panel in enumerate(c["panels"]):
             for g in self.groups:
@@ -363,7 +376,7 @@ class _Study:
         dash.want(self.cell)
 
     @staticmethod
-    def _options(view: View) -> list[str | tuple[Any, str]]:
+    def _options(view: View) -> list[str | tuple[str, str]]:
         return [(c["id"], f"{c['id']}: {c['state']}, {c['runs_done']}/{c['runs_total']} runs")
                 for c in (view.study or {}).get("cells", [])]
 
@@ -401,10 +414,11 @@ class _Study:
             self.update(self.dash.current()[1])
 
 
-def make_document(dash: Dashboard, problems: list[str], built: Any = None) -> Any:
+def make_document(dash: Dashboard, problems: list[str],
+                  built: Callable[[], None] | None = None) -> Callable[[Document], None]:
     """The Bokeh application handler: a page per browser session over the shared ``dash``; ``built()`` after each."""
 
-    def make(doc: Any) -> None:
+    def make(doc: Document) -> None:
         _Page(doc, dash, problems)
         if built is not None:
             built()
@@ -429,11 +443,11 @@ class _Admission:
     new pages and a bound on open ones.  The bucket does not fill while a page is built (:meth:`built`), so on a
     machine so busy that a page takes seconds, pages still take at most a share of the time."""
 
-    def __init__(self, sessions: Any) -> None:
+    def __init__(self, sessions: Callable[[], Sized]) -> None:
         self.sessions = sessions  # () -> the open sessions
         self.tokens, self.at = float(PAGE_BURST), time.monotonic()
 
-    def __call__(self, request: Any) -> dict[str, Any]:
+    def __call__(self, request: HTTPServerRequest) -> dict[str, Any]:
         from tornado.web import HTTPError
 
         now = time.monotonic()
@@ -449,7 +463,7 @@ class _Admission:
         self.at = max(self.at, time.monotonic())
 
 
-def _static_handler() -> Any:
+def _static_handler() -> type[StaticHandler]:
     """Bokeh's handler of its own files (BokehJS), answering a path the file system cannot hold (``/static/%00``)
     with 400 instead of a traceback and 500."""
     from bokeh.server.views.static_handler import StaticHandler
@@ -464,7 +478,8 @@ def _static_handler() -> Any:
     return Static
 
 
-def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5, on_ready: Any = None) -> None:
+def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5,
+          on_ready: Callable[[str], None] | None = None) -> None:
     """Serve ``dash`` on http://host:port/ until SIGINT/SIGTERM, refreshing it every ``every`` s on its own thread.
 
     Every session id is made and signed here with a key of this process (``sign_sessions``): a page cannot choose
