@@ -28,9 +28,18 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from contextlib import ExitStack
+from typing import TYPE_CHECKING, Any
 
 from coevo.errors import RunDirError
+
+if TYPE_CHECKING:
+    from coevo.bus.session import CallbackSubscriber, Sample, Session
+    from coevo.bus.status import StatusBoard
+    from coevo.dashboard.compare import ComparisonFiles
+    from coevo.dashboard.robot import RobotPanel, RobotPicture
+    from coevo.dashboard.study import StudyFiles
+    from coevo.runs.discover import FoundRun
 
 __all__ = ["Curve", "RunView", "View", "Tail", "RunFiles", "BusSource", "LocalRuns", "Dashboard", "classify_dir", "is_run", "STALE", "mtime"]
 
@@ -97,7 +106,7 @@ class View:
     comparison: dict[str, Any] | None = None
     study: dict[str, Any] | None = None  # coevo.dashboard.study.StudyFiles.read()'s dict
     problems: list[str] = field(default_factory=list)
-    robot: Any = None  # coevo.dashboard.robot.RobotPicture of the run whose robot is drawn, if one is
+    robot: RobotPicture | None = None  # of the run whose robot is drawn, if one is
     robot_note: str = ""  # else why none is, and how to have one (empty: none asked for, --no-robot)
 
     def fingerprint(self) -> str:
@@ -364,18 +373,18 @@ class BusSource:
     made on the polling thread, never inside a Zenoh callback.
     """
 
-    def __init__(self, session: Any, *, run: str | None = None, stall: float = 3.0) -> None:
+    def __init__(self, session: Session, *, run: str | None = None, stall: float = 3.0) -> None:
         from coevo.bus import keys
         from coevo.bus.status import StatusBoard
 
         self._board_type = StatusBoard
         self.session, self.stall, self.only = session, stall, run
-        self.boards: dict[str, Any] = {}
+        self.boards: dict[str, StatusBoard] = {}
         self.curves: dict[str, dict[str, tuple[str, Curve]]] = {}
         self.external: dict[str, Curve] = {}
         self._found: set[str] = set()
         self._lock = threading.Lock()
-        self._decls: list[Any] = []
+        self._decls: list[CallbackSubscriber] = []
         self.started = time.time()
         self.waiting = "no run seen on the bus yet (no worker token): is a run connected to this broker?"
         if run is not None:
@@ -385,7 +394,7 @@ class BusSource:
             for key in (f"{keys.ROOT}/*/alive/*/*", f"{keys.ROOT}/*/robot_alive/*"):
                 self._decls.append(live.declare_subscriber(key, self._on_token, history=True))
 
-    def _on_token(self, sample: Any) -> None:
+    def _on_token(self, sample: Sample) -> None:
         from coevo.bus import keys
 
         run = keys.parse(str(sample.key_expr)).get("run", "")
@@ -401,7 +410,7 @@ class BusSource:
             self.curves[run] = {}
         return [self._view(run, board) for run, board in sorted(self.boards.items())]
 
-    def _view(self, run: str, board: Any) -> RunView:
+    def _view(self, run: str, board: StatusBoard) -> RunView:
         workers = board.snapshot()
         robots = board.robots_view()
         broker = board.broker_view()
@@ -451,7 +460,7 @@ class LocalRuns:
         self.started = time.time()
         self.waiting = f"no run under {self.root} yet (no RUN/run.json): start one with coevo run --root {self.root}"
         self._next = 0.0
-        self._followed: dict[str, tuple[Any, BusSource]] = {}  # run -> (its session's exit, its source)
+        self._followed: dict[str, tuple[ExitStack, BusSource]] = {}  # run -> (its session's exit, its source)
 
     def poll(self) -> list[RunView]:
         if time.monotonic() >= self._next:
@@ -469,9 +478,7 @@ class LocalRuns:
             if f.state == LIVE and f.run not in self._followed:
                 self._follow(f)
 
-    def _follow(self, found: Any) -> None:
-        from contextlib import ExitStack
-
+    def _follow(self, found: FoundRun) -> None:
         from coevo.bus.session import open_session
         from coevo.errors import CoevoError
         from coevo.runs.discover import follow_settings
@@ -520,7 +527,8 @@ class Dashboard:
     a directory of runs), merged; :meth:`refresh` reads what is new and moves :attr:`version` when the page changes."""
 
     def __init__(self, *, bus: BusSource | LocalRuns | None = None, runs_dir: Path | None = None, target: Path | None = None,
-                 stale: float = STALE, title: str = "coevo dashboard", robot: Any = None, robot_note: str = "") -> None:
+                 stale: float = STALE, title: str = "coevo dashboard", robot: RobotPanel | None = None,
+                 robot_note: str = "") -> None:
         """``robot``: a :class:`~coevo.dashboard.robot.RobotPanel` drawing one run's robot, or None and
         ``robot_note`` saying why (on the page, where the robot would be)."""
         self.bus, self.stale, self.title, self.robot, self.robot_note = bus, stale, title, robot, robot_note
@@ -528,8 +536,8 @@ class Dashboard:
         self.target = Path(target) if target else None
         self.kind = classify_dir(self.target) if self.target else None
         self._files: dict[Path, RunFiles] = {}
-        self._comparison: Any = None
-        self._study: Any = None
+        self._comparison: ComparisonFiles | None = None
+        self._study: StudyFiles | None = None
         if self.kind == "study" and self.target is not None:
             from coevo.dashboard.study import StudyFiles
 
