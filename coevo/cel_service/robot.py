@@ -41,7 +41,7 @@ import statistics
 import threading
 import time
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
 from coevo import __version__
 from coevo.agents.checkpoint import cut_logs, load_checkpoint, prepare_dir, save_checkpoint
@@ -64,6 +64,12 @@ from coevo.rundir.settings import RunSettings
 from coevo.tasks.door import DOOR, default_ruleset
 from coevo.tasks.door.settings import SONARS, DoorConfig
 from coevo.tasks.door.world import COLLISION, GOAL, TIMEOUT
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from coevo.bus.messages import Message
+    from coevo.bus.session import Config, Publisher, Ring
 
 __all__ = ["Execution", "run_execution"]
 
@@ -111,7 +117,7 @@ class _Point:
 class Execution:
     """The execution module's process; see the module docstring."""
 
-    def __init__(self, settings: RunSettings, *, out_dir: Path, conf: Any, resume: bool = False,
+    def __init__(self, settings: RunSettings, *, out_dir: Path, conf: Config, resume: bool = False,
                  run_key: RunKey | None = None, heartbeat_every: float = 0.5, store_timeout: float = 2.0,
                  broker_wait: float = 30.0) -> None:
         if settings.cel is None:
@@ -141,7 +147,7 @@ class Execution:
         self._unsent: list[CapabilityChange] = []  # the monitor's changes of the last stretch, put after its checkpoint
         self._learner = 0  # generations the learner reported finishing
         self._session: Session | None = None
-        self._pubs: dict[str, Any] = {}
+        self._pubs: dict[str, Publisher] = {}
         self._logs: dict[str, IO[str]] = {}
 
     def _reject(self, err: MessageError, key: str) -> None:
@@ -246,7 +252,7 @@ class Execution:
             self._beat(control, done=self.module.trial >= self.total)
             life.linger()
 
-    def _stop_asked(self, control: Any) -> bool:
+    def _stop_asked(self, control: Ring) -> bool:
         for _, msg in drain_messages(control, 16, self._reject):
             if isinstance(msg, Control) and msg.command == "stop":
                 self.stop.set()
@@ -264,7 +270,7 @@ class Execution:
             return
         self._take([] if latest is None else [latest])
 
-    def _take(self, msgs: list[Any]) -> None:
+    def _take(self, msgs: list[Message]) -> None:
         """Use the newest policy among ``msgs`` if it is newer than the one in use; log it."""
         got = time.time()
         newest: PolicyUpdate | None = None
@@ -288,7 +294,7 @@ class Execution:
         """The first trial of the schedule event in force during ``trial`` (None: before any)."""
         return max((t for t, _ in self.module.schedule.events if t <= trial), default=None)
 
-    def _decisions_since(self, start: int, trial: int, first: int, per_trial: Any) -> int:
+    def _decisions_since(self, start: int, trial: int, first: int, per_trial: np.ndarray) -> int:
         """Decisions of trials ``start .. trial - 1``, given this stretch's (from ``first``) and ``event_decisions``
         (those of the event in force before the stretch, up to it)."""
         before = self.event_decisions if start < first else 0
@@ -309,7 +315,7 @@ class Execution:
             self._write("performance.jsonl", self.point.row(generation, ex, generation * self.K))
             self.point = _Point()
 
-    def _changed(self, c: CapabilityChange, per_trial: Any, first: int) -> None:
+    def _changed(self, c: CapabilityChange, per_trial: np.ndarray, first: int) -> None:
         self.changes += 1
         self.last_change = c.trial
         world_failed = self.module.schedule.failed_at(c.trial, self.world.failed)
@@ -335,7 +341,7 @@ class Execution:
                                sent_at=time.time())
         self._pubs["caps"].put(self.gate.seal(msg, keys.capabilities(self.run_id, self.robot)))
 
-    def _beat(self, control: Any, *, done: bool = False) -> None:
+    def _beat(self, control: Ring, *, done: bool = False) -> None:
         self._stop_asked(control)
         ex = self.module
         msg = ExecutionStatus(run=self.run_id, robot=self.robot, trial=ex.trial, trials=self.total,
@@ -354,7 +360,7 @@ class Execution:
                 "policies": len(lat), "latency_ms_median": statistics.median(lat) if lat else None}
 
 
-def run_execution(settings: RunSettings, *, out: Path, conf: Any, resume: bool, run_key: RunKey | None = None) -> int:
+def run_execution(settings: RunSettings, *, out: Path, conf: Config, resume: bool, run_key: RunKey | None = None) -> int:
     """``coevo execution``: run the robot to its last trial (exit 0), or until SIGINT/SIGTERM (130)."""
     ex = Execution(settings, out_dir=out, conf=conf, resume=resume, run_key=run_key)
     done = main_of(ex.run)
