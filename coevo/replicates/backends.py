@@ -17,12 +17,17 @@ import logging
 import os
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Generic, Protocol, TypeVar
 
 from coevo.errors import ConfigError, ServiceError
 from coevo.replicates.replicate import Outcome, Replicate, execute, pack, running, unpack
 
-__all__ = ["Backend", "LocalBackend", "DaskBackend", "ClusterLost", "open_backend", "parse_cluster"]
+if TYPE_CHECKING:  # Dask is imported only when a cluster is asked for
+    from distributed import Client, Future
+    from dask_jobqueue.core import JobQueueCluster
+    from distributed.deploy.cluster import Cluster
+
+__all__ = ["Handle", "Backend", "LocalBackend", "DaskBackend", "ClusterLost", "open_backend", "parse_cluster"]
 
 log = logging.getLogger(__name__)
 
@@ -31,31 +36,41 @@ class ClusterLost(ServiceError):
     """The Dask scheduler is gone: the experiment stops; its finished replicates are kept for ``--resume``."""
 
 
-class Backend:
-    """Runs replicates; ``room`` says whether one more fits now."""
+class Handle(Protocol):
+    """A replicate running on a backend (a future of its outcome): :func:`~coevo.replicates.runner.run_replicates`
+    asks it whether it is done, and hands it back to its backend's :meth:`Backend.outcome`."""
+
+    def done(self) -> bool: ...
+
+
+H = TypeVar("H", bound=Handle)
+
+
+class Backend(Generic[H]):
+    """Runs replicates; ``room`` says whether one more fits now.  ``H``: its handle on a running replicate."""
 
     description = ""
 
     def room(self, busy_weight: int, rep: Replicate) -> bool:
         return True
 
-    def submit(self, rep: Replicate, out: Path) -> Any:
+    def submit(self, rep: Replicate, out: Path) -> H:
         raise NotImplementedError
 
-    def outcome(self, handle: Any, rep: Replicate, out: Path) -> Outcome:
+    def outcome(self, handle: H, rep: Replicate, out: Path) -> Outcome:
         raise NotImplementedError
 
     def check(self) -> None:
         """Raise :class:`ClusterLost` if the backend can no longer run anything."""
 
-    def stop(self, handles: list[Any]) -> None:
+    def stop(self, handles: list[H]) -> None:
         """Stop what still runs (the experiment was interrupted or failed)."""
 
     def close(self) -> None:
         pass
 
 
-class LocalBackend(Backend):
+class LocalBackend(Backend["concurrent.futures.Future[Outcome]"]):
     """``jobs`` half-slot pairs on this machine: a live run takes two half-slots, an offline learner one (as
     ``coevo compare`` always did).  Commands run from threads; functions in the thread when ``jobs`` is 1
     (as the experiment always ran them), else in a pool of processes."""
@@ -71,7 +86,7 @@ class LocalBackend(Backend):
     def room(self, busy_weight: int, rep: Replicate) -> bool:
         return busy_weight == 0 or busy_weight + rep.weight <= 2 * self.jobs
 
-    def submit(self, rep: Replicate, out: Path) -> Any:
+    def submit(self, rep: Replicate, out: Path) -> concurrent.futures.Future[Outcome]:
         if rep.function is not None and self.jobs > 1:
             if self._procs is None:
                 import multiprocessing
@@ -80,13 +95,13 @@ class LocalBackend(Backend):
             return self._procs.submit(execute, rep, str(out))
         return self._threads.submit(execute, rep, str(out))
 
-    def outcome(self, handle: Any, rep: Replicate, out: Path) -> Outcome:
+    def outcome(self, handle: concurrent.futures.Future[Outcome], rep: Replicate, out: Path) -> Outcome:
         try:
             return handle.result()
         except Exception as exc:  # the process pool lost a process, or execute itself failed
             return Outcome(rep.name, False, f"{type(exc).__name__}: {exc}")
 
-    def stop(self, handles: list[Any]) -> None:
+    def stop(self, handles: list[concurrent.futures.Future[Outcome]]) -> None:
         for p in list(running):
             if p.poll() is None:
                 p.terminate()  # coevo run turns SIGTERM into a clean stop of its broker and workers
@@ -123,19 +138,20 @@ def parse_cluster(text: str) -> tuple[str, int | None]:
     return "address", None
 
 
-class DaskBackend(Backend):
+class DaskBackend(Backend["Future"]):
     """Replicates as Dask tasks (one thread each).  A replicate whose worker dies is run again by the scheduler
     (up to ``distributed.scheduler.allowed-failures`` times, 3 by default); one that fails for its own reasons
     comes back as a failed :class:`Outcome` and is not retried.  Without ``shared_dir`` each replicate's inputs
     travel with it and its output comes back as a tar; with it, the workers read and write the experiment's
     folder there."""
 
-    def __init__(self, client: Any, cluster: Any = None, *, shared_dir: Path | None = None, label: str = "") -> None:
+    def __init__(self, client: Client, cluster: Cluster | None = None, *, shared_dir: Path | None = None,
+                 label: str = "") -> None:
         self.client, self.cluster, self.shared_dir = client, cluster, shared_dir
         self.description = f"on the Dask cluster {label}"
         self._token = os.urandom(3).hex()
 
-    def submit(self, rep: Replicate, out: Path) -> Any:
+    def submit(self, rep: Replicate, out: Path) -> Future:
         key = f"coevo-{rep.name}-{self._token}"
         if self.shared_dir is not None:
             return self.client.submit(execute, rep, str(self.shared_dir), key=key, pure=False, retries=0)
@@ -147,7 +163,7 @@ class DaskBackend(Backend):
         if self.client.status not in ("running", "newly-created"):
             raise ClusterLost(f"lost the Dask scheduler at {self.client.scheduler.address} (client {self.client.status})")
 
-    def outcome(self, handle: Any, rep: Replicate, out: Path) -> Outcome:
+    def outcome(self, handle: Future, rep: Replicate, out: Path) -> Outcome:
         from distributed import KilledWorker
 
         if handle.status == "cancelled":
@@ -168,7 +184,7 @@ class DaskBackend(Backend):
         res.payload = res.log = None
         return res
 
-    def stop(self, handles: list[Any]) -> None:
+    def stop(self, handles: list[Future]) -> None:
         try:
             self.client.cancel(handles)
         except Exception:
@@ -183,7 +199,7 @@ class DaskBackend(Backend):
                     pass
 
 
-def _jobqueue(kind: str, config: Path | None) -> Any:
+def _jobqueue(kind: str, config: Path | None) -> JobQueueCluster:
     """A SLURMCluster or PBSCluster (no job submitted yet) from the dask-jobqueue YAML ``config``."""
     import dask.config
     import yaml
@@ -200,7 +216,7 @@ def _jobqueue(kind: str, config: Path | None) -> Any:
 
 
 def open_backend(*, jobs: int, cluster: str | None = None, cluster_config: Path | None = None,
-                 shared_dir: Path | None = None) -> Backend:
+                 shared_dir: Path | None = None) -> Backend[Any]:
     """The backend the flags ask for (no ``cluster``: this machine, ``jobs`` at a time)."""
     if cluster is None:
         if shared_dir is not None or cluster_config is not None:
@@ -212,7 +228,8 @@ def open_backend(*, jobs: int, cluster: str | None = None, cluster_config: Path 
     except ImportError as exc:  # pragma: no cover - a dependency
         raise ConfigError(f"--cluster needs Dask (pip install distributed): {exc}") from exc
     logging.getLogger("distributed").setLevel(logging.ERROR)
-    made: Any = None
+    made: Cluster | None = None
+    address: Cluster | str
     try:
         if kind == "local":
             n = n or max(1, (os.cpu_count() or 1) // 2)
@@ -222,8 +239,8 @@ def open_backend(*, jobs: int, cluster: str | None = None, cluster_config: Path 
                                 scheduler_kwargs={"dashboard_address": "127.0.0.1:0"}, silence_logs=logging.ERROR)
             address, label = made, f"local:{n}"
         elif kind in ("slurm", "pbs"):
-            made = _jobqueue(kind, cluster_config)
-            made.scale(jobs=n or 1)  # submits the batch jobs; workers join as the jobs start
+            queue = made = _jobqueue(kind, cluster_config)
+            queue.scale(jobs=n or 1)  # submits the batch jobs; workers join as the jobs start
             address, label = made, f"{kind} ({n or 1} jobs)"
         else:
             address, label = cluster, cluster

@@ -13,9 +13,8 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
-from coevo.replicates.backends import Backend
+from coevo.replicates.backends import Backend, H
 from coevo.replicates.replicate import Outcome, Replicate
 
 __all__ = ["Progress", "run_replicates"]
@@ -42,7 +41,7 @@ class Progress:
 def run_replicates(
     reps: Sequence[Replicate],
     out: Path,
-    backend: Backend,
+    backend: Backend[H],
     *,
     on_progress: Callable[[Progress], None] | None = None,
     poll: float = 1.0,
@@ -60,7 +59,7 @@ def run_replicates(
     prog = Progress(total=sum(r.cost for r in reps), runs_total=len(reps), runs_done=len(finished))
     base = sum(r.cost for r in reps if r.name in finished)
     pending = [r for r in reps if r.name not in finished]
-    active: dict[str, tuple[Replicate, Any]] = {}
+    active: dict[str, tuple[Replicate, H]] = {}
     started: dict[str, float] = {}
     (out / "logs").mkdir(parents=True, exist_ok=True)
     try:
