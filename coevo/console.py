@@ -12,10 +12,13 @@ import json
 import sys
 from dataclasses import dataclass
 from types import TracebackType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from coevo.config import Bounded, GAConfig
 from coevo.errors import ConfigError
+
+if TYPE_CHECKING:
+    from rich.progress import Progress, TaskID
 
 __all__ = ["Bounded", "Lead", "max_lead_of", "ProgressBar", "seed_arg", "count_arg", "positive_float_arg", "pairs", "given_settings", "ga_settings", "world_settings",
            "add_settings", "add_max_lead", "max_lead_arg"]
@@ -27,8 +30,8 @@ class ProgressBar:
     def __init__(self, label: str, *, total: int | None = None, unit: str = "", quiet: bool = False) -> None:
         self.label, self.unit, self.quiet = label, unit, quiet
         self._first_total = total
-        self._bar: Any = None
-        self._tasks: dict[str, Any] = {}
+        self._bar: Progress | None = None
+        self._tasks: dict[str, TaskID] = {}
 
     def __enter__(self) -> ProgressBar:
         if not self.quiet:

@@ -16,7 +16,7 @@ the CEL kind's hooks (registered in :mod:`coevo.runs.kinds`):
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 from pydantic import BaseModel
@@ -38,10 +38,10 @@ class _LoggedCases:
     def __init__(self, cases: list[Case]) -> None:
         self.cases = cases
 
-    def add(self, capabilities: Any, rules: RuleSet, *, fitness: float, generation: int) -> Case:
+    def add(self, capabilities: Sequence[str], rules: RuleSet, *, fitness: float, generation: int) -> Case:
         return Case(tuple(capabilities), rules, fitness, generation, -1)
 
-    def nearest(self, capabilities: Any, k: int = 1) -> list[Case]:
+    def nearest(self, capabilities: Sequence[str], k: int = 1) -> list[Case]:
         return self.cases
 
 

@@ -36,7 +36,8 @@ import logging
 import math
 import time
 from contextlib import AbstractContextManager
-from typing import IO, Any
+from collections.abc import Callable
+from typing import IO, TYPE_CHECKING, Any
 
 from coevo.agents.inbox import Inbox
 from coevo.agents.outbox import BrokerWatch
@@ -53,6 +54,11 @@ from coevo.ga import GA, GenerationReport
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
 from coevo.rundir.layout import WorkerPaths, append_durably, read_cases, write_text
+
+if TYPE_CHECKING:
+    from coevo.bus.messages import Message
+    from coevo.bus.session import Ring
+    from coevo.rundir.settings import RunSettings
 
 __all__ = ["CelLearner", "RobotPacer", "case_of"]
 
@@ -82,7 +88,7 @@ class RobotPacer(Pacer):
     def _token_partner(self, parts: dict[str, str]) -> tuple[str, str]:
         return parts.get("robot", ""), parts.get("robot", "")
 
-    def _progress_of(self, msg: Any) -> tuple[str, int, bool] | None:
+    def _progress_of(self, msg: Message) -> tuple[str, int, bool] | None:
         if not isinstance(msg, ExecutionStatus):
             return None
         return msg.robot, msg.trial // self.K - 1, msg.done
@@ -91,9 +97,9 @@ class RobotPacer(Pacer):
 class _Capabilities:
     """The ring of capability lists from the run's robot (the gate checks it is the run's robot)."""
 
-    def __init__(self, session: Session, run: str, reject: Any) -> None:
+    def __init__(self, session: Session, run: str, reject: Callable[[MessageError, str], None]) -> None:
         self._session, self.run, self._reject = session, run, reject
-        self._ring: Any = None
+        self._ring: Ring | None = None
 
     def __enter__(self) -> _Capabilities:
         self._ring = ring_subscriber(self._session, keys.capabilities(self.run), 64)
@@ -107,6 +113,8 @@ class _Capabilities:
     def since(self, after: int) -> list[CapabilityUpdate]:
         """The lists whose change number is above ``after`` that arrived, one per change, in the monitor's order
         (two changes within one generation's trials are both taken, as the lockstep run takes them)."""
+        if self._ring is None:  # not entered yet, or closed: nothing can have arrived
+            return []
         got: dict[int, CapabilityUpdate] = {}
         for _, msg in drain_messages(self._ring, 64, self._reject):
             if isinstance(msg, CapabilityUpdate) and msg.change > after:
@@ -117,7 +125,7 @@ class _Capabilities:
 class CelLearner(Worker):
     """The learning module as a worker; see the module docstring."""
 
-    def __init__(self, settings: Any, **kwargs: Any) -> None:
+    def __init__(self, settings: RunSettings, **kwargs: Any) -> None:
         if settings.cel is None:
             raise ConfigError("a CEL learner needs a run.json with a cel block (made by coevo cel)")
         super().__init__(settings, **kwargs)

@@ -30,7 +30,7 @@ from coevo.errors import ConfigError, RunDirError
 from coevo.dashboard.model import mtime
 
 if TYPE_CHECKING:
-    from coevo.experiments.compare.experiment import CompareSpec
+    from coevo.experiments.compare.experiment import CompareSpec, Replicate
 
 __all__ = ["ComparisonFiles"]
 
@@ -93,7 +93,7 @@ class ComparisonFiles:
         dirs = [run_dir(self.out, r) for r in self.replicates if not r.offline]
         return [d for d in dirs if RunPaths(d).run_json.exists()]
 
-    def _state(self, rep: Any, now: float) -> tuple[str, str]:
+    def _state(self, rep: Replicate, now: float) -> tuple[str, str]:
         """(state, why) of one replicate."""
         from coevo.experiments.compare.experiment import is_finished, run_dir
         from coevo.rundir.layout import RunPaths
@@ -118,7 +118,7 @@ class ComparisonFiles:
             return "running", ""
         return "failed", f"no progress for {now - latest:.0f} s; see {log}"
 
-    def _class(self, rep: Any) -> str | None:
+    def _class(self, rep: Replicate) -> str | None:
         from coevo.experiments.compare.experiment import run_dir
         from coevo.experiments.compare.table1 import classify
         from coevo.rundir.layout import LearnPaths, RunPaths
@@ -133,7 +133,7 @@ class ComparisonFiles:
                 return None
         return self._classes[rep.run_id]
 
-    def _executive_curve(self, rep: Any) -> list[float]:
+    def _executive_curve(self, rep: Replicate) -> list[float]:
         """A finished live replicate's Executive curve, the best of each generation (damaged lines left out)."""
         from coevo.experiments.compare.experiment import run_dir
         from coevo.rundir.layout import RunPaths, read_jsonl
@@ -172,7 +172,7 @@ class ComparisonFiles:
         from coevo.experiments.compare.plots import PANELS
 
         state = {r["run"]: r["state"] for r in rows}
-        by_group: dict[str, list[Any]] = {}
+        by_group: dict[str, list[Replicate]] = {}
         for rep in self.replicates:
             if not rep.offline and state.get(rep.run_id) in ("done", "running", "failed"):
                 by_group.setdefault(rep.group, []).append(rep)

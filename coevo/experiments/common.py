@@ -12,10 +12,14 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from coevo.errors import RunDirError
 from coevo.replicates.replicate import Replicate
+
+if TYPE_CHECKING:
+    from coevo.replicates.backends import Backend
+    from coevo.replicates.runner import Progress
 
 __all__ = ["REPORT_SETTINGS", "below_report", "held_spec", "open_out", "plural", "prepare_out", "run_with_progress"]
 
@@ -90,8 +94,8 @@ def open_out(args: Any, out: Path, marker: str, spec: dict[str, Any], *, default
     return backend
 
 
-def run_with_progress(reps: Sequence[Replicate], out: Path, backend: Any, *, label: str, quiet: bool,
-                      unit: str = "generations") -> Any:
+def run_with_progress(reps: Sequence[Replicate], out: Path, backend: Backend[Any], *, label: str, quiet: bool,
+                      unit: str = "generations") -> Progress | None:
     """Run ``reps`` on ``backend`` with a progress bar in ``unit`` (what the replicates' costs count); print each
     failure with its log.  Returns the runner's Progress, or None when the Dask scheduler was lost (said on
     stderr, with how to continue)."""

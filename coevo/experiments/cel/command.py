@@ -7,16 +7,19 @@ import argparse
 import os
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from coevo.console import add_settings, count_arg, seed_arg
 from coevo.errors import ConfigError
 from coevo.replicates.flags import add_backend_flags, check_backend_flags
 
+if TYPE_CHECKING:
+    from coevo.rundir.settings import RunSettings
+
 __all__ = ["configure_cel_experiment", "cmd_cel_experiment"]
 
 
-def _base_settings(args: argparse.Namespace) -> Any:
+def _base_settings(args: argparse.Namespace) -> RunSettings:
     """The runs' settings but the seed (a CEL run's RunSettings), checked before anything runs: the flags of
     ``coevo cel`` with its defaults (100 generations, Figure 3's failure at 50, lockstep)."""
     from coevo.cel.settings import CelSettings
@@ -49,6 +52,7 @@ def cmd_cel_experiment(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("runs") / f"cel-experiment-{time.strftime('%Y%m%d-%H%M%S')}"
     seeds = list(range(args.first_seed, args.first_seed + args.runs))
     cel = base.cel
+    assert cel is not None  # _base_settings gives a CEL run's settings, with its cel block
     spec = {"runs": args.runs, "first_seed": args.first_seed, "generations": base.ga.generations,
             "trials_per_generation": cel.trials_per_generation, "case_base": cel.case_base,
             "schedule": [[g, list(f)] for g, f in cel.schedule],

@@ -15,10 +15,13 @@ import shutil
 import sys
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from coevo.errors import ConfigError
 from coevo.replicates.replicate import Replicate
+
+if TYPE_CHECKING:
+    from coevo.rundir.settings import RunSettings
 
 __all__ = ["FIGURE3_FAILURE", "run_name", "write_settings", "replicates", "collect", "read_lockstep", "lockstep_equal"]
 
@@ -30,7 +33,7 @@ def run_name(seed: int) -> str:
     return f"live-{seed}"
 
 
-def write_settings(out: Path, base: Any, seeds: list[int]) -> None:
+def write_settings(out: Path, base: RunSettings, seeds: list[int]) -> None:
     """``OUT/settings/live-SEED.json``: ``base`` (a CEL run's RunSettings) for each seed, before anything runs."""
     d = out / "settings"
     d.mkdir(parents=True, exist_ok=True)

@@ -16,11 +16,17 @@ from __future__ import annotations
 import time
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from coevo.replicates.replicate import Replicate
+
+if TYPE_CHECKING:
+    from coevo.config import GAConfig
+    from coevo.ga import GA
+    from coevo.policy.rules import RuleSet
+    from coevo.tasks.door.settings import DoorConfig
 
 __all__ = ["EXTERNAL_TRIALS", "PRECISE_TRIALS", "run_seed", "replicates", "result_file", "rounded"]
 
@@ -36,14 +42,14 @@ def result_file(root: Path, seed: int) -> Path:
     return Path(root) / "runs" / _name(seed) / "result.json"
 
 
-def external(rules: Any, cfg: Any, seed: int, g: int, trials: int = EXTERNAL_TRIALS) -> float:
+def external(rules: RuleSet, cfg: DoorConfig, seed: int, g: int, trials: int = EXTERNAL_TRIALS) -> float:
     """% of ``trials`` fresh trials (their draw fixed by seed and generation) that reach the goal."""
     from coevo.tasks.door.evaluate import measure
 
     return float(measure(rules, cfg, trials=trials, seed=1_000_003 * (seed + 1) + g)["success"] or 0.0)
 
 
-def behaviour(rules: Any, cfg: Any, seed: int, trials: int = 200) -> dict[str, float]:
+def behaviour(rules: RuleSet, cfg: DoorConfig, seed: int, trials: int = 200) -> dict[str, float]:
     """How ``rules`` drive (report §8.2): sway (mean |turn| and turn reversals per 10 decisions), the share
     of decisions not moving forward (speed <= 0, the 'fail-safe'), and the trials' outcomes."""
     from coevo.policy.matcher import CompiledPolicies
@@ -65,7 +71,13 @@ def behaviour(rules: Any, cfg: Any, seed: int, trials: int = 200) -> dict[str, f
             **outcome_rates(out.outcome)}
 
 
-def _learn(seed: int, generations: int, intact: Any, blind: Any, ga_cfg: Any) -> dict[str, Any]:
+def _best(ga: GA) -> RuleSet:
+    if ga.best is None:  # GAConfig allows no fewer than one generation, so this is a bug
+        raise RuntimeError("no generation ran: the GA has no best rules")
+    return ga.best
+
+
+def _learn(seed: int, generations: int, intact: DoorConfig, blind: DoorConfig, ga_cfg: GAConfig) -> dict[str, Any]:
     """The two phases of one seed: the curve, the GA's seconds per phase, the rows, both bests."""
     from coevo.ga import GA
     from coevo.tasks import get_task
@@ -78,14 +90,14 @@ def _learn(seed: int, generations: int, intact: Any, blind: Any, ga_cfg: Any) ->
     all_best = None
     for phase, cfg in enumerate((intact, blind)):
         if phase == 1:
-            curve.append(external(ga.best, blind, seed, generations))  # the old rules meet the failure
+            curve.append(external(_best(ga), blind, seed, generations))  # the old rules meet the failure
             restart(ga, blind)
         for g in range(generations):
             t0 = time.perf_counter()
             rep = ga.generation({})
             seconds[phase] += time.perf_counter() - t0
             gen = phase * generations + g + 1
-            curve.append(external(ga.best, cfg, seed, gen))
+            curve.append(external(_best(ga), cfg, seed, gen))
             rows.append({"generation": gen, "capabilities": list(cfg.capabilities), "best_fitness": rep.best_fitness,
                          "best_so_far": rep.best_so_far, "population_mean": rep.population_mean, **rep.measures})
         if phase == 0:

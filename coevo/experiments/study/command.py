@@ -11,11 +11,15 @@ import argparse
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from coevo.console import ProgressBar, add_max_lead, add_settings, count_arg, pairs, seed_arg
 from coevo.errors import ConfigError, RunDirError
 from coevo.replicates.flags import add_backend_flags, backend_of, check_backend_flags
+
+if TYPE_CHECKING:
+    from coevo.experiments.study.declaration import StudySpec
+    from coevo.replicates.runner import Progress
 
 __all__ = ["configure_study", "cmd_study"]
 
@@ -40,7 +44,7 @@ def _settings_given(args: argparse.Namespace) -> dict[str, Any]:
     return given
 
 
-def _declaration(args: argparse.Namespace, out: Path | None) -> Any:
+def _declaration(args: argparse.Namespace, out: Path | None) -> StudySpec:
     """The study the command line declares; with --resume (or --report-only) and nothing declared, the one in --out."""
     from coevo.experiments.study.declaration import declare, read_toml
     from coevo.experiments.study.experiment import held_declaration
@@ -108,7 +112,7 @@ def cmd_study(args: argparse.Namespace) -> int:
         finished = set(done)
         unit = "runs" if spec.learn is not None else "worker generations"  # a learning run shows nothing until done
         with ProgressBar("study", total=1, unit=unit, quiet=args.quiet) as bar:
-            def show(p: Any) -> None:
+            def show(p: Progress) -> None:
                 finished.update(o.name for o in p.outcomes if o.ok)
                 bar.update(p.done, p.total, info=f"{info(finished)}, {p.info}")
 
