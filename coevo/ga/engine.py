@@ -120,6 +120,13 @@ class GA:
         write for everyone else to read as a plain rule set (with its mirror images if the rules are symmetric)."""
         return with_mirror_images(rs) if self.cfg.symmetric_rules else rs
 
+    def best_rules(self) -> RuleSet:
+        """``best`` once a generation has run; before, a RuntimeError (a caller's bug: GAConfig allows no fewer than
+        one generation)."""
+        if self.best is None:
+            raise RuntimeError("no generation ran: the GA has no best rules yet")
+        return self.best
+
     # ------------------------------------------------------------ checkpoints
     def state_dict(self) -> dict[str, Any]:
         """Everything the next generation depends on, as plain data (msgpack/JSON-able).

@@ -106,9 +106,7 @@ def learn(
             curve.append(rep)
             if on_generation is not None:
                 on_generation(rep)
-        if engine.best is None:  # GAConfig allows no fewer than one generation, so this is a bug
-            raise RuntimeError("no generation ran: the GA has no best policy")
-        best = engine.played(engine.best)  # as everyone else reads it: with its mirror images if symmetric
+        best = engine.played(engine.best_rules())  # as everyone else reads it: with its mirror images if symmetric
         _write_curve(tmp, curve, best, adoptions if feed is not None else None, partners)
         measures: dict[str, float | int | None] = {
             "best_fitness": engine.best_fitness,

@@ -24,7 +24,6 @@ from coevo.replicates.replicate import Replicate
 
 if TYPE_CHECKING:
     from coevo.config import GAConfig
-    from coevo.ga import GA
     from coevo.policy.rules import RuleSet
     from coevo.tasks.door.settings import DoorConfig
 
@@ -71,12 +70,6 @@ def behaviour(rules: RuleSet, cfg: DoorConfig, seed: int, trials: int = 200) -> 
             **outcome_rates(out.outcome)}
 
 
-def _best(ga: GA) -> RuleSet:
-    if ga.best is None:  # GAConfig allows no fewer than one generation, so this is a bug
-        raise RuntimeError("no generation ran: the GA has no best rules")
-    return ga.best
-
-
 def _learn(seed: int, generations: int, intact: DoorConfig, blind: DoorConfig, ga_cfg: GAConfig) -> dict[str, Any]:
     """The two phases of one seed: the curve, the GA's seconds per phase, the rows, both bests."""
     from coevo.ga import GA
@@ -90,21 +83,19 @@ def _learn(seed: int, generations: int, intact: DoorConfig, blind: DoorConfig, g
     all_best = None
     for phase, cfg in enumerate((intact, blind)):
         if phase == 1:
-            curve.append(external(_best(ga), blind, seed, generations))  # the old rules meet the failure
+            curve.append(external(ga.best_rules(), blind, seed, generations))  # the old rules meet the failure
             restart(ga, blind)
         for g in range(generations):
             t0 = time.perf_counter()
             rep = ga.generation({})
             seconds[phase] += time.perf_counter() - t0
             gen = phase * generations + g + 1
-            curve.append(external(_best(ga), cfg, seed, gen))
+            curve.append(external(ga.best_rules(), cfg, seed, gen))
             rows.append({"generation": gen, "capabilities": list(cfg.capabilities), "best_fitness": rep.best_fitness,
                          "best_so_far": rep.best_so_far, "population_mean": rep.population_mean, **rep.measures})
         if phase == 0:
-            all_best = ga.best
-    if all_best is None or ga.best is None:  # GAConfig allows no fewer than one generation, so this is a bug
-        raise RuntimeError("no generation ran: the GA has no best rules")
-    return {"curve": curve, "seconds": seconds, "rows": rows, "all_best": all_best, "adapted": ga.best}
+            all_best = ga.best_rules()
+    return {"curve": curve, "seconds": seconds, "rows": rows, "all_best": all_best, "adapted": ga.best_rules()}
 
 
 def run_seed(root: Path, *, seed: int, generations: int, world: dict[str, Any], failed: list[str],

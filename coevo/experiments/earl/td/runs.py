@@ -182,9 +182,7 @@ def run_ga(spec: TDSpec, seed: int, *, progress: Progress = no_progress) -> Curv
         ga.generation({})
         learn_seconds += time.perf_counter() - t0
         if g in spec.marks:
-            if ga.best is None:
-                raise RuntimeError("the GA has no best after a generation")
-            trials, best = spec.measure_trials, ga.played(ga.best)
+            trials, best = spec.measure_trials, ga.played(ga.best_rules())
             got = measure_policy(spec.task, rules_policy([best], trials, conflict=ga_cfg.conflict), groups=1,
                                  trials=trials, rng=measure_rng)
             curve.robot_steps.append(counter.robot_steps)
