@@ -41,9 +41,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
                "a plain Zenoh router, no store: another site's meeting point (--connect to the broker)"),
     "keygen": ("coevo.runs.command", "make a run's secret key file (mode 0600), for a run spread over hosts by hand"),
     "chaos": ("coevo.runs.command", "a whole run while random processes are killed and restarted; then check it"),
-    "cel": ("coevo.runs.cel_command",
+    "cel": ("coevo.cel_service.command",
             "Appendix B: a live CEL run (broker, learning module, execution module) with a failure schedule"),
-    "execution": ("coevo.runs.cel_command",
+    "execution": ("coevo.cel_service.command",
                   "a CEL run's execution module (the robot, with its monitor) as its own process"),
     "seeds": ("coevo.experiments.seeds.command",
               "Tracking and Docking learned over seeds, against the learning targets, with a report"),
@@ -55,7 +55,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
              "Appendix C: the EA-vs-TD grid world and hidden-state experiments, with a report"),
     "td-baseline": ("coevo.experiments.earl.td.command",
                     "Appendix C: Q-learning against the GA on the robot tasks, at equal experience"),
-    "bench": ("coevo.runs.learn_command", "robot-steps/s of the batched world vs a plain one-episode pymunk loop"),
+    "plugins": ("coevo.runs.plugins_command", "the tasks and kinds of learner installed, and the package of each"),
+    "bench": ("coevo.tasks.fuel.bench_command", "robot-steps/s of the batched world vs a plain one-episode pymunk loop"),
 }
 
 
@@ -111,7 +112,11 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     command = _command_in(argv)
     parser = build_parser(only=command or "")
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # a command that takes its task's own flags (coevo.console.take_task_flags) reads them once it knows it
+        if getattr(args, "task_flags", None) is None:
+            parser.error(f"unrecognized arguments: {' '.join(extra)}")
+        args.task_flags = extra
     logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     from coevo.errors import CoevoError
 

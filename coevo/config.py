@@ -11,6 +11,7 @@ frozen pydantic models: invalid values fail at construction with a
 from __future__ import annotations
 
 import argparse
+import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -21,7 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from coevo.errors import ConfigError
 
-__all__ = ["Bounded", "MAX_MAGNITUDE", "Settings", "GAConfig", "build", "MODELS", "DEFAULT_MAX_LEAD", "parse_max_lead", "SAVED_GA_BEFORE",
+__all__ = ["pairs", "Bounded", "MAX_MAGNITUDE", "Settings", "GAConfig", "build", "MODELS", "DEFAULT_MAX_LEAD", "parse_max_lead", "SAVED_GA_BEFORE",
            "saved_ga"]
 
 _M = TypeVar("_M", bound=BaseModel)
@@ -259,3 +260,17 @@ def build(model: type[_M], values: dict[str, Any] | None = None, *, what: str = 
             shown = f"{field}={value!r}" if err["loc"] else field
             parts.append(f"{shown}: {err['msg']}")
         raise ConfigError(f"{what or model.__name__}: " + "; ".join(parts)) from exc
+
+
+def pairs(values: list[str] | None, flag: str) -> dict[str, Any]:
+    """``--world/--ga name=value`` pairs (values parsed as JSON when they can be)."""
+    out: dict[str, Any] = {}
+    for item in values or []:
+        if "=" not in item:
+            raise ConfigError(f"--{flag} {item!r}: expected name=value")
+        k, v = item.split("=", 1)
+        try:
+            out[k.strip()] = json.loads(v)
+        except json.JSONDecodeError:
+            out[k.strip()] = v
+    return out

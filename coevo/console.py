@@ -8,20 +8,20 @@ happening, the time spent and the time left.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from dataclasses import dataclass
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
-from coevo.config import Bounded, GAConfig
+from coevo.config import Bounded, GAConfig, pairs
 from coevo.errors import ConfigError
 
 if TYPE_CHECKING:
     from rich.progress import Progress, TaskID
 
-__all__ = ["Bounded", "Lead", "max_lead_of", "ProgressBar", "seed_arg", "count_arg", "positive_float_arg", "pairs", "given_settings", "ga_settings", "world_settings",
-           "add_settings", "add_max_lead", "max_lead_arg"]
+__all__ = ["Bounded", "Lead", "max_lead_of", "ProgressBar", "seed_arg", "count_arg", "positive_float_arg", "task_arg", "pairs",
+           "accept_task_flags", "task_flags",
+           "given_settings", "ga_settings", "world_settings", "add_settings", "add_max_lead", "max_lead_arg"]
 
 
 class ProgressBar:
@@ -86,34 +86,51 @@ seed_arg = Bounded(0, 2**63 - 1, what="seed")
 
 
 # ---------------------------------------------------------------- run settings from flags
-#: How every ``--fail`` spells a sonar, for its help: the names as printed, and the report's hyphens taken too.
-SONARS_HELP = "e.g. front,front_right,right (front-right, as the report writes it, is the same)"
+def task_arg(value: str) -> str:
+    """A task's name, as installed or registered (``coevo plugins`` lists them); nothing is imported to check it."""
+    from coevo.tasks import task_names
+
+    if value not in task_names():
+        raise argparse.ArgumentTypeError(f"unknown task {value!r} (installed: {', '.join(task_names())})")
+    return value
 
 
-def sonars_arg(text: str) -> str:
-    """A ``--fail`` list of door sonars in any spelling (``front-right`` or ``front_right``) -> the names as every
-    command prints them, comma-separated in left-to-right order; an unknown name is a one-line usage error."""
-    from coevo.tasks.door.settings import sonar_names
-
-    try:
-        names = sonar_names(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-    return ",".join(names) if names else text  # none named: as given, for the command's own word on it
+def accept_task_flags(p: argparse.ArgumentParser) -> None:
+    """Let a command take its task's own flags, which no parser knows before the task is: a partner's rule file as
+    ``--BEHAVIOUR FILE`` and a world setting by the task's name for it (``Task.flags``); read by
+    :func:`task_flags` once the command knows its task."""
+    p.set_defaults(task_flags=[])
 
 
-def pairs(values: list[str] | None, flag: str) -> dict[str, Any]:
-    """``--world/--ga name=value`` pairs (values parsed as JSON when they can be)."""
-    out: dict[str, Any] = {}
-    for item in values or []:
-        if "=" not in item:
-            raise ConfigError(f"--{flag} {item!r}: expected name=value")
-        k, v = item.split("=", 1)
-        try:
-            out[k.strip()] = json.loads(v)
-        except json.JSONDecodeError:
-            out[k.strip()] = v
-    return out
+def task_flags(args: argparse.Namespace, task: Any = None) -> tuple[dict[str, str], dict[str, Any]]:
+    """The task's own flags given (``--NAME VALUE`` or ``--NAME=VALUE``): (partner behaviour -> rule file, world
+    setting -> value).  A flag the task does not know is one usage line naming it and what the task takes.  With
+    no task (not known yet), a flag naming any behaviour is a partner's rule file and there are no world flags."""
+    from coevo.policy.schema import known as known_behaviour
+
+    raw: list[str] = list(getattr(args, "task_flags", None) or [])
+    partners: dict[str, str] = {}
+    world: dict[str, Any] = {}
+    own = [] if task is None else [f"--{b}" for b in task.behaviours] + [f"--{f}" for f in task.flags]
+    while raw:
+        item = raw.pop(0)
+        name, eq, value = item.partition("=")
+        ok = name in own if task is not None else name.startswith("--") and known_behaviour(name[2:])
+        if not name.startswith("--") or not ok:
+            where = f", nor of task {task.name!r}" + (f" (its own: {', '.join(own)})" if own else "") if task else ""
+            raise ConfigError(f"{item!r}: not a flag of this command{where} (see --help)")
+        if not eq:
+            if not raw or raw[0].startswith("--"):
+                raise ConfigError(f"{name} needs a value")
+            value = raw.pop(0)
+        if not value.strip():
+            raise ConfigError(f"{name} {value!r} is {'empty' if not value else 'blank'}: give a value")
+        key = name[2:]
+        if task is not None and key in task.flags:
+            world[task.flags[key]] = value
+        else:
+            partners[key] = value
+    return partners, world
 
 
 def given_settings(args: argparse.Namespace, task: str) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -124,9 +141,19 @@ def given_settings(args: argparse.Namespace, task: str) -> tuple[dict[str, Any],
 
     over = pairs(args.ga, "ga")
     for name in ("generations", "population", "episodes"):
-        if getattr(args, name, None) is not None:
-            over[name] = getattr(args, name)
-    return split_settings(get_task(task), pairs(getattr(args, "world", None), "world"), over)
+        flag = getattr(args, name, None)
+        if flag is None:
+            continue
+        if name in over and over[name] != flag:  # one setting given two ways: neither silently wins
+            raise ConfigError(f"--{name} {flag} and --ga {name}={over[name]} disagree: give {name} once")
+        over[name] = flag
+    the_task = get_task(task)
+    world = pairs(getattr(args, "world", None), "world")
+    for name, value in task_flags(args, the_task)[1].items():
+        if name in world:
+            raise ConfigError(f"{name} given twice: by a flag of task {task!r} and by --world {name}=...: give it once")
+        world[name] = value
+    return split_settings(the_task, world, over)
 
 
 def ga_settings(args: argparse.Namespace, task: str) -> GAConfig:
@@ -144,13 +171,13 @@ def world_settings(args: argparse.Namespace, task: str) -> dict[str, Any]:
     return build(get_task(task).world_settings, given_settings(args, task)[0]).model_dump(mode="json")
 
 
-#: What ``--initial`` means in each command that offers it (the fuel task: Tracking and Docking start from their
-#: shipped direction-only rule sets or random ones; the Executive always starts random).
-INITIAL_FUEL = ("how Tracking and Docking start: their shipped direction-only rule sets (default) or random rule sets; "
-                "the Executive always starts random (the same as --ga initial=...)")
+#: What ``--initial`` means in each command that offers it, for any task (a behaviour its task ships no rules for,
+#: the fuel task's Executive for one, always starts random).
+INITIAL = ("how the behaviours start: the rule sets their task ships (default; a behaviour it ships none for starts "
+           "random) or random rule sets (the same as --ga initial=...)")
 
 
-def add_settings(p: argparse.ArgumentParser, *, generations: int = 50, initial: str | None = INITIAL_FUEL) -> None:
+def add_settings(p: argparse.ArgumentParser, *, generations: int = 50, initial: str | None = INITIAL) -> None:
     """The GA and world settings flags, declared once for every command that takes them: ``generations`` is the
     command's own default (shown in its help); ``initial`` is what ``--initial`` means there (None: not offered,
     the command's task decides)."""

@@ -52,7 +52,8 @@ def test_coevo_cel_settings_takes_every_setting_from_the_file_and_only_a_cel_run
 def test_the_other_commands_tell_a_cel_run_by_the_kinds_table(tmp_path: Path,
                                                                capsys: pytest.CaptureFixture[str]) -> None:
     """coevo run sends a CEL run's settings to coevo cel, and a CEL run is a door-task run (coevo.runs.kinds)."""
-    from coevo.runs.kinds import CEL, COEVOLUTION, kind_of_settings, kind_of_worker
+    from coevo.cel_service.kind import CEL
+    from coevo.runs.kinds import COEVOLUTION, kind_of_settings, kind_of_worker
 
     cel = RunSettings.make(run="x", task="door", regime="independent", cel={})
     assert kind_of_settings(cel) is CEL and kind_of_settings(RunSettings.make(run="y", regime="mutual")) is COEVOLUTION
@@ -60,7 +61,7 @@ def test_the_other_commands_tell_a_cel_run_by_the_kinds_table(tmp_path: Path,
     cel.save(tmp_path / "cel.json")
     assert main(["run", "--settings", str(tmp_path / "cel.json"), "--root", str(tmp_path / "runs"), "--quiet"]) == 2
     assert "holds the settings of a CEL run: start it with coevo cel" in capsys.readouterr().err
-    assert main(["chaos", "--cel", "--task", "fuel", "--root", str(tmp_path / "runs"), "--quiet"]) == 2
+    assert main(["chaos", "--learner", "cel", "--task", "fuel", "--root", str(tmp_path / "runs"), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "a CEL run (cel settings) is a door-task run, not a 'fuel' one" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "runs").exists()

@@ -28,7 +28,7 @@ from coevo.bus.messages import CapabilityUpdate, CaseUpdate, ExecutionStatus, en
 from coevo.bus.session import open_session
 from coevo.bus.status import StatusBoard
 from coevo.cel.experiment import run_cel
-from coevo.runs.cel import CelRun
+from coevo.cel_service.run import CelRun
 from coevo.errors import MessageError
 from coevo.runs.check import check_run
 from coevo.rundir.layout import read_cases, read_jsonl
@@ -269,7 +269,7 @@ def test_prepare_then_three_processes_started_by_hand_make_a_complete_run(tmp_pa
 
 @pytest.mark.slow
 def test_coevo_chaos_on_a_cel_run_kills_either_module_and_the_run_comes_out_complete(tmp_path: Path) -> None:
-    r = subprocess.run([sys.executable, "-m", "coevo", "chaos", "--cel", "--run", "cc", "--root", str(tmp_path), "--seed",
+    r = subprocess.run([sys.executable, "-m", "coevo", "chaos", "--learner", "cel", "--run", "cc", "--root", str(tmp_path), "--seed",
                         "5", "--generations", "16", *SMALL, "--faults", "4", "--kinds", "kill-worker", "kill-broker",
                         "--gap", "0.3", "1.0", "--down", "0.3", "1.0", "--measure-epochs", "1"],
                        capture_output=True, text=True, timeout=600)
@@ -281,7 +281,7 @@ def test_coevo_chaos_on_a_cel_run_kills_either_module_and_the_run_comes_out_comp
 
 @pytest.mark.slow
 def test_a_robot_resumed_after_its_learner_finished_plays_out_its_trials(tmp_path: Path) -> None:
-    """Found by coevo chaos --cel: the robot waited for ever for a learner that had finished while it was down."""
+    """Found by coevo chaos --learner cel: the robot waited for ever for a learner that had finished while it was down."""
     ga = door_ga(generations=10, population=16, episodes=20, best_episodes=20)
     settings = RunSettings.make(run="late", task="door", regime="independent", seed=4, max_lead=0, ga=ga,
                                 cel={"schedule": [[5, list(FAILED)]], "patience": 1.5})

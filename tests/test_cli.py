@@ -184,7 +184,7 @@ def test_a_cel_runs_status_shows_the_robot_and_fits_80_columns() -> None:
 def test_coevo_cels_table_says_what_the_run_is_doing_in_80_columns() -> None:
     from rich.console import Console
 
-    from coevo.runs.cel_status import CelPlain, cel_table
+    from coevo.cel_service.status import CelPlain, cel_table
 
     class Cel(_Board):
         def snapshot(self) -> list[dict[str, object]]:

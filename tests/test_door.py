@@ -210,15 +210,19 @@ def test_learn_writes_the_run_directory_with_external_performance(tmp_path: Path
 def test_every_fail_flag_takes_either_spelling_and_says_front_right(spelling: str) -> None:
     """learn, seeds and cel (and cel-experiment, which shares cel's flags) read ``--fail`` alike: the report's
     ``front-right`` or the printed ``front_right``, to the same sonars, which every command prints ``front_right``."""
+    from coevo.cel_service.command import _settings
     from coevo.cli import build_parser
+    from coevo.console import given_settings
     from coevo.experiments.seeds.command import _door_spec
-    from coevo.runs.cel_command import _settings
 
     p = build_parser()
-    learn = p.parse_args(["learn", "--behaviour", "door", "--fail", spelling])
+    learn, extra = p.parse_known_args(["learn", "--behaviour", "door", "--fail", spelling])  # the door task's own flag
+    learn.task_flags = extra
     seeds = p.parse_args(["seeds", "--task", "door", "--fail", spelling])
     cel = p.parse_args(["cel", "--fail", f"50:{spelling}"])
-    assert learn.fail == seeds.fail == "front,front_right,right"
+    assert given_settings(learn, "door")[0] == {"failed": spelling}  # the world's model reads every spelling
+    assert build(DoorConfig, given_settings(learn, "door")[0]).failed == ("front", "front_right", "right")
+    assert seeds.fail == "front,front_right,right"
     assert _door_spec(seeds)["failed"] == ["front", "front_right", "right"]
     assert cel.fail == [(50, ("front", "front_right", "right"))]
-    assert _settings(cel).cel.schedule == ((50, ("front", "front_right", "right")),)
+    assert _settings(cel).block("cel").schedule == ((50, ("front", "front_right", "right")),)

@@ -26,8 +26,8 @@ from __future__ import annotations
 import re
 
 from coevo.errors import ConfigError
-import coevo.tasks  # noqa: F401 - the built-in tasks register their behaviours, whose names travel on keys
-from coevo.policy.schema import registered
+import coevo.tasks  # noqa: F401 - the tasks' registry: a behaviour named on a key has its task found and loaded
+from coevo.policy.schema import known, registered
 
 __all__ = ["ROOT", "BROKER", "BROKER_DEGRADED", "check_id", "valid_id", "policy", "current", "status", "control", "alive", "store_latest", "store_history",
            "store_versions", "broker_status", "case", "store_cases", "capabilities", "execution", "robot_alive", "parse"]
@@ -51,7 +51,7 @@ def valid_id(value: str) -> bool:
 
 def _b(behaviour: str) -> str:
     name = str(behaviour)
-    if name not in registered():
+    if not known(name):
         raise ConfigError(f"unknown behaviour {name!r} (known: {', '.join(registered())})")
     return name
 

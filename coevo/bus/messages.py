@@ -28,8 +28,8 @@ from pydantic import (
 from coevo.bus import auth, keys
 from coevo.errors import MessageError, RuleSetError
 from coevo.policy.rules import RuleSet
-import coevo.tasks  # noqa: F401 - the built-in tasks register their behaviours, whose names travel on keys
-from coevo.policy.schema import registered
+import coevo.tasks  # noqa: F401 - the tasks' registry: a behaviour named on a key has its task found and loaded
+from coevo.policy.schema import known
 
 __all__ = ["SCHEMA_VERSION", "MAX_BYTES", "REASONS", "PolicyUpdate", "Status", "BrokerStatus", "Control", "CaseUpdate",
            "CapabilityUpdate", "ExecutionStatus", "Message", "encode", "decode", "decode_fresh", "unseal", "unseal_fresh"]
@@ -66,7 +66,7 @@ REASONS = {
 
 
 def _known_behaviour(name: str) -> str:
-    if name not in registered():
+    if not known(name):
         raise ValueError(f"unknown behaviour {name!r}")
     return name
 

@@ -14,7 +14,7 @@ experiment and the cyclic schedule.
 
 Nothing here touches the network: the live service builds on it, the learner and the
 robot as processes in :mod:`coevo.cel_service`, a whole run on one machine
-(``coevo cel``) in :mod:`coevo.runs.cel`.
+(``coevo cel``) in :mod:`coevo.cel_service.run`.
 """
 
 from __future__ import annotations

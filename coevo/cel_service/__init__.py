@@ -7,5 +7,5 @@
   (``coevo execution``).
 
 What they run is :mod:`coevo.cel` (the in-process modules, no network); how a whole CEL run is
-started on one machine is :mod:`coevo.runs.cel`.
+started on one machine is :mod:`coevo.cel_service.run`.
 """

@@ -126,10 +126,10 @@ class CelLearner(Worker):
     """The learning module as a worker; see the module docstring."""
 
     def __init__(self, settings: RunSettings, **kwargs: Any) -> None:
-        if settings.cel is None:
+        if settings.block("cel") is None:
             raise ConfigError("a CEL learner needs a run.json with a cel block (made by coevo cel)")
         super().__init__(settings, **kwargs)
-        self.cel: CelSettings = settings.cel
+        self.cel: CelSettings = settings.block("cel")
         self.logs = WorkerPaths.LOGS + WorkerPaths.CEL_LOGS
         self.module: LearningModule | None = None
         self.change = -1  # the monitor's change number of the list the model follows (-1: none taken yet)

@@ -120,12 +120,12 @@ class Execution:
     def __init__(self, settings: RunSettings, *, out_dir: Path, conf: Config, resume: bool = False,
                  run_key: RunKey | None = None, heartbeat_every: float = 0.5, store_timeout: float = 2.0,
                  broker_wait: float = 30.0) -> None:
-        if settings.cel is None:
+        if settings.block("cel") is None:
             raise ConfigError("the execution module needs a CEL run's run.json (one with a cel block, made by coevo cel)")
         if run_key is not None and run_key.run != settings.run:
             raise ConfigError(f"the key is run {run_key.run!r}'s, not run {settings.run!r}'s")
-        self.cel = settings.cel
-        self.run_id, self.robot = settings.run, settings.cel.robot
+        self.cel = settings.block("cel")
+        self.run_id, self.robot = settings.run, settings.block("cel").robot
         self.world: DoorConfig = settings.world_config()  # type: ignore[assignment]
         self.K = self.cel.trials_per_generation
         self.generations = settings.ga.generations

@@ -136,10 +136,11 @@ class ComparisonFiles:
     def _executive_curve(self, rep: Replicate) -> list[float]:
         """A finished live replicate's Executive curve, the best of each generation (damaged lines left out)."""
         from coevo.experiments.compare.experiment import run_dir
+        from coevo.experiments.compare.table1 import CURVE
         from coevo.rundir.layout import RunPaths, read_jsonl
 
         if rep.run_id not in self._curves:
-            rows = read_jsonl(RunPaths(run_dir(self.out, rep)).worker("executive").curve, missing_ok=True, problems=[])
+            rows = read_jsonl(RunPaths(run_dir(self.out, rep)).worker(CURVE).curve, missing_ok=True, problems=[])
             self._curves[rep.run_id] = [float(r["best_fitness"]) for r in rows
                                         if isinstance(r.get("best_fitness"), (int, float))]
         return self._curves[rep.run_id]
@@ -148,21 +149,21 @@ class ComparisonFiles:
         """A live replicate's curve rows per behaviour, read on from where the last call stopped."""
         from coevo.dashboard.model import Tail
         from coevo.experiments.compare.experiment import run_dir
+        from coevo.experiments.compare.table1 import BEHAVIOURS
         from coevo.rundir.layout import RunPaths
-        from coevo.tasks.fuel.behaviours import Behaviour
 
         out = {}
-        for b in Behaviour:
-            key = (rep.run_id, b.value)
+        for b in BEHAVIOURS:
+            key = (rep.run_id, b)
             tail = self._tails.get(key)
             if tail is None:
-                tail = self._tails[key] = Tail(RunPaths(run_dir(self.out, rep)).worker(b.value).curve)
+                tail = self._tails[key] = Tail(RunPaths(run_dir(self.out, rep)).worker(b).curve)
             new = tail.read()
             rows = self._rows.setdefault(key, [])
             if tail.reset:  # a resumed worker cut its log back to its checkpoint
                 rows.clear()
             rows += [r for r in new if isinstance(r.get("generation"), int)]
-            out[b.value] = rows
+            out[b] = rows
         return out
 
     def _panels(self, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:

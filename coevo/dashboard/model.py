@@ -187,24 +187,26 @@ def _read_json(path: Path) -> dict[str, Any] | None:
 
 def _status_measures(task: str, behaviour: str, row: dict[str, Any]) -> dict[str, float]:
     """The task's few measures (%) of a behaviour, from a curve line (what its heartbeats carry)."""
-    from coevo.tasks import TASKS
+    from coevo.tasks import TASKS, get_task
 
-    t = TASKS.get(task)
-    if t is None:
+    if task not in TASKS:
         return {}
     try:
-        return t.status_measures(behaviour, row)
+        return get_task(task).status_measures(behaviour, row)
     except (ValueError, KeyError, TypeError):
         return {}
 
 
 def _task_of(behaviours: list[str]) -> str:
     """The task whose behaviours these are ('?' if none is known)."""
-    from coevo.tasks import TASKS
+    from coevo.errors import ConfigError
+    from coevo.tasks import task_of
 
-    for name, t in TASKS.items():
-        if any(b in t.behaviours for b in behaviours):
-            return name
+    for b in behaviours:
+        try:
+            return task_of(b).name
+        except ConfigError:
+            continue
     return "?"
 
 
@@ -325,7 +327,9 @@ class RunFiles:
         if self.settings is None:
             self.settings = _read_json(self.paths.run_json)
         s = self.settings or {}
-        task = str(s.get("task", "fuel"))
+        from coevo.tasks import DEFAULT_TASK
+
+        task = str(s.get("task", DEFAULT_TASK))
         for d in _subdirs(self.paths.workers_dir):
             if d.name not in self._workers and (d / "worker.json").exists():
                 self._workers[d.name] = _WorkerFiles(d)

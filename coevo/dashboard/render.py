@@ -222,10 +222,16 @@ def _executive_curve_html(curves: dict[str, dict]) -> str:
 
 def behaviours(view: View) -> list[str]:
     """The behaviours with a curve, in their task's order (Tracking, Docking, Executive)."""
-    from coevo.tasks import TASKS
+    from coevo.errors import ConfigError
+    from coevo.tasks import task_of
 
-    order = [b for t in TASKS.values() for b in t.behaviours]
     seen = {b for r in view.runs for b, _ in r.curves.values()}
+    order: list[str] = []
+    for b in sorted(seen):
+        try:
+            order += [x for x in task_of(b).behaviours if x not in order]
+        except ConfigError:
+            pass
     return sorted(seen, key=lambda b: (order.index(b) if b in order else len(order), b))
 
 

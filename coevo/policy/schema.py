@@ -16,13 +16,14 @@ indices; it prints as the bins' lower edges (``range = [35, 45]`` covers bins
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from coevo.errors import RuleSetError
 
-__all__ = ["Sensor", "Action", "Schema", "schema", "register", "registered"]
+__all__ = ["Sensor", "Action", "Schema", "schema", "register", "registered", "known", "set_finder"]
 
 
 @dataclass(frozen=True)
@@ -144,6 +145,23 @@ class Schema:
 
 
 _REGISTRY: dict[str, Schema] = {}
+#: Called with a behaviour's name when it is not registered, to load the task that declares it (set from above, by
+#: the tasks' registry: this module names no task).
+_FINDER: Callable[[str], None] | None = None
+
+
+def set_finder(finder: Callable[[str], None] | None) -> None:
+    """What loads a behaviour's declaring task when the behaviour is asked for before it is registered."""
+    global _FINDER
+    _FINDER = finder
+
+
+def known(behaviour: str) -> bool:
+    """Is ``behaviour`` registered, once its task is loaded if the finder finds one?"""
+    name = str(behaviour)
+    if name not in _REGISTRY and _FINDER is not None:
+        _FINDER(name)
+    return name in _REGISTRY
 
 
 def register(*schemas: Schema) -> None:
@@ -163,8 +181,7 @@ def registered() -> tuple[str, ...]:
 def schema(behaviour: str) -> Schema:
     """The rule layout of a behaviour, by name."""
     name = str(behaviour)
-    try:
-        return _REGISTRY[name]
-    except KeyError:
-        known = ", ".join(_REGISTRY) or "none: import the task that declares it, e.g. coevo.tasks"
-        raise RuleSetError(f"unknown behaviour {name!r} (known: {known})") from None
+    if not known(name):
+        names = ", ".join(_REGISTRY) or "none: import the task that declares it"
+        raise RuleSetError(f"unknown behaviour {name!r} (known: {names})")
+    return _REGISTRY[name]

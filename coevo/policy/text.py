@@ -19,7 +19,7 @@ import numpy as np
 
 from coevo.errors import ConfigError, RuleParseError, RuleSetError
 from coevo.policy.rules import RuleSet
-from coevo.policy.schema import Schema, registered, schema
+from coevo.policy.schema import Schema, known, registered, schema
 
 __all__ = ["format_ruleset", "parse_ruleset", "format_rule", "read_rule_file"]
 
@@ -124,13 +124,13 @@ def parse_ruleset(text: str, behaviour: str | None = None) -> RuleSet:
             h = _HEADER.match(line)
             if h:
                 declared = h.group("b").lower()
-                if declared not in registered():
+                if not known(declared):
                     raise RuleParseError(f"unknown behaviour {h.group('b')!r} in header", line=lineno)
             continue
         rules.append((lineno, line))
     if behaviour is not None:
         wanted = str(behaviour)
-        if wanted not in registered():
+        if not known(wanted):
             raise RuleParseError(f"unknown behaviour {behaviour!r}")
         if declared is not None and declared != wanted:
             raise RuleParseError(f"rule set is for {declared}, expected {wanted}")

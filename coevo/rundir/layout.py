@@ -477,7 +477,10 @@ def write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
     import io
 
     buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(rows[0].keys()), lineterminator="\n")
+    # every row's columns, in the order first seen (the behaviours of a task may measure different things: a
+    # column a row lacks is left empty)
+    columns = list(dict.fromkeys(k for row in rows for k in row))
+    w = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
     w.writeheader()
     w.writerows(rows)
     write_text(path, buf.getvalue())

@@ -15,14 +15,14 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Final, Literal
 
-from pydantic import BaseModel, Field, field_validator, model_validator
+from pydantic import BaseModel, Field, SerializerFunctionWrapHandler, field_validator, model_serializer, model_validator
 
 from coevo.bus.auth import KEY_ENV, RunKey
 from coevo.bus.keys import check_id
 from coevo.bus.trust import Gate
-from coevo.cel.settings import CelSettings
 from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig, Settings, build
 from coevo.errors import CoevoError, ConfigError, MessageError, RunDirError
+from coevo.rundir.kinds import KINDS
 from coevo.rundir.layout import RunPaths, read_json, write_json
 from coevo.tasks import DEFAULT_TASK, Task, get_task, saved_settings
 from coevo.tasks.base import check_ga, check_regime
@@ -46,8 +46,9 @@ class RunSettings(Settings):
                                           "status from any other is rejected (None: any worker id, a run by hand)")
     key_file: str | None = Field(None, description="the run's secret key file, relative to run.json's directory "
                                  "(None: an open run, its messages unauthenticated)")
-    cel: CelSettings | None = Field(None, description="a Continuous and Embedded Learning run (door task): the execution "
-                                    "module, its failure schedule and the learner's restart (coevo cel)")
+    blocks: dict[str, Any] = Field(default_factory=dict, description="a kind of learner's own settings, by the kind's "
+                                   "name (coevo.rundir.kinds); run.json keeps each at its top level, e.g. a CEL run's "
+                                   "\"cel\": its execution module, failure schedule and learner's restart")
     endpoint: str | None = Field(None, description="where the run's broker listens (its latest start)")
     incarnation: int = Field(0, ge=0, description="the run's incarnation: 1 when coevo run makes it, +1 with every "
                              "coevo run --resume; sealed into every message, so a message of an earlier one (a "
@@ -59,6 +60,46 @@ class RunSettings(Settings):
     def _run_id(cls, v: str) -> str:
         return check_id("run id", v)
 
+    @model_validator(mode="before")
+    @classmethod
+    def _gather_blocks(cls, data: Any) -> Any:
+        """run.json's top-level keys that name an installed kind of learner are that kind's settings."""
+        if not isinstance(data, dict):
+            return data
+        named = {k: v for k, v in data.items() if k not in cls.model_fields and k in KINDS}
+        if not named:
+            return data
+        return {k: v for k, v in data.items() if k not in named} | {"blocks": {**(data.get("blocks") or {}), **named}}
+
+    @model_serializer(mode="wrap")
+    def _spread_blocks(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
+        """Each kind's block back at run.json's top level, where the "blocks" field stands (as runs always kept it)."""
+        out: dict[str, Any] = {}
+        for k, v in handler(self).items():
+            if k == "blocks":
+                out.update(v)
+            else:
+                out[k] = v
+        return out
+
+    @field_validator("blocks")
+    @classmethod
+    def _known_blocks(cls, blocks: dict[str, Any]) -> dict[str, Any]:
+        out = {}
+        for name, block in blocks.items():
+            kind = KINDS.get(name)
+            if kind.settings is None:
+                raise ValueError(f"{name}: the kind of learner {name!r} has no settings of its own")
+            model = kind.settings()
+            out[name] = block if isinstance(block, model) else build(model, block)
+        if len(out) > 1:
+            raise ValueError(f"settings of {len(out)} kinds of learner ({', '.join(out)}): a run is of one kind")
+        return out
+
+    def block(self, kind: str) -> Any:
+        """The settings of kind of learner ``kind`` in this run (its model), or None if the run is not of that kind."""
+        return self.blocks.get(kind)
+
     @model_validator(mode="after")
     def _task_fits(self) -> RunSettings:
         task = get_task(self.task)
@@ -68,9 +109,8 @@ class RunSettings(Settings):
                 raise ValueError(f"roster names {sorted(self.roster)}; it must name each of {list(task.behaviours)}")
             for b, w in self.roster.items():
                 check_id(f"roster worker id for {b}", w)
-        if self.cel is not None:  # a learner kind's own settings say what runs they fit (coevo.runs.kinds)
-            self.cel.check_fits(task=self.task, generations=self.ga.generations,
-                                worker_ids=(self.roster or {}).values())
+        for block in self.blocks.values():  # a learner kind's own settings say what runs they fit (coevo.rundir.kinds)
+            block.check_fits(task=self.task, generations=self.ga.generations, worker_ids=(self.roster or {}).values())
         try:
             check_ga(task, self.ga)  # every worker's GA settings as the task fills them in, before a run starts
         except ConfigError as exc:
@@ -114,11 +154,11 @@ class RunSettings(Settings):
 
     def gate(self, key: RunKey | None, *, reject: Callable[[MessageError, str], None] | None = None) -> Gate:
         """What the run's receivers accept: its key (None: open), its roster, the generations a policy can reach
-        (when there is a roster) and, in a CEL run, its robot."""
+        (when there is a roster) and, in a run whose kind's settings name a robot (a CEL run), that robot."""
         roster = self.roster
+        robot = next((b.robot for b in self.blocks.values() if getattr(b, "robot", None) is not None), None)
         return Gate(key=key, roster=roster, generations=self.ga.generations if roster is not None else None,
-                    robot=self.cel.robot if self.cel is not None and roster is not None else None, reject=reject,
-                    epoch=self.incarnation)
+                    robot=robot if roster is not None else None, reject=reject, epoch=self.incarnation)
 
     def key_path(self, base: Path) -> Path | None:
         """The key file's path (``key_file`` relative to ``base``, run.json's directory); None in an open run."""

@@ -14,7 +14,7 @@ One fault at a time, at random (seeded) moments while the workers evolve:
 A process that dies on its own (not by chaos) is started again by that supervisor too, and reported.
 
 For every worker kill it measures how long the status board took to show the
-worker dead.  A CEL run (``settings.cel``: ``coevo chaos --cel``) has a third kind of
+worker dead.  A run of a kind with modules of its own (a CEL run: ``coevo chaos --learner cel``) has a third kind of
 process among the workers, its execution module (``execution``), killed, paused and
 restarted like a worker.  At the end it checks the run directory (:mod:`coevo.runs.check`: every
 generation, every published version in the store, replay exact) and writes

@@ -23,6 +23,7 @@ from coevo.console import (
     max_lead_of,
     positive_float_arg,
     seed_arg,
+    task_arg,
     world_settings,
 )
 from coevo.config import DEFAULT_MAX_LEAD, MODELS
@@ -42,22 +43,18 @@ def refuse(args: argparse.Namespace, names: tuple[str, ...], why: str) -> None:
         raise ConfigError(f"{why}; drop {', '.join(given)}")
 
 
-def task_names() -> list[str]:
-    from coevo.tasks import TASKS
+def kind_arg(value: str) -> str:
+    """A kind of learner's name, as installed (coevo plugins lists them); nothing is imported to check it."""
+    from coevo.rundir.kinds import kind_names
 
-    return list(TASKS)
-
-
-def behaviour_names() -> list[str]:
-    import coevo.tasks  # noqa: F401 - the built-in tasks register their behaviours
-    from coevo.policy.schema import registered
-
-    return list(registered())
+    if value not in kind_names():
+        raise argparse.ArgumentTypeError(f"unknown kind of learner {value!r} (installed: {', '.join(kind_names())})")
+    return value
 
 
 def add_run_settings(p: argparse.ArgumentParser, *, defaults_note: bool = True) -> None:
     """A run's settings flags (task, seed, partner model, pacing, GA and world), shared by run and worker."""
-    p.add_argument("--task", choices=task_names(), help="the task (default fuel)")
+    p.add_argument("--task", type=task_arg, help="the task (default fuel; coevo plugins lists those installed)")
     p.add_argument("--seed", type=seed_arg, help="default 0" + ("; worker i of the task's behaviours uses seed + i" if defaults_note else ""))
     p.add_argument("--model", choices=MODELS, help="how partners are modelled (default best so far)")
     add_max_lead(p)
@@ -137,7 +134,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 def configure_worker(p: argparse.ArgumentParser) -> None:
     """``coevo worker``'s arguments."""
     p.add_argument("--settings", metavar="RUN_JSON", help="the run's settings (its run.json; what coevo run starts workers with)")
-    p.add_argument("--behaviour", required=True, choices=behaviour_names())
+    p.add_argument("--behaviour", required=True, help="the behaviour this worker learns: one of the run's task's")
     p.add_argument("--regime", help="without --settings: mutual or independent (the task's regimes)")
     p.add_argument("--run", help="without --settings: run id (letters, digits, _ - .)")
     p.add_argument("--worker-id", help="default BEHAVIOUR-SEED")
@@ -164,6 +161,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
     from coevo.rundir.settings import RunSettings, find_run_key
     from coevo.runs.kinds import kind_of_settings
     from coevo.tasks import DEFAULT_TASK
+    from coevo.tasks.base import check_behaviour
 
     if args.settings:
         refuse(args, ("task", "regime", "run", "model", "max_lead", *GA_FLAGS), "--settings gives every run setting")
@@ -177,7 +175,8 @@ def cmd_worker(args: argparse.Namespace) -> int:
         settings = RunSettings.make(run=args.run, task=task, regime=args.regime, seed=args.seed or 0,
                                     model=args.model or "best", max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
                                     world=world_settings(args, task), ga=ga_settings(args, task))
-    kind = kind_of_settings(settings).worker()  # a CEL run's learner (coevo cel) plugs into the worker's seam
+    check_behaviour(settings.the_task, args.behaviour)
+    kind = kind_of_settings(settings).worker()  # another kind's learner (coevo.rundir.kinds) plugs into the worker's seam
     out = Path(args.out) if args.out else (RunPaths(base).worker(args.behaviour).dir if base else None)
     conf = config_from_args(args)
     run_key = find_run_key(args.key_file, settings, base)
@@ -216,9 +215,10 @@ def configure_chaos(p: argparse.ArgumentParser) -> None:
     """``coevo chaos``'s arguments."""
     p.add_argument("--regime", help="mutual or independent (default mutual; the door task's: independent)")
     p.add_argument("--run", help="run id (default chaos-REGIME-TIME)")
-    p.add_argument("--cel", action="store_true",
-                   help="a CEL run (coevo cel, door task): its execution module is killed and paused too; front, "
-                        "front-right and right fail halfway")
+    p.add_argument("--learner", metavar="KIND", type=kind_arg,
+                   help="the kind of learner of the run (default coevolution; coevo plugins lists them): e.g. cel, a "
+                        "CEL run (door task) whose execution module is killed and paused too, front, front-right and "
+                        "right failing halfway")
     p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
     p.add_argument("--task", help="the task (default fuel)")
     p.add_argument("--seed", type=seed_arg, default=0, help="seeds the workers and the choice of faults")
@@ -238,13 +238,13 @@ def configure_chaos(p: argparse.ArgumentParser) -> None:
 
 def cmd_chaos(args: argparse.Namespace) -> int:
     from coevo.runs.chaos import CHAOS_REPORT, ChaosPlan, run_chaos, summary_lines
-    from coevo.runs.kinds import CEL, COEVOLUTION
+    from coevo.runs.kinds import COEVOLUTION, KINDS
     from coevo.runs.local import default_run_id
     from coevo.rundir.settings import RunSettings
     from coevo.tasks import DEFAULT_TASK, get_task
 
     plan = ChaosPlan(faults=args.faults, kinds=tuple(args.kinds), gap=tuple(args.gap), down=tuple(args.down), seed=args.seed)
-    kind = CEL if args.cel else COEVOLUTION
+    kind = COEVOLUTION if args.learner is None else KINDS.get(args.learner)
     task = args.task or kind.default_task or DEFAULT_TASK
     regime = args.regime or ("mutual" if "mutual" in get_task(task).regimes else "independent")
     ga = ga_settings(args, task)

@@ -1,30 +1,29 @@
-"""The commands that learn or measure without the network: ``coevo learn`` and ``coevo bench``.
+"""The command that learns without the network: ``coevo learn``, for any task.
 
-Gathered by :mod:`coevo.cli`; the work is :mod:`coevo.runs.learn` and :mod:`coevo.tasks.fuel.bench`.
+Gathered by :mod:`coevo.cli`; the work is :mod:`coevo.runs.learn`.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 from typing import Any
 
 from coevo.console import (
-    SONARS_HELP,
     ProgressBar,
+    accept_task_flags,
     add_settings,
     count_arg,
     given_settings,
-    pairs,
     positive_float_arg,
     seed_arg,
-    sonars_arg,
+    task_arg,
+    task_flags,
 )
 from coevo.errors import ConfigError
-from coevo.runs.command import GA_FLAGS, behaviour_names, refuse, task_names
+from coevo.runs.command import GA_FLAGS, refuse
 
-__all__ = ["configure_learn", "configure_bench"]
+__all__ = ["configure_learn"]
 
 
 def _read_rules(path: str | None, behaviour: str) -> Any:
@@ -39,16 +38,16 @@ def _read_rules(path: str | None, behaviour: str) -> Any:
 
 def configure_learn(p: argparse.ArgumentParser) -> None:
     """``coevo learn``'s arguments."""
-    p.add_argument("--behaviour", choices=behaviour_names(), help="the behaviour to learn (optional for a task with one)")
+    p.add_argument("--behaviour", help="the behaviour to learn (optional for a task with one; coevo plugins lists the "
+                   "tasks, and a task's behaviours are in its docs)")
     p.add_argument("--settings", metavar="RUN_JSON",
                    help="take the world, GA settings and the behaviour's seed from a run's settings (a run.json)")
-    p.add_argument("--task", choices=task_names(), help="the task (default: the behaviour's; door: --behaviour door)")
-    p.add_argument("--fail", metavar="SONARS", type=sonars_arg,
-                   help=f"door task: sonars that fail, {SONARS_HELP} (the same as --world failed=...)")
+    p.add_argument("--task", type=task_arg, help="the task (default: the behaviour's; door: --behaviour door)")
     p.add_argument("--seed", type=seed_arg, help="default 0")
     p.add_argument("--out", help="run directory to create (default runs/learn-BEHAVIOUR-seedN-TIME)")
-    p.add_argument("--tracking", help="Tracking rule file (for --behaviour executive)")
-    p.add_argument("--docking", help="Docking rule file (for --behaviour executive)")
+    p.epilog = ("The task's own flags are taken too: --PARTNER FILE, a partner behaviour's rule file (the fuel task's "
+                "Executive: --tracking t.rules --docking d.rules), and the task's names for world settings (the door "
+                "task: --fail front,front_right, the same as --world failed=...).")
     p.add_argument("--seed-policy", help="start the population from this rule file instead of the behaviour's default (or random) rules")
     p.add_argument("--history", metavar="RUN_DIR", help="executive: adopt the Tracking/Docking policies stored in a finished run, in step")
     p.add_argument("--rate", type=positive_float_arg(maximum=1e6), default=1.0,
@@ -56,6 +55,7 @@ def configure_learn(p: argparse.ArgumentParser) -> None:
     p.add_argument("--measure-epochs", type=count_arg(1, 1_000_000), default=100, help="fresh epochs for the final measures")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     add_settings(p)
+    accept_task_flags(p)
     p.set_defaults(func=cmd_learn)
 
 
@@ -72,22 +72,27 @@ def cmd_learn(args: argparse.Namespace) -> int:
     task = task_of(args.behaviour)
     if args.task is not None and args.task != task.name:
         raise ConfigError(f"--behaviour {args.behaviour} belongs to task {task.name!r}, not {args.task!r}")
+    partner_files, world_flags = task_flags(args, task)
+    foreign = sorted(set(partner_files) - set(task.behaviours) | ({args.behaviour} & set(partner_files)))
+    if foreign:
+        raise ConfigError(f"--{foreign[0]}: {args.behaviour} learns with partners of its own task's other behaviours "
+                          f"({', '.join(b for b in task.behaviours if b != args.behaviour) or 'none'})")
     if args.settings:  # a run's settings (coevo compare's offline Executive): world, GA and seed from there
         from coevo.rundir.settings import RunSettings
 
-        refuse(args, (*GA_FLAGS, "fail", "seed"), "--settings gives the world, GA and seed")
+        refuse(args, (*GA_FLAGS, "seed"), "--settings gives the world, GA and seed")
+        if world_flags:
+            raise ConfigError(f"--settings gives the world; drop {', '.join('--' + f for f in task.flags)}")
         settings = RunSettings.load(Path(args.settings))
         if settings.task != task.name:
             raise ConfigError(f"--settings {args.settings!r} are for task {settings.task!r}, not {task.name!r}")
         world, ga, args.seed = settings.world_config(), settings.ga, settings.worker_seed(args.behaviour)
     else:
         world_values, ga_values = given_settings(args, task.name)
-        if args.fail is not None:
-            world_values["failed"] = args.fail
         world = build(task.world_settings, world_values)
         ga = build(GAConfig, ga_values)
         args.seed = 0 if args.seed is None else args.seed
-    partners = {b: _read_rules(f, b) for b, f in (("tracking", args.tracking), ("docking", args.docking)) if f}
+    partners = {b: _read_rules(f, b) for b, f in partner_files.items()}
     if args.out is not None and not args.out.strip():
         raise ConfigError(f"--out {args.out!r} is empty: give the run directory to create (or leave --out out)")
     out = Path(args.out) if args.out else default_out(args.behaviour, args.seed)
@@ -108,35 +113,4 @@ def cmd_learn(args: argparse.Namespace) -> int:
     print(f"time: {res.seconds:.1f} s; best fitness {m['best_fitness']:.3f}")
     print("measures: " + ", ".join(f"{k} {v:.1f}" for k, v in m.items()
                                    if k not in ("best_fitness", "episodes", "epochs") and isinstance(v, float)))
-    return 0
-
-
-def configure_bench(p: argparse.ArgumentParser) -> None:
-    """``coevo bench``'s arguments."""
-    p.add_argument("--behaviour", default="tracking", choices=["tracking", "docking"])
-    p.add_argument("--lanes", type=count_arg(1, 100_000), default=4500, help="episodes run at once (default 50 x 90)")
-    p.add_argument("--rules", type=count_arg(1, 64), default=32, help="rules per policy (evolved size)")
-    p.add_argument("--policy", help="a rule file to drive every lane instead of random rule sets")
-    p.add_argument("--repeats", type=count_arg(1, 1000), default=3)
-    p.add_argument("--baseline-seconds", type=positive_float_arg(maximum=3600), default=3.0)
-    p.add_argument("--seed", type=seed_arg, default=0)
-    p.add_argument("--world", action="append", metavar="NAME=VALUE")
-    p.add_argument("--json", action="store_true", help="print both figures and their ratio as JSON")
-    p.set_defaults(func=cmd_bench)
-
-
-def cmd_bench(args: argparse.Namespace) -> int:
-    from coevo.config import build
-    from coevo.tasks.fuel.bench import bench
-    from coevo.tasks.fuel.settings import WorldConfig
-
-    world = build(WorldConfig, pairs(args.world, "world"))
-    res = bench(world=world, behaviour=args.behaviour, lanes=args.lanes, rules=args.rules, repeats=args.repeats,
-                baseline_seconds=args.baseline_seconds, seed=args.seed, policy=_read_rules(args.policy, args.behaviour))
-    if args.json:
-        print(json.dumps(res.as_dict(), indent=2))
-    else:
-        print(f"batched ({res.lanes} lanes, {res.rules_per_policy} rules): {res.batched_steps_per_s / 1e6:.3f} M robot-steps/s")
-        print(f"plain one-episode loop:                {res.baseline_steps_per_s / 1e6:.3f} M robot-steps/s")
-        print(f"ratio {res.ratio:.1f}x; batch peak {res.batch_peak_mb:.0f} MB (tracemalloc), process max RSS {res.max_rss_mb:.0f} MB")
     return 0

@@ -28,7 +28,7 @@ MAX_EPISODES = 1000  # one lane records (episodes x steps) states; beyond this a
 
 
 class _TaskNames:
-    """``--task``'s choices: the registered tasks (coevo.tasks.TASKS), looked up only when the help lists them.
+    """``--task``'s choices: the installed tasks (coevo.tasks.task_names), looked up only when the help lists them.
 
     argparse lets every name in: :func:`cmd_show` checks it (``find_task``) and raises a ConfigError, so that
     a bad name is the command's one-line error (and ``coevo.cli.main`` returns 2) like every other bad input.
@@ -38,22 +38,24 @@ class _TaskNames:
         return True
 
     def __iter__(self) -> Iterator[str]:
-        from coevo.tasks import TASKS
+        from coevo.tasks import task_names
 
-        return iter(TASKS)
+        return iter(task_names())
 
 
 def _shown(args: argparse.Namespace, world_over: dict[str, Any]) -> Any:
+    from coevo.console import task_flags
     from coevo.policy.text import read_rule_file
     from coevo.show.source import find_task, from_default, from_path
 
     wanted = find_task(args.task) if args.task is not None else None
-    partners = {b: read_rule_file(Path(f), b) for b, f in (("tracking", args.tracking), ("docking", args.docking)) if f}
+    partners = {b: read_rule_file(Path(f), b) for b, f in task_flags(args)[0].items()}
     if args.source and args.default is not None:
         raise ConfigError(f"give a rule file or run directory ({args.source!r}) or --default, not both")
     if args.default is not None:
         if partners:
-            raise ConfigError("--tracking/--docking are partners for an Executive; --default shows one behaviour")
+            raise ConfigError(f"{', '.join('--' + b for b in partners)}: partners' rule files are for a rule file that "
+                              "learns with them; --default shows one behaviour")
         return from_default(args.default, world_over, wanted=wanted)
     if args.source:
         return from_path(Path(args.source), world_over=world_over, partners=partners, wanted=wanted)
@@ -135,7 +137,10 @@ EPILOG = (
     "  coevo show runs/learn-door-...                # a door trial\n"
     "  coevo show best.rules --rules                 # rules by strength, with fire counts\n"
     "  coevo show runs/ID --animate --out epoch.gif\n"
-    "  coevo show exec.rules --tracking t.rules --docking d.rules --epoch")
+    "  coevo show exec.rules --tracking t.rules --docking d.rules --epoch\n"
+    "\n"
+    "a partner's rule file is --BEHAVIOUR FILE, for any behaviour of the rule file's task (the Executive's\n"
+    "partners: --tracking and --docking).")
 
 
 def configure_show(p: argparse.ArgumentParser) -> None:
@@ -148,8 +153,6 @@ def configure_show(p: argparse.ArgumentParser) -> None:
                         "whole robot) or a 'coevo learn' directory (its best.rules)")
     p.add_argument("--default", metavar="BEHAVIOUR",
                    help="show a behaviour's shipped default rules instead (tracking, docking, door)")
-    p.add_argument("--tracking", metavar="FILE", help="Tracking rule file: a partner for an Executive rule file")
-    p.add_argument("--docking", metavar="FILE", help="Docking rule file: a partner for an Executive rule file")
     p.add_argument("--episodes", type=count_arg(1, MAX_EPISODES), metavar="N",
                    help=f"play N episodes (door: trials) in a row, starting a new epoch when one ends (default: the "
                         f"task's; {DEFAULT_EPISODES} for a Tracking or Docking rule set)")
@@ -170,4 +173,4 @@ def configure_show(p: argparse.ArgumentParser) -> None:
                         "terminal, plain lines otherwise); draws nothing unless --out or --animate is given too")
     p.add_argument("--world", action="append", metavar="NAME=VALUE",
                    help="world setting of the robot's task, e.g. target_speed=3 (repeatable)")
-    p.set_defaults(func=cmd_show)
+    p.set_defaults(func=cmd_show, task_flags=[])  # --BEHAVIOUR FILE: a partner's rule file (coevo.console.task_flags)

@@ -28,7 +28,8 @@ from coevo.policy.rules import RuleSet
 from coevo.policy.text import read_rule_file
 from coevo.rundir.layout import LearnPaths, RunPaths, read_json
 from coevo.rundir.settings import SETTINGS_VERSION
-from coevo.tasks import DEFAULT_TASK, TASKS, Task, saved_settings, task_of
+from coevo.plugins import PluginError
+from coevo.tasks import DEFAULT_TASK, TASKS, Task, get_task, saved_settings, task_of, usable_tasks
 from coevo.tasks.showing import TaskDisplay, display_of
 
 __all__ = ["Shown", "find_task", "task_names", "from_default", "from_path", "check_world"]
@@ -53,15 +54,17 @@ def _shown(task: Task[Any], name: str, world: BaseModel, rules: Mapping[str, Rul
 
 
 def task_names() -> list[str]:
-    return list(TASKS)
+    return TASKS.names()
 
 
 def find_task(name: str) -> Task:
-    """The registered task called ``name`` (or by one of its older names)."""
-    for t in TASKS.values():
-        if name == t.name or name in t.aliases:
+    """The installed task called ``name`` (or by one of its older names, which every task is loaded to find)."""
+    if name in TASKS:
+        return get_task(name)
+    for t in usable_tasks().values():
+        if name in t.aliases:
             return t
-    raise ConfigError(f"--task {name!r}: unknown task (known: {', '.join(TASKS)})")
+    raise ConfigError(f"--task {name!r}: unknown task (known: {', '.join(TASKS.names())})")
 
 
 def check_world(over: Mapping[str, Any]) -> dict[str, Any]:
@@ -96,17 +99,21 @@ def _partners_of(task: Task, partners: Mapping[str, RuleSet], what: str) -> None
 def from_default(behaviour: str, world_over: Mapping[str, Any], *, wanted: Task | None) -> Shown:
     """A behaviour's shipped default rules, in a world of its task's defaults with ``world_over`` (the rules a GA
     starts from there: :meth:`~coevo.tasks.base.Task.initial_rules`)."""
-    have = [b for t in TASKS.values() for b in t.behaviours if t.initial_rules(b, t.world_settings()) is not None]
+    def none_there() -> ConfigError:
+        have = [b for t in usable_tasks().values() for b in t.behaviours
+                if t.initial_rules(b, t.world_settings()) is not None]
+        return ConfigError(f"--default {behaviour!r}: only {', '.join(have)} have default rules")
+
     try:
         task = task_of(behaviour)
     except ConfigError:
-        raise ConfigError(f"--default {behaviour!r}: only {', '.join(have)} have default rules") from None
+        raise none_there() from None
     if wanted is not None and wanted is not task:
         raise ConfigError(f"--default {behaviour!r} is a {task.name!r} behaviour, not {wanted.name!r} (--task)")
     world = _world(task, world_over)
     rs = task.initial_rules(behaviour, world)
     if rs is None:
-        raise ConfigError(f"--default {behaviour!r}: only {', '.join(have)} have default rules")
+        raise none_there()
     return _shown(task, f"default-{behaviour}", world, {behaviour: rs})
 
 
@@ -138,10 +145,16 @@ def _meta(f: Path) -> dict[str, Any]:
 
 def _named_task(meta: Mapping[str, Any], f: Path, default: str) -> Task:
     name = meta.get("task", default)
-    if not isinstance(name, str) or not any(name == t.name or name in t.aliases for t in TASKS.values()):
-        raise RunDirError(f"{str(f)!r} names task {name!r}, unknown to this coevo (it knows {', '.join(TASKS)}; "
-                          "written by another version?)")
-    return find_task(name)
+    if not isinstance(name, str):
+        raise RunDirError(f"{str(f)!r} names task {name!r}, which is not a name")
+    try:
+        return find_task(name)
+    except PluginError:
+        raise
+    except ConfigError:
+        raise RunDirError(f"{str(f)!r} names task {name!r}, unknown to this coevo (it knows "
+                          f"{', '.join(TASKS.names())}; written by another version, or by a task's package not "
+                          "installed here?)") from None
 
 
 def _run_world(task: Task, meta: Mapping[str, Any], f: Path, over: Mapping[str, Any], version: str) -> BaseModel:

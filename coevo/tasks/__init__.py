@@ -1,11 +1,17 @@
-"""The tasks: worlds whose behaviours the GA learns (the interface is :mod:`coevo.tasks.base`).
+"""The tasks: worlds whose behaviours the GA learns (the interface is :mod:`coevo.tasks.base`), found by name.
+
+Tasks are plugins (:mod:`coevo.plugins`), coevo's own included: each is an entry point of the group
+``coevo.tasks`` in its package's metadata, and its module is imported the first time its name is asked for,
+so a process imports only the task it runs.  coevo's own, declared in its pyproject.toml:
 
 * ``fuel``: tracking under fuel constraints (report Appendix A): Tracking, Docking, Executive;
 * ``door``: door traversal with seven sonars that may fail (report Appendix B): one behaviour, door;
 * ``corridor``: a one-cell-wide corridor to walk to its end, small enough for tests to learn
   in a second; it shows that the GA, worker, broker, replay and check name no task.
 
-Importing this package registers every built-in task's behaviours (their rule schemas).
+Another package adds its own the same way (docs/own-task.md); a script or a test with :func:`register_task`.
+A task registers its behaviours' rule schemas when it is imported; a behaviour asked for by name before its
+task was (a rule file, a message on the bus) has its task found by :func:`task_of`.
 
 Settings as given and as saved: :func:`split_settings` reads ``--ga`` values that name a setting
 of the task's world (and none of the GA's) as world settings; :func:`saved_settings` reads a
@@ -20,38 +26,94 @@ from typing import Any
 
 from coevo.config import GAConfig, Settings, saved_ga
 from coevo.errors import ConfigError
+from coevo.plugins import TASKS_GROUP, Plugins
+from coevo.policy import schema as _schema
 from coevo.tasks.base import Evaluation, Evaluator, Partners, Task
-from coevo.tasks.corridor import CorridorTask
-from coevo.tasks.door import DoorTask
-from coevo.tasks.fuel import FuelTask
 
-__all__ = ["Task", "Evaluator", "Evaluation", "Partners", "TASKS", "get_task", "task_of", "measure_labels", "DEFAULT_TASK",
-           "split_settings", "saved_settings"]
+__all__ = ["Task", "Evaluator", "Evaluation", "Partners", "TASKS", "get_task", "task_of", "task_names", "usable_tasks",
+           "register_task", "measure_labels", "DEFAULT_TASK", "split_settings", "saved_settings"]
 
-TASKS: dict[str, Task[Any]] = {t.name: t for t in (FuelTask(), CorridorTask(), DoorTask())}
-DEFAULT_TASK = "fuel"
+DEFAULT_TASK = "fuel"  # the report's task: what every command runs unless told
+
+
+def _make_task(name: str, obj: object) -> Task[Any]:
+    """A task from what its entry point names: a Task subclass (made with no arguments) or a Task."""
+    task = obj() if isinstance(obj, type) and issubclass(obj, Task) else obj
+    if not isinstance(task, Task):
+        raise TypeError(f"{obj!r} is not a coevo task (a subclass or instance of coevo.tasks.base.Task)")
+    if task.name != name:
+        raise TypeError(f"it is installed as {name!r} but calls itself {task.name!r}")
+    if not task.behaviours or not all(isinstance(b, str) for b in task.behaviours):
+        raise TypeError(f"its behaviours {task.behaviours!r} are not a tuple of names")
+    return task
+
+
+#: Every task installed or registered, by name; a task's module is imported when its name is first asked for.
+TASKS: Plugins[Task[Any]] = Plugins(TASKS_GROUP, "task", _make_task)
 
 
 def get_task(name: str) -> Task[Any]:
-    """The task called ``name``."""
-    try:
-        return TASKS[name]
-    except KeyError:
-        raise ConfigError(f"unknown task {name!r} (use {' or '.join(TASKS)})") from None
+    """The task called ``name``, imported on first use (a ConfigError for an unknown name, a PluginError naming
+    the package for one that cannot be used)."""
+    if not isinstance(name, str):
+        raise ConfigError(f"a task is named by a string, not {name!r}")
+    return TASKS.get(name)
+
+
+def task_names() -> list[str]:
+    """The names of the tasks installed or registered (nothing is imported)."""
+    return TASKS.names()
+
+
+def usable_tasks() -> dict[str, Task[Any]]:
+    """Every task that loads, by name (each imported; one that cannot be is logged and left out)."""
+    return TASKS.usable()
+
+
+def register_task(task: Task[Any] | type[Task[Any]] | str, name: str | None = None) -> None:
+    """Make a task known in this process without installing a package (a script, a notebook, a test): a Task, a
+    Task subclass, or ``"module:Class"`` imported when first named (then ``name`` is needed)."""
+    if name is None:
+        if isinstance(task, str):
+            raise ConfigError(f"register_task({task!r}) needs the task's name: register_task('module:Class', name=...)")
+        name = task.name
+    TASKS.register(name, task)
 
 
 def measure_labels() -> dict[str, str]:
-    """Every task's short names of its status measures."""
-    return {k: v for t in TASKS.values() for k, v in t.measure_labels.items()}
+    """The short names of the status measures of every task loaded so far (a measure arrives with its task)."""
+    return {k: v for t in TASKS.loaded().values() for k, v in t.measure_labels.items()}
 
 
 def task_of(behaviour: str) -> Task[Any]:
-    """The task a behaviour belongs to (behaviour names are unique across tasks)."""
-    for t in TASKS.values():
-        if str(behaviour) in t.behaviours:
+    """The task a behaviour belongs to (behaviour names are unique across tasks): among the tasks loaded so far,
+    else the others, imported one at a time until one declares it."""
+    name = str(behaviour)
+    for t in TASKS.loaded().values():
+        if name in t.behaviours:
             return t
-    known = ", ".join(b for t in TASKS.values() for b in t.behaviours)
-    raise ConfigError(f"unknown behaviour {str(behaviour)!r} (known: {known})")
+    for task_name in TASKS.names():
+        if task_name in TASKS.loaded():
+            continue
+        try:
+            t = TASKS.get(task_name)
+        except ConfigError:
+            continue  # a task that cannot be used declares nothing (coevo plugins says why)
+        if name in t.behaviours:
+            return t
+    known = ", ".join(b for t in TASKS.loaded().values() for b in t.behaviours)
+    raise ConfigError(f"unknown behaviour {name!r} (known: {known})")
+
+
+def _find_schema(behaviour: str) -> None:
+    """The rule schemas' finder: a behaviour not registered yet has its task loaded, if any task declares it."""
+    try:
+        task_of(behaviour)
+    except ConfigError:
+        pass
+
+
+_schema.set_finder(_find_schema)
 
 
 def split_settings(task: Task[Any], world: Mapping[str, Any], ga: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -78,7 +140,7 @@ def saved_settings(data: Mapping[str, Any]) -> dict[str, Any]:
     ga, world, name = out.get("ga"), out.get("world", {}), out.get("task", DEFAULT_TASK)
     if not isinstance(ga, dict) or not isinstance(world, dict):
         return out
-    task = TASKS.get(name) if isinstance(name, str) else None
+    task = get_task(name) if isinstance(name, str) and name in TASKS else None
     if task is not None:
         world, ga = split_settings(task, world, ga)
         model = task.world_settings

@@ -72,6 +72,10 @@ class Task(ABC, Generic[W]):
     aliases: ClassVar[tuple[str, ...]] = ()
     #: Short names of its status measures for narrow displays (e.g. quality_tracking -> QT).
     measure_labels: ClassVar[dict[str, str]] = {}
+    #: Command-line flags of its own, each a world setting by another name (the door task's ``--fail front`` is
+    #: ``--world failed=front``), taken by ``coevo learn``, ``show``, ``run`` and ``worker`` once the task is known;
+    #: every behaviour of a task is a flag too there, giving a partner's rule file (``--tracking FILE``).
+    flags: ClassVar[dict[str, str]] = {}
     #: The world is its own mirror image, so a rule's mirror image (Sensor.mirrored, Action.mirrored) is as
     #: right on the other side as the rule on its own (GAConfig.symmetric_rules needs this).
     mirror_symmetric: ClassVar[bool] = False

@@ -26,7 +26,7 @@ def _base_settings(args: argparse.Namespace) -> RunSettings:
     from coevo.config import build
     from coevo.console import ga_settings, world_settings
     from coevo.rundir.settings import RunSettings
-    from coevo.runs.cel_command import CEL_GENERATIONS, CEL_MAX_LEAD, SCHEDULES
+    from coevo.cel_service.command import CEL_GENERATIONS, CEL_MAX_LEAD, SCHEDULES
 
     if args.fail and args.schedule:
         raise ConfigError("give --schedule or --fail events, not both")
@@ -51,7 +51,7 @@ def cmd_cel_experiment(args: argparse.Namespace) -> int:
     lockstep = read_lockstep(Path(args.lockstep), bool(args.case_base)) if args.lockstep else None
     out = Path(args.out) if args.out else Path("runs") / f"cel-experiment-{time.strftime('%Y%m%d-%H%M%S')}"
     seeds = list(range(args.first_seed, args.first_seed + args.runs))
-    cel = base.cel
+    cel = base.block("cel")
     assert cel is not None  # _base_settings gives a CEL run's settings, with its cel block
     spec = {"runs": args.runs, "first_seed": args.first_seed, "generations": base.ga.generations,
             "trials_per_generation": cel.trials_per_generation, "case_base": cel.case_base,
@@ -77,7 +77,7 @@ def cmd_cel_experiment(args: argparse.Namespace) -> int:
 
 def configure_cel_experiment(p: argparse.ArgumentParser) -> None:
     """``coevo cel-experiment``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
-    from coevo.runs.cel_command import SCHEDULES, add_cel_flags
+    from coevo.cel_service.command import SCHEDULES, add_cel_flags
 
     p.add_argument("--runs", type=count_arg(1, 10_000), default=10, help="live runs, one per seed (default 10)")
     p.add_argument("--first-seed", type=seed_arg, default=0, help="seeds first-seed .. first-seed + runs - 1")

@@ -26,7 +26,11 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Iterable, Mapping
 
-__all__ = ["DOCKING", "TRACKING", "CLASSES", "REPORT_COUNTS", "classify", "count"]
+__all__ = ["BEHAVIOURS", "CURVE", "DOCKING", "TRACKING", "CLASSES", "REPORT_COUNTS", "classify", "count"]
+
+#: The behaviours of the runs Table 1 classes (the fuel task's), and the one whose learning curve a comparison draws.
+BEHAVIOURS = ("tracking", "docking", "executive")
+CURVE = "executive"
 
 DOCKING = ("Good Docking", "Poor Docking", "No Docking")
 TRACKING = ("Hi", "Med", "Lo")

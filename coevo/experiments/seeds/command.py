@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from coevo.console import SONARS_HELP, ProgressBar, count_arg, seed_arg, sonars_arg
+from coevo.console import ProgressBar, count_arg, seed_arg
 from coevo.errors import ConfigError, RunDirError
 from coevo.replicates.flags import add_backend_flags, backend_of, check_backend_flags
 
@@ -146,6 +146,7 @@ def _cmd_door(args: argparse.Namespace) -> int:
 def configure_seeds(p: argparse.ArgumentParser) -> None:
     """``coevo seeds``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
     from coevo.tasks import DEFAULT_TASK
+    from coevo.tasks.door.flags import SONARS_HELP, sonars_arg  # the door task is one of the two it runs
 
     p.add_argument("--task", choices=["fuel", "door"], default=DEFAULT_TASK,
                    help="fuel: Tracking and Docking against the learning targets (default); door: Appendix B's door "

@@ -48,6 +48,7 @@ class DoorTask(Task[DoorConfig]):
     behaviours = (DOOR,)
     regimes = ("independent",)
     world_settings = DoorConfig
+    flags = {"fail": "failed"}  # --fail front,front_right: the sonars that fail, in any spelling
 
     def initial_rules(self, behaviour: str, world: DoorConfig) -> RuleSet:
         check_behaviour(self, behaviour)

@@ -42,7 +42,7 @@ class CelRun(LocalRun):
     COMMAND = "coevo cel"
 
     def __init__(self, settings: Any, **kwargs: Any) -> None:
-        if settings.cel is None:
+        if settings.block("cel") is None:
             raise ConfigError("a CEL run needs cel settings (coevo cel makes them)")
         super().__init__(settings, **kwargs)
 
@@ -134,7 +134,7 @@ def cel_report(paths: RunPaths) -> dict[str, Any]:
     from coevo.rundir.settings import RunSettings
 
     settings = RunSettings.load(paths.run_json)
-    if settings.cel is None:
+    if settings.block("cel") is None:
         raise RunDirError(f"{str(paths.dir)!r} is not a CEL run (its run.json has no cel block)")
     ex = paths.execution
     learner = paths.worker(DOOR)
@@ -151,7 +151,7 @@ def cel_report(paths: RunPaths) -> dict[str, Any]:
     return {"rows": rows, "generations_played": len(perf), "external_end": perf[-1]["external"] if perf else None,
             "changes": changes, "learner_restarts": [{k: c[k] for k in ("generation", "change", "capabilities")}
                                                      for c in learner_changes],
-            "detections": _detections(changes, settings.cel.schedule, settings.cel.trials_per_generation,
+            "detections": _detections(changes, settings.block("cel").schedule, settings.block("cel").trials_per_generation,
                                       learner_changes),
             "policies_received": len(latency),
             "latency_ms": {"median": statistics.median(latency), "max": max(latency)} if latency else None,

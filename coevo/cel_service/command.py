@@ -1,6 +1,6 @@
 """``coevo cel`` (a live CEL run on this machine) and ``coevo execution`` (its execution module process).
 
-Registered by :mod:`coevo.cli`; the run is :mod:`coevo.runs.cel`, the processes
+Registered by :mod:`coevo.cli`; the run is :mod:`coevo.cel_service.run`, the processes
 :mod:`coevo.cel_service.learner` and :mod:`coevo.cel_service.robot`.
 """
 
@@ -41,7 +41,7 @@ def fail_arg(text: str) -> tuple[int, tuple[str, ...]]:
     if not sep or g < 0:
         raise argparse.ArgumentTypeError(f"invalid failure {text!r}: give GENERATION:SONAR,SONAR (e.g. "
                                          "50:front,front_right,right; 75: repairs them)")
-    from coevo.console import sonars_arg
+    from coevo.tasks.door.flags import sonars_arg
 
     return g, tuple(n for n in sonars_arg(names).split(",") if n)
 
@@ -78,15 +78,15 @@ def _given_settings(args: argparse.Namespace) -> Any:
     if args.case_base:
         raise ConfigError("--settings gives every run setting but the run id; drop --case-base")
     settings = RunSettings.load(Path(args.settings)).fresh(args.run)
-    if settings.cel is None:
+    if settings.block("cel") is None:
         raise ConfigError(f"--settings {args.settings}: not a CEL run's settings (no cel block); start it with coevo run")
     return settings
 
 
 def cmd_cel(args: argparse.Namespace) -> int:
     from coevo.bus.status import StatusDisplay
-    from coevo.runs.cel import CelRun, cases_of_run, import_cases
-    from coevo.runs.cel_status import CelPlain, cel_table
+    from coevo.cel_service.run import CelRun, cases_of_run, import_cases
+    from coevo.cel_service.status import CelPlain, cel_table
     from coevo.runs.local import run_local
     from coevo.rundir.settings import RunSettings
 
@@ -98,7 +98,7 @@ def cmd_cel(args: argparse.Namespace) -> int:
             raise ConfigError("--resume takes every setting from the run's run.json; drop " +
                               ", ".join(f"--{f.replace('_', '-')}" for f in given))
         lr: CelRun = CelRun.resume(Path(args.resume), log_level=args.log_level)  # type: ignore[assignment]
-        if lr.settings.cel is None:
+        if lr.settings.block("cel") is None:
             raise ConfigError(f"{args.resume} is not a CEL run (its run.json has no cel block); use coevo run --resume")
     else:
         settings: RunSettings = _given_settings(args) if args.settings else _settings(args)
@@ -108,7 +108,7 @@ def cmd_cel(args: argparse.Namespace) -> int:
         if cases is not None:
             import_cases(lr.paths, cases, worker=lr.settings.roster["door"])  # type: ignore[index]
             print(f"case base: {len(cases)} cases from {args.cases_from}")
-    cel = lr.settings.cel
+    cel = lr.settings.block("cel")
     if cel is None:  # refused above for a resume and made for a new run
         raise ConfigError(f"{lr.dir} is not a CEL run (its run.json has no cel block); use coevo run --resume")
     if args.prepare:
