@@ -145,7 +145,8 @@ def given_settings(args: argparse.Namespace, task: str) -> tuple[dict[str, Any],
         if flag is None:
             continue
         if name in over and over[name] != flag:  # one setting given two ways: neither silently wins
-            raise ConfigError(f"--{name} {flag} and --ga {name}={over[name]} disagree: give {name} once")
+            given = [i.partition("=")[2] for i in args.ga or [] if i.partition("=")[0].strip() == name][-1]
+            raise ConfigError(f"--{name} {flag} and --ga {name}={given} disagree: give {name} once")
         over[name] = flag
     the_task = get_task(task)
     world = pairs(getattr(args, "world", None), "world")

@@ -74,7 +74,7 @@ class Plugins(Generic[T]):
                 entry = Entry(ep.name, package, ep.value)
                 if entry not in found.setdefault(ep.name, []):  # one package seen twice on the path is one claim
                     found[ep.name].append(entry)
-            self._installed = found
+            self._installed = {name: sorted(claims, key=lambda e: e.package) for name, claims in found.items()}
         return self._installed
 
     def names(self) -> list[str]:

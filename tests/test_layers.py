@@ -62,23 +62,40 @@ def test_help_loads_only_what_the_parser_needs(argv: list[str], absent: tuple[st
     assert not [m for m in absent if m in loaded], f"coevo {' '.join(argv)} loads {[m for m in absent if m in loaded]}"
 
 
-#: The modules that serve every kind of learner and every task: they tell kinds apart through coevo.runs.kinds and
-#: name tasks through the registry (coevo.tasks), never by a literal name.
-GENERIC = ["coevo/runs/command.py", "coevo/runs/chaos.py", "coevo/runs/check.py", "coevo/runs/replay.py",
-           "coevo/runs/local.py", "coevo/rundir/settings.py", "coevo/agents", "coevo/broker", "coevo/ga"]
-NAMES = {"cel", "coevolution", "fuel", "door", "corridor"}
+#: The generic tier: the modules that serve every kind of learner and every task.  They find tasks and kinds by name
+#: (coevo.tasks, coevo.rundir.kinds: entry points), never by a literal name, and import no task's package (the
+#: contract "plugins" in .importlinter, checked above).
+GENERIC = ["coevo/runs", "coevo/rundir", "coevo/console.py", "coevo/dashboard", "coevo/bus", "coevo/agents",
+           "coevo/broker", "coevo/replicates", "coevo/show", "coevo/ga", "coevo/policy", "coevo/plugins.py",
+           "coevo/config.py"]
+#: coevo's own tasks, their behaviours and its kinds of learner.
+NAMES = {"cel", "coevolution", "fuel", "door", "corridor", "tracking", "docking", "executive"}
+#: Where a name is declared rather than compared with: the default kind's own declaration (as CEL's is in its package).
+DECLARED = {("coevo/runs/kinds.py", "coevolution")}
 
 
 def test_generic_modules_name_no_learner_kind_or_task() -> None:
-    """A new kind of learner is its package and an entry in coevo.runs.kinds, a new task its package and a registry
-    line: nothing here compares a setting with a kind's or a task's name (docs/architecture.md, "Adding things")."""
+    """A new kind of learner or task is a package of its own and an entry point: nothing in the generic tier
+    compares a setting with a kind's, a task's or a behaviour's name (docs/architecture.md, "Adding things")."""
     found = []
     for entry in GENERIC:
         for path in sorted((ROOT / entry).rglob("*.py")) if (ROOT / entry).is_dir() else [ROOT / entry]:
+            where = str(path.relative_to(ROOT))
             for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-                if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in NAMES:
-                    found.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.value!r}")
-    assert not found, f"a kind's or a task's name in a generic module: {found}"
+                if (isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in NAMES
+                        and (where, node.value) not in DECLARED):
+                    found.append(f"{where}:{node.lineno} {node.value!r}")
+    assert not found, f"a kind's, a task's or a behaviour's name in a generic module: {found}"
+
+
+def test_there_are_no_import_circles() -> None:
+    """No two modules of coevo import each other, directly or through others, not even inside functions."""
+    import grimp
+
+    graph = grimp.build_graph("coevo", exclude_type_checking_imports=True)  # a type named for the checker is no import
+    circles = sorted({tuple(sorted((a, b))) for a in graph.modules for b in graph.find_modules_directly_imported_by(a)
+                      if graph.find_shortest_chain(importer=b, imported=a) is not None})
+    assert not circles, f"modules that import each other (directly or through others): {circles[:10]}"
 
 
 def test_the_code_cites_only_what_the_repository_holds() -> None:

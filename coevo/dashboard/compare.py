@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from coevo.errors import ConfigError, RunDirError
-from coevo.dashboard.model import mtime
+from coevo.dashboard.files import mtime
 
 if TYPE_CHECKING:
     from coevo.experiments.compare.experiment import CompareSpec, Replicate
@@ -147,7 +147,7 @@ class ComparisonFiles:
 
     def _curve_rows(self, rep: Any) -> dict[str, list[dict[str, Any]]]:
         """A live replicate's curve rows per behaviour, read on from where the last call stopped."""
-        from coevo.dashboard.model import Tail
+        from coevo.dashboard.files import Tail
         from coevo.experiments.compare.experiment import run_dir
         from coevo.experiments.compare.table1 import BEHAVIOURS
         from coevo.rundir.layout import RunPaths

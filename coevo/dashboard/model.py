@@ -31,6 +31,7 @@ from pathlib import Path
 from contextlib import ExitStack
 from typing import TYPE_CHECKING, Any
 
+from coevo.dashboard.files import Tail, mtime
 from coevo.errors import RunDirError
 
 if TYPE_CHECKING:
@@ -132,51 +133,6 @@ class View:
 
 
 # ---------------------------------------------------------------- files
-class Tail:
-    """The new complete lines of a JSON-lines log since the last call (a log cut back, by a resumed worker, is
-    read again from its start: ``reset`` is then True once)."""
-
-    def __init__(self, path: Path) -> None:
-        self.path = Path(path)
-        self._offset = 0
-        self._partial = b""
-        self.reset = False
-        self.bad = 0  # lines that were not JSON objects (skipped, and said on the page)
-        self.mtime = 0.0
-
-    def read(self) -> list[dict[str, Any]]:
-        self.reset = False
-        try:
-            st = self.path.stat()
-        except OSError:
-            return []
-        self.mtime = st.st_mtime
-        if st.st_size < self._offset:
-            self._offset, self._partial, self.reset = 0, b"", True
-        if st.st_size == self._offset:
-            return []
-        try:
-            with open(self.path, "rb") as f:
-                f.seek(self._offset)
-                data = f.read()
-        except OSError:
-            return []
-        from coevo.rundir.layout import json_object
-
-        self._offset += len(data)
-        lines = (self._partial + data).split(b"\n")
-        self._partial = lines.pop()  # an incomplete last line waits for its end
-        out = []
-        for line in lines:
-            if not line.strip():
-                continue
-            try:
-                out.append(json_object(line))
-            except ValueError:
-                self.bad += 1
-        return out
-
-
 def _read_json(path: Path) -> dict[str, Any] | None:
     try:
         data = json.loads(Path(path).read_text(encoding="utf-8"))
@@ -293,14 +249,6 @@ class _WorkerFiles:
                 "rejected_by_reason": dict(rejected) if isinstance(rejected, dict) else {},
                 "buffered": len((done or {}).get("unconfirmed") or []), "open": bool((done or {}).get("open", False)),
                 "state": state, "heartbeat_age": None}
-
-
-def mtime(p: Path) -> float:
-    """When ``p`` last changed (0 when it cannot be read)."""
-    try:
-        return Path(p).stat().st_mtime
-    except OSError:
-        return 0.0
 
 
 class RunFiles:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from coevo.dashboard.model import Tail
+from coevo.dashboard.files import Tail
 from coevo.errors import CoevoError
 
 __all__ = ["EVERY", "TEXT_PX", "DPI", "RobotPicture", "RobotPanel"]

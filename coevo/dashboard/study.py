@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from coevo.dashboard.compare import ComparisonFiles, VerdictFile
-from coevo.dashboard.model import mtime
+from coevo.dashboard.files import mtime
 from coevo.errors import ConfigError, RunDirError
 
 __all__ = ["StudyFiles", "CELL_STATES"]

@@ -5,8 +5,9 @@ discretised sensors and its actions.  Rules, the matcher, the rule text and the 
 read everything they need from it and name no task.  Schemas are registered by
 behaviour name (names are unique across tasks: a rule set on the wire carries only
 its behaviour's name), and :func:`schema` finds them.  The registry is filled from
-above: each task registers its behaviours when it is imported (``import coevo.tasks``
-imports the built-in ones); this module, like the rest of the core, names no task.
+above: each task registers its behaviours when it is imported, and a behaviour asked for
+before its task was imported is looked for by the finder the tasks' registry sets
+(:func:`set_finder`); this module, like the rest of the core, names no task.
 
 Every sensor is discretised into bins.  A rule condition is an interval of bin
 indices; it prints as the bins' lower edges (``range = [35, 45]`` covers bins

@@ -3,7 +3,8 @@
 A behaviour learns in its task's ``independent`` regime: against fixed rule sets
 of the partners that regime gives it (the fuel task's Executive against Tracking
 and Docking), or, where it needs none, alone (Tracking and Docking with the
-trivial Executive that always picks them).  The run directory
+trivial Executive that always picks them).  Given partners' rule sets that regime does not take, it learns in the
+first of its task's regimes that takes them (a competitive task's side against a given opponent: ``mutual``).  The run directory
 gets the learning curve (CSV and JSON), the best rule set as text, and the
 measures of that best policy (docs/spec.md §1).
 """
@@ -28,7 +29,7 @@ from coevo.ga import GA, GenerationReport
 from coevo.policy.rules import RuleSet
 from coevo.policy.text import format_ruleset
 from coevo.rundir.layout import LearnPaths, staged_dir, write_csv, write_json, write_text
-from coevo.tasks import task_of
+from coevo.tasks import Task, task_of
 
 __all__ = ["learn", "LearnResult", "default_out"]
 
@@ -49,6 +50,14 @@ def default_out(behaviour: str, seed: int) -> Path:
     return Path("runs") / f"learn-{behaviour}-seed{seed}-{time.strftime('%Y%m%d-%H%M%S')}"
 
 
+def _regime_for(task: Task, behaviour: str, given: set[str]) -> str:
+    """The regime an offline learner learns in: ``independent``, unless the partners given fit only another."""
+    first = "independent" if "independent" in task.regimes else task.regimes[0]
+    if given <= set(task.partners_needed(behaviour, first)):
+        return first
+    return next((r for r in task.regimes if given <= set(task.partners_needed(behaviour, r))), first)
+
+
 def learn(
     behaviour: str,
     *,
@@ -65,8 +74,9 @@ def learn(
 ) -> LearnResult:
     task = task_of(behaviour)
     behaviour = str(behaviour)
-    needed = task.partners_needed(behaviour, "independent")
     partners = dict(partners or {})
+    regime = _regime_for(task, behaviour, set(partners))
+    needed = task.partners_needed(behaviour, regime)
     feed = None
     extra = sorted(set(partners) - set(needed))
     if extra:
@@ -76,7 +86,7 @@ def learn(
         if not needed:
             raise ConfigError(f"--history feeds recorded partner policies to a behaviour that has partners; {behaviour} has none")
         feed = HistoryFeed(Path(history), rate, partners=needed)
-        models = PartnerModels(task, behaviour, "independent", seed, ga=ga, world=world)
+        models = PartnerModels(task, behaviour, regime, seed, ga=ga, world=world)
         partners = dict(models.partners())
     elif set(partners) != set(needed):
         missing = [b for b in needed if b not in partners]

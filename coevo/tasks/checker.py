@@ -193,7 +193,7 @@ def _pictures(task: Task[Any], world: BaseModel, seed: int, say: Callable[[str],
     if not scene.frames or not scene.spans:
         say("pictures: show_scene drew no frames or no episode spans from one episode")
     if replayed.captions != scene.captions or len(replayed.tracks) != len(scene.tracks) or not all(
-            np.array_equal(a.xy, b.xy) for a, b in zip(replayed.tracks, scene.tracks)):
+            np.array_equal(a.xy, b.xy, equal_nan=True) for a, b in zip(replayed.tracks, scene.tracks)):
         say("pictures: the same robot and seed played another way (show_play must be deterministic)")
     if not display.show_rules(played):
         say("pictures: show_rules gave no rule tables")

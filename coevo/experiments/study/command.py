@@ -70,6 +70,7 @@ def cmd_study(args: argparse.Namespace) -> int:
         prepare_study,
         run_study,
     )
+    from coevo.experiments.study.learn_report import write_learn_report
     from coevo.experiments.study.report import write_report
     from coevo.replicates.backends import ClusterLost
 
@@ -129,7 +130,8 @@ def cmd_study(args: argparse.Namespace) -> int:
                   "retry them.", file=sys.stderr)
             for name, why in prog.failed.items():
                 print(f"  {name}: {why}", file=sys.stderr)
-    results = write_report(out, spec, elapsed=None if args.report_only else time.time() - t0)
+    report = write_report if spec.learn is None else write_learn_report  # a study of learning runs has its own
+    results = report(out, spec, elapsed=None if args.report_only else time.time() - t0)
     complete = results["runs_finished"] == results["runs_expected"]
     if complete:
         mark_complete(out, spec, runs=results["runs_expected"])

@@ -220,11 +220,9 @@ def verdict_lines(tests: list[dict[str, Any]], subject: Callable[[dict[str, Any]
 
 def write_report(out: Path, spec: StudySpec, *, elapsed: float | None = None) -> dict[str, Any]:
     """Write results.json, report.md and the figures; returns the results.  A RunDirError when no run finished.
-    A study of learning runs has its own report (:mod:`.learn_report`)."""
+    A study of learning runs has its own report (:func:`.learn_report.write_learn_report`)."""
     if spec.learn is not None:
-        from coevo.experiments.study.learn_report import write_learn_report
-
-        return write_learn_report(out, spec, elapsed=elapsed)
+        raise ValueError("a study of learning runs is reported by learn_report.write_learn_report")
     out = Path(out)
     the_cells, records = collect_study(out, spec)
     if not records:
