@@ -2,8 +2,8 @@
 
     python benchmarks/startup.py [--repeats 7] [--against OTHER_CHECKOUT]
 
-Each figure is the median wall time of ``--repeats`` fresh processes, beside the same median for a bare
-``python -c pass`` measured in the same run (the machine's noise floor):
+Each command's figure is the median CPU time (user + system) of ``--repeats`` fresh processes, beside the same
+median for a bare ``python -c pass`` measured in the same run; the worker's is wall time:
 
 * ``coevo --help``, ``coevo status --help``, ``coevo worker --help`` (targets: the first two < 0.3 s);
 * a worker ready to work: from ``Popen`` of ``coevo worker`` until its liveliness token is on the bus (it
@@ -11,15 +11,16 @@ Each figure is the median wall time of ``--repeats`` fresh processes, beside the
   broker that is already up;
 * what ``coevo status`` imports before it opens its session (the status board and its command).
 
-With ``--against DIR`` (another checkout of coevo, e.g. ``git worktree add /tmp/base COMMIT``) every figure is
-measured for both trees in turn, repeat by repeat, in the same environment (each tree on ``PYTHONPATH``), so the
-machine's load falls on both alike: the before-and-after of a change.
+With ``--against PYTHON`` (the interpreter of another checkout's own virtual environment, e.g. ``git worktree add
+/tmp/base COMMIT`` and ``python3 -m venv /tmp/basevenv && /tmp/basevenv/bin/pip install -e /tmp/base``; an
+editable install binds its checkout, so one environment cannot hold two) every figure is measured for both in
+turn, repeat by repeat, so the machine's load falls on both alike: the before-and-after of a change.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -32,34 +33,32 @@ from coevo.bus.session import make_config, open_session
 from coevo.runs.local import free_port
 
 PY = sys.executable
-HERE = Path(__file__).resolve().parent.parent
 
 
-def _env(tree: Path) -> dict[str, str]:
-    return {**os.environ, "PYTHONPATH": str(tree)}
+def _timed(argv: list[str], py: str = PY) -> float:
+    """The CPU-seconds (user + system) of one run of ``argv``: unlike its wall time, not stretched by what else
+    the machine is doing."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run([py, *argv], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=False)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
-def _timed(argv: list[str], tree: Path = HERE) -> float:
-    t0 = time.perf_counter()
-    subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=False, env=_env(tree))
-    return time.perf_counter() - t0
-
-
-def median_of(argv: list[str], repeats: int, trees: list[Path] = [HERE]) -> list[float]:  # noqa: B006 - read only
-    """The median over ``repeats`` of each tree's time, the trees taking turns."""
-    for tree in trees:
-        _timed(argv, tree)  # warm the page cache
-    times: list[list[float]] = [[] for _ in trees]
+def median_of(argv: list[str], repeats: int, pythons: tuple[str, ...] = (PY,)) -> list[float]:
+    """The median over ``repeats`` of ``python ARGV``'s CPU time for each interpreter, the interpreters in turn."""
+    for py in pythons:
+        _timed(argv, py)  # warm the page cache
+    times: list[list[float]] = [[] for _ in pythons]
     for _ in range(repeats):
-        for i, tree in enumerate(trees):
-            times[i].append(_timed(argv, tree))
+        for i, py in enumerate(pythons):
+            times[i].append(_timed(argv, py))
     return [statistics.median(t) for t in times]
 
 
-def worker_ready(repeats: int, work: Path, tree: Path = HERE) -> float:
+def worker_ready(repeats: int, work: Path, py: str = PY) -> float:
     """Median seconds from starting a worker to its liveliness token, with a broker already up."""
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    broker = subprocess.Popen([PY, "-m", "coevo", "broker", "--listen", endpoint, "--data-dir", str(work / "data"), "--open"],
+    broker = subprocess.Popen([py, "-m", "coevo", "broker", "--listen", endpoint, "--data-dir", str(work / "data"), "--open"],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     times = []
     try:
@@ -67,10 +66,10 @@ def worker_ready(repeats: int, work: Path, tree: Path = HERE) -> float:
             for i in range(repeats + 1):
                 run = f"startup-{i}"
                 t0 = time.perf_counter()
-                w = subprocess.Popen([PY, "-m", "coevo", "worker", "--run", run, "--regime", "independent",
+                w = subprocess.Popen([py, "-m", "coevo", "worker", "--run", run, "--regime", "independent",
                                       "--behaviour", "tracking", "--connect", endpoint, "--generations", "1",
                                       "--out", str(work / run), "--final-sync", "0"],
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=_env(tree))
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
                 while not list(s.liveliness().get(keys.alive(run), timeout=0.05)):
                     if time.perf_counter() - t0 > 30:
                         raise SystemExit("no worker token after 30 s")
@@ -90,21 +89,21 @@ STATUS_IMPORTS = "import coevo.runs.command, coevo.bus.status, coevo.bus.session
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=7)
-    ap.add_argument("--against", type=Path, metavar="DIR", help="another checkout of coevo, measured in turn")
+    ap.add_argument("--against", metavar="PYTHON", help="another checkout's interpreter (its own venv), measured in turn")
     args = ap.parse_args()
-    trees = [HERE] + ([args.against.resolve()] if args.against else [])
-    rows = [("python -c pass (baseline)", median_of([PY, "-c", "pass"], args.repeats, trees))]
+    pythons = (PY,) + ((args.against,) if args.against else ())
+    rows = [("python -c pass (baseline)", median_of(["-c", "pass"], args.repeats, pythons))]
     for cmd in (["--help"], ["status", "--help"], ["worker", "--help"]):
-        rows.append((f"coevo {' '.join(cmd)}", median_of([PY, "-m", "coevo", *cmd], args.repeats, trees)))
-    rows.append(("coevo status's imports", median_of([PY, "-c", STATUS_IMPORTS], args.repeats, trees)))
+        rows.append((f"coevo {' '.join(cmd)}", median_of(["-m", "coevo", *cmd], args.repeats, pythons)))
+    rows.append(("coevo status's imports", median_of(["-c", STATUS_IMPORTS], args.repeats, pythons)))
     with tempfile.TemporaryDirectory() as tmp:
-        ready = [[] for _ in trees]  # type: list[list[float]]
-        for _ in range(3):  # three rounds of repeats, the trees in turn
-            for i, tree in enumerate(trees):
-                ready[i].append(worker_ready(max(1, args.repeats // 3), Path(tmp) / f"{i}-{len(ready[i])}", tree))
+        ready: list[list[float]] = [[] for _ in pythons]
+        for _ in range(3):  # three rounds of repeats, the interpreters in turn
+            for i, py in enumerate(pythons):
+                ready[i].append(worker_ready(max(1, args.repeats // 3), Path(tmp) / f"{i}-{len(ready[i])}", py))
         rows.append(("worker ready (token on the bus)", [statistics.median(r) for r in ready]))
-    head = "".join(f"  {str(t)[-28:]:>28s}" for t in trees)
-    print(f"{'what (median s)':36s}{head}")
+    head = "".join(f"  {t[-28:]:>28s}" for t in pythons)
+    print(f"{'what (median CPU-s; the worker: wall s)':36s}{head}")
     for what, ts in rows:
         print(f"{what:36s}" + "".join(f"  {t:28.3f}" for t in ts))
 

@@ -20,9 +20,12 @@ from __future__ import annotations
 
 import importlib
 import logging
+import os
+import re
+import sys
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from importlib import metadata
+from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 from coevo.errors import ConfigError
@@ -69,11 +72,10 @@ class Plugins(Generic[T]):
     def _entries(self) -> dict[str, list[Entry]]:
         if self._installed is None:
             found: dict[str, list[Entry]] = {}
-            for ep in metadata.entry_points(group=self.group):
-                package = f"{ep.dist.name} {ep.dist.version}" if ep.dist is not None else "an unknown package"
-                entry = Entry(ep.name, package, ep.value)
-                if entry not in found.setdefault(ep.name, []):  # one package seen twice on the path is one claim
-                    found[ep.name].append(entry)
+            for name, target, package in installed_entry_points(self.group):
+                entry = Entry(name, package, target)
+                if entry not in found.setdefault(name, []):
+                    found[name].append(entry)
             self._installed = {name: sorted(claims, key=lambda e: e.package) for name, claims in found.items()}
         return self._installed
 
@@ -171,6 +173,83 @@ class Plugins(Generic[T]):
             except PluginError as exc:
                 rows.append((name, entry.package, entry.target, str(exc)))
         return rows
+
+
+def installed_entry_points(group: str) -> list[tuple[str, str, str]]:
+    """(name, target, "package version") of every entry point of ``group`` the packages on ``sys.path`` declare,
+    read from their metadata (``*.dist-info``, ``*.egg-info``) as importlib.metadata reads it, a package found
+    twice counting once (the first on the path), but without importing importlib.metadata, which costs a start-up
+    more than the reading itself (50-100 ms measured here, the reading 2-14 ms).  Read once per process."""
+    global _SCANNED
+    if _SCANNED is None:
+        _SCANNED = _scan()
+    return list(_SCANNED.get(group, []))
+
+
+_SCANNED: dict[str, list[tuple[str, str, str]]] | None = None
+
+
+def _scan() -> dict[str, list[tuple[str, str, str]]]:
+    out: dict[str, list[tuple[str, str, str]]] = {}
+    seen: set[str] = set()
+    for base in sys.path:
+        try:
+            names = sorted(os.listdir(base or "."))
+        except OSError:
+            continue
+        for info in names:
+            if not info.endswith((".dist-info", ".egg-info")):
+                continue
+            key = re.sub(r"[-_.]+", "_", info.rsplit(".", 1)[0].split("-", 1)[0]).lower()
+            if key in seen:
+                continue
+            seen.add(key)
+            where = Path(base or ".") / info
+            try:
+                text = (where / "entry_points.txt").read_text(encoding="utf-8")
+            except (OSError, UnicodeDecodeError):
+                continue
+            sections = _sections(text)
+            if any(g.startswith("coevo.") for g in sections):  # only coevo's groups are ever asked for
+                package = _package(where, info)
+                for g, points in sections.items():
+                    out.setdefault(g, []).extend((name, target, package) for name, target in points)
+    return out
+
+
+def _sections(text: str) -> dict[str, list[tuple[str, str]]]:
+    """The ``name = target`` lines of each section of an entry_points.txt (an INI file)."""
+    sections: dict[str, list[tuple[str, str]]] = {}
+    current: list[tuple[str, str]] | None = None
+    for raw in text.splitlines():
+        line = raw.strip()
+        if not line or line.startswith(("#", ";")):
+            continue
+        if line.startswith("[") and line.endswith("]"):
+            current = sections.setdefault(line[1:-1].strip(), [])
+        elif current is not None and "=" in line:
+            name, _, target = line.partition("=")
+            current.append((name.strip(), target.split("[", 1)[0].strip()))
+    return sections
+
+
+def _package(where: Path, info: str) -> str:
+    """"name version" of a distribution, from its metadata's Name and Version (else its directory's name)."""
+    fields: dict[str, str] = {}
+    for file in ("METADATA", "PKG-INFO"):
+        try:
+            with open(where / file, encoding="utf-8") as fh:
+                for line in fh:
+                    if not line.strip():
+                        break  # the headers end at the first blank line
+                    key, _, value = line.partition(":")
+                    if key in ("Name", "Version"):
+                        fields.setdefault(key, value.strip())
+        except (OSError, UnicodeDecodeError):
+            continue
+        break
+    name, _, version = info.rsplit(".", 1)[0].partition("-")
+    return f"{fields.get('Name', name)} {fields.get('Version', version or '?')}"
 
 
 def _load(target: str) -> object:
