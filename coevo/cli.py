@@ -55,6 +55,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
              "Appendix C: the EA-vs-TD grid world and hidden-state experiments, with a report"),
     "td-baseline": ("coevo.experiments.earl.td.command",
                     "Appendix C: Q-learning against the GA on the robot tasks, at equal experience"),
+    "dynamics": ("coevo.experiments.dynamics.command",
+                 "a finished run's CIAO matrices and master tournaments: every version against every partner version"),
     "plugins": ("coevo.runs.plugins_command", "the tasks and kinds of learner installed, and the package of each"),
     "bench": ("coevo.tasks.fuel.bench_command", "robot-steps/s of the batched world vs a plain one-episode pymunk loop"),
 }

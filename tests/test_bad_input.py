@@ -139,6 +139,7 @@ def _base(command: str, flag: str, places: dict[str, Path]) -> list[str]:
         "execution": ([] if flag == "--settings" else ["--settings", str(places["cel-run"] / "run.json")])
         + [*NO_ROUTER, "--out", fresh],
         "replay": [str(places["broken-worker"])],
+        "dynamics": [str(places["broken-run"]), "--quiet"],
         "check": [str(places["broken-worker"]), "--no-replay"],
     }
     base = bases[command]

@@ -98,6 +98,8 @@ def _check_output(command: str, r: subprocess.CompletedProcess[str], cwd: Path) 
         assert "pursuer:" in r.stdout and "evader (hand-written):" in r.stdout, r.stdout
     elif command.startswith("coevo show"):
         assert (cwd / "duel.png").stat().st_size > 1000
+    elif command.startswith("coevo dynamics"):
+        _dynamics_written(cwd / "runs" / "duel" / "dynamics", r.stdout)
 
 
 @pytest.mark.service
@@ -111,6 +113,22 @@ def test_every_command_of_the_tutorial_runs_as_written_on_the_outside_task(pursu
         assert r.returncode == 0 and "Traceback" not in r.stderr, f"{command}: status {r.returncode}\n{r.stderr}"
         _check_output(command, r, tmp_path)
     _dashboard_shows(pursuit_site, tmp_path)
+
+
+def _dynamics_written(out: Path, stdout: str) -> None:
+    """The pursuer's versions against the evader's and back: a CSV cell per pair, its master tournament, pictures."""
+    import csv
+
+    for a, b in (("pursuer", "evader"), ("evader", "pursuer")):
+        assert f"{a} with {b}:" in stdout, stdout
+        ciao = list(csv.DictReader((out / f"ciao-{a}-{b}.csv").open()))
+        master = list(csv.DictReader((out / f"master-{a}-{b}.csv").open()))
+        assert ciao and len(master) == len(ciao) and [r["version"] for r in ciao] == [r["version"] for r in master]
+        cells = [float(v) for r in ciao for k, v in r.items() if k.startswith(f"{b}@")]
+        assert cells and all(0.0 <= x <= 1.0 for x in cells)
+        row = [float(v) for k, v in ciao[0].items() if k.startswith(f"{b}@")]
+        assert abs(float(master[0]["mean"]) - sum(row) / len(row)) < 1e-5  # the master score is the row's mean
+        assert (out / f"ciao-{a}-{b}.png").stat().st_size > 1000 and (out / f"master-{a}-{b}.png").stat().st_size > 1000
 
 
 def _dashboard_shows(site: Path, cwd: Path) -> None:
