@@ -209,6 +209,7 @@ def regime_columns(panel: dict[str, Any], group: str, picked: set[str] | frozens
 def _executive_curve_html(curves: dict[str, dict]) -> str:
     """The Executive curve of each regime's finished runs: its last generation's best and the mean over the last
     generations, means over the runs with 95 % intervals (coevo compare's report)."""
+    from coevo.experiments.compare.report import tail_text
     from coevo.experiments.compare.stats import MeanInterval
 
     if not curves:
@@ -216,8 +217,8 @@ def _executive_curve_html(curves: dict[str, dict]) -> str:
     tail = next(iter(curves.values()))["tail_generations"]
     rows = [[_e(g), _e(MeanInterval(**c["end"]).text()), _e(MeanInterval(**c["last_generations"]).text())]
             for g, c in curves.items()]
-    return _table("executive-curve", ["Executive curve (finished runs)", "best at the last generation",
-                                      f"mean best over the last {tail} generations"], rows)
+    return _table("executive-curve", ["Executive curve (finished runs)", "generation's best at the last generation",
+                                      f"generation's best, mean of its last {tail_text(tail)}"], rows)
 
 
 def behaviours(view: View) -> list[str]:
@@ -331,13 +332,11 @@ def _share(d: dict[str, Any]) -> str:
 
 
 def _mean(d: dict[str, Any]) -> str:
-    """mean [low, high] of a bootstrap interval's dict (:meth:`~coevo.experiments.compare.stats.MeanInterval.as_dict`),
-    its n left to the runs' column."""
-    if not d["n"]:
-        return "–"
-    if math.isnan(d["low"]):
-        return f"{d['mean']:.2f}"
-    return f"{d['mean']:.2f} [{d['low']:.2f}, {d['high']:.2f}]"
+    """mean [low, high] of an interval's dict (:meth:`~coevo.experiments.compare.stats.MeanInterval.as_dict`), its n
+    left to the runs' column, or why there is no interval (the report's :func:`~coevo.experiments.study.report.format_mean`)."""
+    from coevo.experiments.study.report import format_mean
+
+    return _e(format_mean(d, False))
 
 
 def _median(d: dict[str, Any]) -> str:
@@ -368,7 +367,7 @@ def study_title_html(view: View) -> str:
 def study_progress_html(view: View) -> str:
     """The study's headline: runs and cells done of the total, its state (finished only when its completion marker
     says so), a bar, and a row per cell and group: its state, runs, and the report's numbers so far (Good and No
-    Docking with 95 % Wilson intervals, the Executive curve's end and AEL with 95 % bootstrap intervals)."""
+    Docking with 95 % Wilson intervals, the Executive curve's end and AEL with 95 % t intervals)."""
     s = view.study
     if not s:
         return ""
@@ -419,7 +418,7 @@ def study_verdict_html(view: View) -> str:
         return ""
     v = s.get("verdict")
     box = "font:13px/1.35 sans-serif;max-height:200px;overflow:auto;margin:0 0 0 12px"
-    caveat = f"<p><i>{_e(s['caveat'])}</i></p>" if s.get("caveat") else ""
+    caveat = f"<p class='caveat'><i>{_e(s['caveat'])}</i></p>" if s.get("caveat") else ""
     if v is None:
         body = (f"<p>No report yet: it is written when the study ends ({s['runs_done']} of {s['runs_total']} runs "
                 f"finished). <code>coevo study --report-only --out {_e(s['dir'])}</code> writes one from the runs "
@@ -435,8 +434,9 @@ def study_verdict_html(view: View) -> str:
                 items.append(f"<li>{text[2:]}</li>")
             elif part.strip():
                 paras.append(f"<p>{text}</p>")
-        body = (f"<ul style='padding-left:18px;margin:4px 0'>{''.join(items)}</ul>" if items else "") + "".join(paras)
-        body += f"<p><i>{stale}</i></p>" if stale else ""
+        # the smoke-test warning first: a finished study's verdict is read with it, as its report.md says it
+        body = caveat + (f"<ul style='padding-left:18px;margin:4px 0'>{''.join(items)}</ul>" if items else "")
+        body += "".join(paras) + (f"<p><i>{stale}</i></p>" if stale else "")
     return f"<h3 class='coevo'>The study's verdict</h3><div class='study-verdict' style='{box}'>{body}</div>"
 
 

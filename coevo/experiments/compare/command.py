@@ -30,7 +30,7 @@ __all__ = ["configure_compare", "cmd_compare"]
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from coevo.experiments.compare.experiment import CompareSpec, prepare, run_all
-    from coevo.experiments.compare.report import write_report
+    from coevo.experiments.compare.report import tail_text, write_report
     from coevo.experiments.compare.stats import MeanInterval
     from coevo.experiments.compare.experiment import default_jobs, replicates
     from coevo.replicates.backends import ClusterLost
@@ -75,8 +75,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
     for r, counts in results["table1"].items():
         print(f"  {r}: " + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
     for r, c in results["executive_curve"].items():
-        print(f"  {r}: Executive curve at the last generation {MeanInterval(**c['end']).text()}, over the last "
-              f"{c['tail_generations']} {MeanInterval(**c['last_generations']).text()}")
+        print(f"  {r}: Executive's generation's best at the last generation {MeanInterval(**c['end']).text()}, "
+              f"mean of its last {tail_text(c['tail_generations'])} {MeanInterval(**c['last_generations']).text()}")
     print(results["verdict"])
     return 1 if results["runs_finished"] < results["runs_expected"] and not args.report_only else 0
 

@@ -2,7 +2,7 @@
 study of learning runs: every cell's runs on its behaviour's first measure).
 
 An effect plot shows, per level of the factor, each measure's mean over the runs at that level with its 95 %
-interval (bootstrap for means, Wilson for shares), one line per stratum (regime or rate group), pooled over the
+interval (Student t for means, none below three runs; Wilson for shares), one line per stratum (regime or rate group), pooled over the
 other factors' levels: the main effect, as the report's tests take it.
 """
 
@@ -78,7 +78,7 @@ def cells_figure(rows: Sequence[Mapping[str, Any]], path: Path) -> None:
 def learn_cells_figure(cells: Sequence[str], values: Mapping[str, Sequence[float]],
                        summaries: Sequence[Mapping[str, Any]], title: str, path: Path) -> None:
     """One row per cell of a study of learning runs: each run's value of one measure (a dot), the mean with its 95 %
-    bootstrap interval, and the median (a bar)."""
+    t interval, and the median (a bar)."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(9, 1.2 + 0.4 * len(cells)), constrained_layout=True)
     y = np.arange(len(cells))
