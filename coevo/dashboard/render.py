@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from coevo.dashboard.model import View
+from coevo.experiments.glossary import TERMS, with_unit
 
 __all__ = ["PALETTE", "REGIME_COLOURS", "problems_html", "runs_html", "workers_html", "comparison_html",
            "table1_html", "verdict_html", "regime_colour", "regime_columns", "curve_lines", "behaviours",
@@ -84,12 +85,12 @@ def runs_html(view: View) -> str:
     for r in view.runs:
         b = r.broker or {}
         stored = " ".join(f"{_e(k)}:{v}" for k, v in sorted(b.get("stored", {}).items())) or "-"
-        final = ", ".join(f"{_e(k)} {v:.1f}" for k, v in r.final.items()
+        final = ", ".join(_e(with_unit(k, v)) for k, v in r.final.items()
                           if k in ("quality_tracking", "successful_docking", "dock_choice", "docking_success_rate")) or "-"
         rows.append([_e(r.run), _e(r.task), _e(r.regime), _state(r.state), _e(r.source), _state(b.get("state", "-")),
                      stored, _reasons(b.get("rejected", {})), final])
     return "<h3 class='coevo'>Runs</h3>" + _table("runs", ["run", "task", "regime", "state", "seen on", "broker",
-                                                            "stored", "rejected", "final measures (%)"], rows)
+                                                            "stored", "rejected", "final measures"], rows)
 
 
 def workers_html(view: View) -> str:
@@ -98,8 +99,10 @@ def workers_html(view: View) -> str:
     for r in view.runs:
         for w in r.workers:
             partners = " ".join(f"{_e(k[0].upper())}v{v}" for k, v in sorted(w["partner_versions"].items())) or "-"
+            curve = r.curves.get(str(w["worker"]))
+            so_far = curve[1].best_so_far[-1] if curve and curve[1].best_so_far else w["best_fitness"]
             rows.append([_e(r.run), _e(w["worker"]), _e(w["behaviour"]), f"{w['generation']}/{w['generations']}",
-                         f"{w['best_fitness']:.3f}", _measures(w.get("measures", {})), partners, str(w.get("buffered", 0)),
+                         f"{so_far:.3f}", _measures(w.get("measures", {})), partners, str(w.get("buffered", 0)),
                          _reasons(w.get("rejected_by_reason", {})), _state(w["state"])])
         for x in r.robots:
             rows.append([_e(r.run), _e(x["robot"]), "execution", str(x["generation"]), "",
@@ -108,9 +111,11 @@ def workers_html(view: View) -> str:
                          _reasons(x.get("rejected_by_reason", {})), _state(x["state"])])
     if not rows:
         return ""
-    return "<h3 class='coevo'>Workers</h3>" + _table(
-        "workers", ["run", "worker", "behaviour", "gen", "best", "own measures", "partners", "unconfirmed", "rejected",
-                    "state"], rows, numeric={3, 4, 7})
+    return ("<h3 class='coevo'>Workers</h3>" + _table(
+        "workers", ["run", "worker", "behaviour", "gen", "best so far", "own measures", "partners", "unconfirmed",
+                    "rejected", "state"], rows, numeric={3, 4, 7})
+        + f"<p class='definition' style='font:12px sans-serif;color:#555'><b>best so far</b>: "
+          f"{_e(TERMS['best_so_far'].definition)} The curves' thin line is each <b>generation's best</b>.</p>")
 
 
 def comparison_html(view: View) -> str:

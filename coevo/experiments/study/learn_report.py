@@ -196,9 +196,9 @@ def _markdown(spec: StudySpec, the_cells: list[LearnCell], rows: list[dict[str, 
                   "Kruskal–Wallis across the factor's levels, pooled over the other factors; p-values corrected "
                   f"together with Holm's method ({len(tests)} tests); *largest difference*: the farthest end of any "
                   "two levels' 95 % Welch t interval of their difference (– when a level has too few runs): a larger "
-                  "difference would very likely have been seen. p is exact for small designs; *smallest p*: the "
+                  "difference would very likely have been seen. p is exact for small designs; *smallest p possible*: the "
                   "lowest any outcome of this many runs can give.", "",
-                  "| factor | measure | levels (mean [95 %]; median) | H | p | smallest p | Holm p | ε² | "
+                  "| factor | measure | levels (mean [95 %]; median) | H | p | smallest p possible | Holm p | ε² | "
                   "largest difference |",
                   "|---|---|---|---|---|---|---|---|---|"]
         for t in tests:

@@ -35,6 +35,7 @@ from coevo.experiments.compare.report import collect
 from coevo.experiments.compare.stats import (MeanInterval, compare_groups, design_floor, format_p, holm,
                                              mean_interval)
 from coevo.experiments.compare.table1 import CLASSES, DOCKING, REPORT_COUNTS
+from coevo.experiments.glossary import TERMS, label
 from coevo.experiments.study import plots
 from coevo.experiments.study.declaration import Cell, StudySpec, cells, level_text
 from coevo.experiments.study.experiment import cell_dir
@@ -46,11 +47,12 @@ __all__ = ["MEASURES", "collect_cell", "collect_study", "cell_rows", "analyse", 
 
 #: The measures every factor is tested on: name -> (title, value of a run record, is it a 0/1 share?).
 MEASURES: dict[str, tuple[str, Callable[[dict[str, Any]], float], bool]] = {
-    "executive_end": ("Executive curve's end (best fitness)", lambda r: _executive_end(r), False),
-    "average_epoch_length": ("Average Epoch Length (episodes)",
+    "executive_end": (f"{label('executive_end')} (generation's best fitness)", lambda r: _executive_end(r), False),
+    "average_epoch_length": (f"{label('average_epoch_length')} (episodes)",
                              lambda r: float(r["measures"]["average_epoch_length"]), False),
-    "good_docking": ("Good Docking (share of runs)", lambda r: float(r["class"].startswith("Good Docking")), True),
-    "no_docking": ("No Docking (share of runs)", lambda r: float(r["class"].startswith("No Docking")), True),
+    "good_docking": (f"{label('good_docking')} (share of runs)",
+                     lambda r: float(r["class"].startswith("Good Docking")), True),
+    "no_docking": (f"{label('no_docking')} (share of runs)", lambda r: float(r["class"].startswith("No Docking")), True),
 }
 ALPHA = 0.05
 
@@ -340,9 +342,8 @@ def _markdown(spec: StudySpec, the_cells: list[Cell], rows: list[dict[str, Any]]
                         f"GA: {c0.ga.generations} generations, population {c0.ga.population}, {c0.ga.episodes} "
                         "episodes per evaluation.", caveat, verdict)
     lines += ["Shares are k/n with the 95 % Wilson interval; means with the 95 % t interval (none below 3 runs). "
-              "Executive end: "
-              "the Executive's best fitness at the last generation (the report's learning curve's end); AEL: Average "
-              "Epoch Length in episodes.", "",
+              f"Executive end: {TERMS['executive_end'].definition} AEL: Average Epoch Length, "
+              f"{TERMS['average_epoch_length'].definition} (docs/glossary.md lists every measure once.)", "",
               "| cell | group | cell seed | runs | Good Docking | No Docking | Executive end | AEL |",
               "|---|---|---|---|---|---|---|---|"]
     for r in rows:
@@ -369,8 +370,8 @@ def _markdown(spec: StudySpec, the_cells: list[Cell], rows: list[dict[str, Any]]
                   f"together with Holm's method ({len(tests)} tests); *largest difference*: the farthest end of any "
                   "two levels' 95 % interval of their difference (Newcombe's for shares, Welch's t for means; – when "
                   "a level has too few runs): a larger difference would very likely have been seen. p is exact for "
-                  "small designs; *smallest p*: the lowest any outcome of this many runs can give.", "",
-                  "| factor | stratum | measure | levels (mean [95 %]) | H | p | smallest p | Holm p | ε² | "
+                  "small designs; *smallest p possible*: the lowest any outcome of this many runs can give.", "",
+                  "| factor | stratum | measure | levels (mean [95 %]) | H | p | smallest p possible | Holm p | ε² | "
                   "largest difference |",
                   "|---|---|---|---|---|---|---|---|---|---|"]
         for t in tests:
