@@ -392,3 +392,14 @@ def test_a_history_that_is_incomplete_is_refused(tmp_path: Path) -> None:
     assert r.returncode == 2 and "is incomplete" in r.stderr and "tracking" in r.stderr and "12 generations" in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "x").exists()
+
+
+def test_every_flag_of_compare_is_described_in_its_help() -> None:
+    import argparse
+
+    from coevo.experiments.compare.command import configure_compare
+
+    p = argparse.ArgumentParser()
+    configure_compare(p)
+    bare = [a.option_strings for a in p._actions if not a.help]
+    assert not bare, f"flags without a description in coevo compare --help: {bare}"
