@@ -2,8 +2,8 @@
 study of learning runs: every cell's runs on its behaviour's first measure).
 
 An effect plot shows, per level of the factor, each measure's mean over the runs at that level with its 95 %
-interval (Student t for means, none below three runs; Wilson for shares), one line per stratum (regime or rate group), pooled over the
-other factors' levels: the main effect, as the report's tests take it.
+interval (Student t for means, none below three runs; Wilson for shares), one line per stratum (regime or rate
+group), pooled over the other factors' levels: the main effect, as the report's tests take it.
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ def effect_figure(factor: str, levels: Sequence[str], panels: Mapping[str, Mappi
         ax.set_title(titles[measure], fontsize=10)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    fig.suptitle(f"Effect of {factor} (mean and 95 % interval per level)")
+    fig.suptitle(f"Effect of {factor} (mean and 95 % interval per level; a mean of fewer than 3 runs has no bar)")
     fig.savefig(path, dpi=90)
     plt.close(fig)
 
