@@ -922,7 +922,7 @@ class TestAStudyOnThePage:
             poll(lambda: "Cell 01-max_lead=off (max_lead off): 2 done" in browser.execute_script(DEEP_TEXT), 30,
                  lambda: f"the second cell shown: {browser.execute_script(DEEP_TEXT)[:1500]}")
             legends = browser.execute_script(HEADLINE_BOXES)["legends"]
-            assert legends and all(x["labels"] == ["mutual, 2 runs"] for x in legends), legends
+            assert legends and all(x["labels"] == ["mutual, 2 runs, no band (needs 3)"] for x in legends), legends
         finally:
             browser.quit()
 
@@ -1143,3 +1143,12 @@ def test_a_finished_studys_verdict_keeps_the_smoke_test_warning() -> None:
     running = render.study_verdict_html(SimpleNamespace(study=study | {"verdict": None}))  # type: ignore[arg-type]
     assert "No report yet" in running and shown in running
     assert shown not in render.study_verdict_html(SimpleNamespace(study=study | {"caveat": ""}))  # type: ignore[arg-type]
+
+
+def test_a_regimes_legend_counts_its_runs_in_words_and_says_when_there_is_no_band() -> None:
+    from coevo.dashboard import render
+
+    assert render.legend_label("mutual", 1, 0) == "mutual, 1 run, no band (needs 3)"  # not "1 runs"
+    assert render.legend_label("mutual", 2, 1) == "mutual, 2 runs, no band (needs 3) (+1 going)"
+    assert render.legend_label("independent", 10, 0) == "independent, 10 runs"
+    assert render.legend_label("independent", 0, 2) == "independent, 0 runs (+2 going)"

@@ -178,6 +178,16 @@ def verdict_html(view: View) -> str:
     return f"<h3 class='coevo'>Verdict</h3><div class='verdict' style='{box}'>{body}</div>"
 
 
+def legend_label(group: str, done: int, going: int) -> str:
+    """A regime's legend on the comparison's panels: its finished runs (in the mean and the band), those going, and,
+    below the runs an interval needs, that there is no band: 'mutual, 2 runs, no band (needs 3) (+1 going)'."""
+    from coevo.experiments.common import plural
+    from coevo.experiments.compare.stats import MIN_RUNS
+
+    band = f", no band (needs {MIN_RUNS})" if 0 < done < MIN_RUNS else ""
+    return f"{group}, {plural(done, 'run')}{band}" + (f" (+{going} going)" if going else "")
+
+
 def regime_colour(view: View, group: str) -> str:
     """A comparison group's colour: its place among the comparison's groups, as in the report's regimes.png."""
     groups = list((view.comparison or {}).get("table1", {}))

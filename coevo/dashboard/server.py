@@ -332,7 +332,7 @@ class _Regimes:
         for i, g, item in self.items:
             lines = c["panels"][i]["groups"].get(g, {"lines": []})["lines"]
             done = sum(ln["state"] == "done" for ln in lines)
-            label = f"{g}, {done} runs" + (f" (+{len(lines) - done} going)" if done < len(lines) else "")
+            label = render.legend_label(g, done, len(lines) - done)
             if self.labels.get((i, g)) != label:  # a legend redrawn only when its text changes
                 self.labels[(i, g)] = label
                 item.label = value(label)
