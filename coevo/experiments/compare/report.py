@@ -435,6 +435,24 @@ def _executive_curve_lines(exec_curve: dict[str, dict[str, Any]]) -> list[str]:
     return [*lines, ""]
 
 
+def _rank_test_lines(tests: list[RankComparison]) -> list[str]:
+    """report.md's rank tests of the two live regimes: a row per measure, then what p, its floor and A mean."""
+    if not tests:
+        return []
+    a, b = tests[0].a, tests[0].b
+    lines = ["## Statistical comparison", "",
+             f"| measure | median {a} | median {b} | Mann–Whitney U | p | smallest p possible | A ({b} > {a}) | effect |",
+             "|---|---|---|---|---|---|---|---|"]
+    for t in tests:
+        lines.append(f"| {label(t.measure)} | {t.median_a:.3g} | {t.median_b:.3g} | {t.u:.1f} | "
+                     f"{format_p(t.p_value)} | {format_p(t.min_p)} | {t.a12:.2f} | {t.magnitude} |")
+    lines += ["", f"p: exact (a permutation of the runs) when they split in at most {EXACT_ARRANGEMENTS:,} ways, else "
+              "the normal approximation; *smallest p possible*: the lowest p any outcome of this many runs can give, "
+              f"so a p near it is as strong as this design can show. A: the chance that a run of {b} scores above "
+              f"one of {a} (ties half); 0.5 is no effect, beyond 0.71 or below 0.29 large.", ""]
+    return lines
+
+
 #: The runs table's measure columns, in its order (their names and units: :mod:`coevo.experiments.glossary`).
 RUN_COLUMNS = ("quality_tracking", "dock_choice", "docking_success_rate", "successful_docking", "average_epoch_length",
                "executive_payoff", "docking_from_random_starts")
@@ -479,19 +497,7 @@ def _markdown(spec: CompareSpec, records: list[dict[str, Any]], table: dict[str,
               "Docking alone.", ""]
     if exec_curve:
         lines += _executive_curve_lines(exec_curve)
-    if tests:
-        lines += ["## Statistical comparison", "",
-                  "| measure | median " + tests[0].a + " | median " + tests[0].b + " | Mann–Whitney U | p | smallest p "
-                  "possible | A (" + tests[0].b + " > " + tests[0].a + ") | effect |", "|---|---|---|---|---|---|---|---|"]
-        for t in tests:
-            lines.append(f"| {label(t.measure)} | {t.median_a:.3g} | {t.median_b:.3g} | {t.u:.1f} | "
-                         f"{format_p(t.p_value)} | {format_p(t.min_p)} | {t.a12:.2f} | {t.magnitude} |")
-        lines += ["", f"p: exact (a permutation of the runs) when they split in at most {EXACT_ARRANGEMENTS:,} ways, else the "
-                  "normal "
-                  "approximation; *smallest p possible*: the lowest p any outcome of this many runs can give, so a p "
-                  "near it is as strong as this design can show. A: the chance that a run of "
-                  f"{tests[0].b} scores above one of {tests[0].a} (ties half); 0.5 is no effect, beyond 0.71 or below "
-                  "0.29 large.", ""]
+    lines += _rank_test_lines(tests)
     if rate_tests:
         lines += [f"## Rates of asynchrony ({OFFLINE})", "",
                   "Per replicate, the Executive learns on the Tracking and Docking best-so-far histories recorded by "
