@@ -210,7 +210,7 @@ def difference_unit(share: bool, x: float) -> str:
 
 def _verdict(spec: StudySpec, cell_rows: list[dict[str, Any]], tests: list[dict[str, Any]], finished: int,
              expected: int) -> str:
-    parts = verdict_lines(tests, lambda t: (MEASURES[t["measure"]][0].lower(), f" in {t['stratum']}"), finished,
+    parts = verdict_lines(tests, lambda t: (MEASURES[t["measure"]][0], f" in {t['stratum']}"), finished,
                           expected)
     starved = [r for r in cell_rows if r["n"] and r["no_docking"]["k"] * 2 > r["n"]]
     if starved:
