@@ -315,6 +315,8 @@ def test_small_designs_get_exact_p_values_and_their_smallest_p() -> None:
             a, b = rng.integers(0, 3, na).astype(float), rng.integers(0, 3, nb).astype(float)
             t = compare_samples("x", "a", a, "b", b)
             assert t.min_p - 1e-12 <= t.p_value <= 1.0
+    one = compare_groups("x", {"r1": [0.3], "r2": [0.5]})  # one run a level (a study's --runs 1): p = 1, said
+    assert one.p_value == 1.0 and one.min_p == 1.0 and compare_samples("x", "a", [0.3], "b", [0.5]).p_value == 1.0
     g = compare_groups("x", {"r1": [0.1, 0.2], "r2": [0.3, 0.4]})  # the χ² approximation would say 0.12
     assert g.p_value == pytest.approx(1 / 3) and g.min_p == pytest.approx(1 / 3)
 
