@@ -24,9 +24,10 @@ regime cannot give less than 0.33, three 0.1, five 0.0079.
 **Means: the Student t interval, and none below** :data:`MIN_RUNS` **runs.**  Measured by simulation (2,000 samples
 each, ``tests/test_compare.py``; docs/glossary.md has the table), the percentile bootstrap the reports used before
 covers a mean in only 45–50 % of samples of two runs (its interval is then the two values), 80–86 % of five and
-86–92 % of ten; BCa does no better below ten, the studentised bootstrap breaks down below five.  The t interval
-covers 92.5–95.5 % from three runs on for the bounded, roughly symmetric shapes of the measures (normal, uniform,
-beta(2, 5)), and 88–93 % for strongly skewed or zero-heavy ones.  With two runs its one degree of freedom makes it
+86–92 % of ten; BCa covers 79–85 % at five; the studentised bootstrap covers 80–96 % at five and cannot be computed
+on the many resamples of three runs that repeat one value.  The t interval covers 92–95.5 % from three runs on for
+the bounded, roughly symmetric shapes of the measures (normal, uniform, beta(2, 5)), and 89–94 % below fifty runs
+for strongly skewed or zero-heavy ones.  With two runs its one degree of freedom makes it
 ±12.7 times half their gap, which says nothing a reader can use: below three runs no interval is given, and the text
 says why.
 """
