@@ -294,6 +294,10 @@ def test_the_verdict_never_calls_an_effect_absent_beside_a_large_one_or_apart_in
     line = _verdict_of(apart, others=20)
     assert line.startswith("- **Not established**") and "do not overlap" in line and "No detectable" not in line
     assert "the smallest p possible with 10 runs in 2 levels is 0.0079" in line
+    # Two runs a level, levels alike: not "no detectable effect" from a test that can detect none.
+    line = _verdict_of({"1": [4.0, 5.0], "off": [4.5, 4.6]})
+    assert line.startswith("- Too few runs to test max_lead on average epoch length in mutual: 4 runs in 2 levels "
+                           "cannot give p below 0.33 (1: 4.50 (too few runs for an interval)"), line
     # Levels alike, with an interval each: "no detectable effect" and the difference the data exclude.
     rng = np.random.default_rng(1)
     same = {"1": list(rng.normal(5, 0.5, 8)), "off": list(rng.normal(5, 0.5, 8))}
@@ -361,7 +365,7 @@ def test_a_tiny_study_killed_with_a_signal_resumes_and_reports(tmp_path: Path) -
           for lv, v in (("1", 1), ("off", None))}
     assert t["min_p"] == pytest.approx(1 / 3)  # two runs a level: no exact p below 1/3, and none given
     assert t["min_p"] <= t["p"] <= t["p_holm"]
-    assert "No detectable effect" not in res["verdict"] or "no p below 0.33 is possible" in res["verdict"]
+    assert "No detectable effect" not in res["verdict"]  # 2 runs a level: "too few runs to test" or "not established"
     md = (out / "report.md").read_text()
     for part in ("# Study `study`", "## Verdict", "## Table 1 per cell, with 95 % Wilson intervals",
                  "## Factor tests", "effect-max_lead.png", "cells.png"):

@@ -245,6 +245,10 @@ def verdict_lines(tests: list[dict[str, Any]], subject: Callable[[dict[str, Any]
                 parts.append(f"- **Not established**: an effect of {t['factor']} on {what}{where} ({levels}; {p_text}):"
                              f" {why}, but the test does not reach 5 % after Holm's correction; more runs would tell.")
                 continue
+            if float(t.get("min_p", 0.0)) >= ALPHA:  # "no detectable effect" from a test that could detect none
+                parts.append(f"- Too few runs to test {t['factor']} on {what}{where}: {runs} cannot give p below "
+                             f"{format_p(t['min_p'])} ({levels}).")
+                continue
             res = ("; too few runs to bound the difference between two levels (an interval needs 3 runs a level)"
                    if math.isnan(t["largest_difference"]) else
                    f"; a difference between two levels beyond {difference_unit(share, t['largest_difference'])} is "
