@@ -20,12 +20,12 @@ __all__ = ["PANELS", "figure_for_regime", "figure_regimes", "figure_rates"]
 
 # (title, behaviour, curve column, y label, y scale)
 PANELS = (
-    ("Executive learning curve", "executive", "best_fitness", "best fitness", 1.0),
-    ("Docking learning curve", "docking", "best_fitness", "best fitness", 1.0),
-    ("Tracking learning curve", "tracking", "best_fitness", "best fitness", 1.0),
-    ("Quality Tracking (Executive's best)", "executive", "quality_tracking", "% of episodes", 100.0),
-    ("Docking from random starts (Docking's best)", "docking", "docking_from_random", "% of fresh starts", 100.0),
-    ("Docking picked (Executive's best)", "executive", "dock_choice", "% of episodes", 100.0),
+    ("Executive learning curve", "executive", "best_fitness", "generation's best fitness", 1.0),
+    ("Docking learning curve", "docking", "best_fitness", "generation's best fitness", 1.0),
+    ("Tracking learning curve", "tracking", "best_fitness", "generation's best fitness", 1.0),
+    ("Quality Tracking (Executive's generation's best)", "executive", "quality_tracking", "% of episodes", 100.0),
+    ("Docking alone (Docking's generation's best)", "docking", "docking_from_random", "% of fresh starts", 100.0),
+    ("Docking picked (Executive's generation's best)", "executive", "dock_choice", "% of episodes", 100.0),
 )
 
 Curves = Mapping[str, Mapping[str, Mapping[str, Sequence[float]]]]  # run -> behaviour -> column -> per generation
@@ -115,8 +115,8 @@ def figure_rates(by_group: Mapping[str, Curves], path: Path) -> None:
     offline = [g for g in by_group if g not in ("mutual", "independent")]
     styles = {"mutual": ("tab:red", "--"), "independent": ("black", "--")}
     styles |= {g: (cmap(i / max(1, len(offline) - 1)), "-") for i, g in enumerate(offline)}
-    panels = (("Executive learning curve", "best_fitness", "best fitness", 1.0),
-              ("Docking picked (Executive's best)", "dock_choice", "% of episodes", 100.0))
+    panels = (("Executive learning curve", "best_fitness", "generation's best fitness", 1.0),
+              ("Docking picked (Executive's generation's best)", "dock_choice", "% of episodes", 100.0))
     for ax, (title, col, ylabel, top) in zip(axes, panels, strict=True):
         for g, curves in by_group.items():
             m = _matrix(curves, "executive", col)
