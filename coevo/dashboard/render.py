@@ -265,8 +265,8 @@ def curve_lines(view: View, behaviour: str, what: str = "fitness") -> dict[str, 
     policy it publishes as its best (``fitness``: thick the published best, thin the generation's), or each of the task's
     measures (``measures``: a dash per measure); a colour per run, and only the colour says which run.
 
-    The published best's fitness is the mean of all its re-evaluations (``GAConfig.best_candidates``), so it can go
-    down as evidence comes in: it is not a running maximum, and is not labelled one."""
+    The best so far's fitness is, with ``GAConfig.best_candidates`` (Docking's default), the mean of all its
+    re-evaluations, so it can go down as evidence comes in: it is not labelled a running maximum."""
     cols: dict[str, list[Any]] = {"xs": [], "ys": [], "run": [], "line": [], "color": [], "dash": [], "width": []}
     for i, r in enumerate(view.runs):
         colour = _colour(i)
@@ -275,7 +275,7 @@ def curve_lines(view: View, behaviour: str, what: str = "fitness") -> dict[str, 
                 continue
             lines: list[tuple[str, Sequence[float | None], float]]
             if what == "fitness":
-                lines = [("published best (mean of its re-evaluations)", c.best_so_far, 2.5),
+                lines = [("best so far (the published policy)", c.best_so_far, 2.5),
                          ("generation's best", c.best, 1.0)]
             else:
                 labels = _labels()

@@ -111,7 +111,7 @@ class _Page:
                 shown.text = title
         if key not in self.plots:
             if what == "fitness":
-                fig, src = self._figure(f"curve-{behaviour}", f"{behaviour}: best fitness (thick: the published best)",
+                fig, src = self._figure(f"curve-{behaviour}", f"{behaviour}: fitness (thick: best so far; thin: generation's best)",
                                         "fitness")
                 self.fitness_row.children.append(fig)
             elif what == "measures":

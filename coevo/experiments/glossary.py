@@ -5,8 +5,8 @@ The fields on the left are the names in the run files (``summary.json``, ``curve
 reader sees only the name on the right, with its unit.  Two fitnesses are easily confused, and are kept apart by
 name: a **generation's best** is the fitness of one generation's best individual, re-evaluated on
 ``best_episodes`` episodes (the report's learning curve); the **best so far** is the highest such re-evaluation of
-any generation until then (with ``best_candidates``, the best of a pool's means of several re-evaluations): the
-policy the worker publishes, and a maximum over noisy values, so it sits above the curve.
+any generation until then (with ``best_candidates``, the highest mean of a few policies' repeated re-evaluations):
+the policy the worker publishes, and a maximum over noisy values, so it mostly sits above the curve.
 """
 
 from __future__ import annotations
@@ -62,9 +62,11 @@ CLASSES: dict[str, Term] = {
 FITNESSES: dict[str, Term] = {
     "best_fitness": Term("generation's best", "", "the fitness of one generation's best individual, re-evaluated "
                          "on best_episodes episodes against the partners of that moment: the report's learning curve."),
-    "best_so_far": Term("best so far", "", "the highest generation's best of the run until then: the policy the "
-                        "worker publishes. A maximum over noisy re-evaluations, so above the curve; 'final' is its "
-                        "value at the last generation (the comparison's tests on Executive fitness use it)."),
+    "best_so_far": Term("best so far", "", "the fitness of the policy the worker publishes: the highest generation's "
+                        "best of the run until then (with best_candidates, Docking's default, the highest mean of the "
+                        "few best policies' repeated re-evaluations, which can fall). A maximum over noisy "
+                        "re-evaluations, so mostly above the curve; 'final' is its value at the last generation (the "
+                        "comparison's tests on Executive fitness use it)."),
     "final_executive_fitness": Term("Executive's final best so far", "", "the Executive's best so far at the "
                                     "last generation, per run: what a comparison's first rank test compares."),
     "executive_end": Term("Executive end", "", "the Executive's generation's best at the last generation (the "
