@@ -11,9 +11,10 @@ frozen pydantic models: invalid values fail at construction with a
 from __future__ import annotations
 
 import argparse
+import difflib
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar, Literal, TypeVar, cast
 
@@ -22,7 +23,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from coevo.errors import ConfigError
 
-__all__ = ["pairs", "Bounded", "MAX_MAGNITUDE", "Settings", "GAConfig", "build", "MODELS", "DEFAULT_MAX_LEAD", "parse_max_lead", "SAVED_GA_BEFORE",
+__all__ = ["pairs", "Bounded", "MAX_MAGNITUDE", "Settings", "GAConfig", "build", "did_you_mean", "MODELS", "DEFAULT_MAX_LEAD",
+           "parse_max_lead", "SAVED_GA_BEFORE",
            "saved_ga"]
 
 _M = TypeVar("_M", bound=BaseModel)
@@ -258,8 +260,32 @@ def build(model: type[_M], values: dict[str, Any] | None = None, *, what: str = 
             # a nested setting (world.arena) shows its own value, not the whole of its parent's
             value = err.get("input") if len(err["loc"]) > 1 else data.get(str(err["loc"][0])) if err["loc"] else None
             shown = f"{field}={value!r}" if err["loc"] else field
+            if err["type"] == "extra_forbidden":  # a misspelt name: the nearest known one, and every known one
+                names = list(_model_at(model, err["loc"][:-1]).model_fields)
+                hint = did_you_mean(str(err["loc"][-1]), names)
+                parts.append(f"{shown}: unknown setting{hint}{' ' if hint else '. '}Known settings: " + ", ".join(names))
+                continue
             parts.append(f"{shown}: {err['msg']}")
         raise ConfigError(f"{what or model.__name__}: " + "; ".join(parts)) from exc
+
+
+def did_you_mean(name: str, names: Sequence[str], *, prefix: str = "") -> str:
+    """'; did you mean mutation_rate?' for a name one typo away from one of ``names`` (shown with ``prefix``), else
+    ''.  Every "unknown name" message of the settings says it this way (``--ga``, ``--world``, a study's factors)."""
+    near = difflib.get_close_matches(name, list(names), n=1)
+    return f"; did you mean {prefix}{near[0]}?" if near else ""
+
+
+def _model_at(model: type[BaseModel], loc: Sequence[int | str]) -> type[BaseModel]:
+    """The settings model a validation error's location (less its last part) points into: ``model`` itself, or a
+    nested model's (``world.arena`` of a model whose ``world`` is one)."""
+    for part in loc:
+        field = model.model_fields.get(str(part))
+        inner = field.annotation if field is not None else None
+        if not (isinstance(inner, type) and issubclass(inner, BaseModel)):
+            break
+        model = inner
+    return model
 
 
 def pairs(values: list[str] | None, flag: str) -> dict[str, Any]:

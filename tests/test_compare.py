@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from coevo.experiments.compare.stats import compare_groups, compare_samples, magnitude, mean_interval
+from coevo.experiments.compare.stats import compare_groups, compare_samples, magnitude, mean_interval, mean_intervals
 from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
 
 TINY = ["--runs", "2", "--generations", "3", "--population", "6", "--episodes", "10", "--ga", "best_episodes=10",
@@ -77,8 +77,11 @@ class TestTinyComparison:
             assert ec["end"]["n"] == len(curves) == 2
             assert ec["end"]["mean"] == pytest.approx(np.mean([c[-1] for c in curves]))
             assert ec["last_generations"]["mean"] == pytest.approx(np.mean([np.mean(c[-10:]) for c in curves]))
-            assert ec["end"]["low"] <= ec["end"]["mean"] <= ec["end"]["high"]
-        assert "## The Executive's curve" in (tiny / "report.md").read_text()
+            assert ec["tail_generations"] == 3  # a 3-generation run's "last 10 generations" are its 3
+            assert np.isnan(ec["end"]["low"]) and np.isnan(ec["end"]["high"])  # two runs: no interval
+        md = (tiny / "report.md").read_text()
+        assert "## The Executive's curve" in md and "(n = 2: too few runs for an interval)" in md
+        assert "last 10 generations" not in md and "mean of its last 3 generations" in md
 
         # Table 1 counts are the classes of the runs, nine columns per regime, beside the report's own.
         for regime in ("mutual", "independent"):
@@ -97,8 +100,9 @@ class TestTinyComparison:
                                 "independent", [x["final_best_so_far"]["executive"] for x in by["independent"]])
         assert tests["final_executive_fitness"] == pytest.approx(again.as_dict())
         for t in tests.values():
-            assert 0.0 <= t["p_value"] <= 1.0 and 0.0 <= t["a12"] <= 1.0
-        assert res["verdict"]
+            assert t["min_p"] == pytest.approx(1 / 3) and 1 / 3 - 1e-12 <= t["p_value"] <= 1.0
+            assert 0.0 <= t["a12"] <= 1.0
+        assert res["verdict"].count("with 2 and 2 runs no p below 0.33 is possible") == 2
         # A verdict at settings far below the report's says so first, printed and in the report.
         assert res["verdict"].startswith("These settings are below the report's: generations 3 (the report's 50)")
         assert "runs a regime 2 (the report's 10)" in res["verdict"]
@@ -217,7 +221,7 @@ def test_rank_comparison_effect_size_and_p_value() -> None:
     lo, hi = [0.1, 0.2, 0.3, 0.4], [0.5, 0.6, 0.7, 0.8]
     t = compare_samples("x", "a", lo, "b", hi)
     assert t.a12 == 1.0 and t.magnitude == "large"
-    assert t.p_value == pytest.approx(stats.mannwhitneyu(hi, lo, alternative="two-sided").pvalue)
+    assert t.p_value == pytest.approx(stats.mannwhitneyu(hi, lo, alternative="two-sided", method="exact").pvalue)
     assert compare_samples("x", "a", hi, "b", lo).a12 == 0.0
     same = compare_samples("x", "a", [0.0] * 5, "b", [0.0] * 5)  # every run starved: no difference, no NaN
     assert same.a12 == 0.5 and same.p_value == 1.0 and same.magnitude == "negligible"
@@ -232,19 +236,89 @@ def test_rank_comparison_effect_size_and_p_value() -> None:
         compare_samples("x", "a", [], "b", [1.0])
 
 
-def test_mean_interval_bootstrap() -> None:
+def test_mean_interval_is_the_t_interval_and_says_why_when_there_is_none() -> None:
     rng = np.random.default_rng(5)
     x = rng.normal(0.6, 0.05, 40)
     m = mean_interval(x)
     assert m.n == 40 and m.mean == pytest.approx(x.mean()) and m.low < m.mean < m.high
-    half = 1.96 * x.std(ddof=1) / np.sqrt(x.size)  # the normal approximation's interval, for a sample this size
-    assert m.high - m.low == pytest.approx(2 * half, rel=0.2)
-    assert mean_interval(x) == m  # a fixed seed: the same report when written again
-    same = mean_interval([0.5, 0.5, 0.5])  # all equal: the interval is the value, not a failure
-    assert (same.low, same.mean, same.high) == (0.5, 0.5, 0.5)
+    half = stats.t.ppf(0.975, 39) * x.std(ddof=1) / np.sqrt(x.size)
+    assert (m.low, m.high) == pytest.approx((x.mean() - half, x.mean() + half), rel=1e-12)
+    assert m.text() == f"{m.mean:.2f} [{m.low:.2f}, {m.high:.2f}] (n = 40)"
+    same = mean_interval([0.5, 0.5, 0.5])  # no spread: the value, and the text says so instead of [0.50, 0.50]
+    assert (same.low, same.mean, same.high) == (0.5, 0.5, 0.5) and same.text() == "0.50 (all 3 runs equal)"
+    two = mean_interval([0.04, 0.10])  # the issue's "0.07 [0.04, 0.10] (n = 2)": no interval, and why
+    assert np.isnan(two.low) and np.isnan(two.high)
+    assert two.text() == "0.07 (n = 2: too few runs for an interval)"
     one = mean_interval([0.7, float("nan")])
-    assert one.n == 1 and one.mean == 0.7 and np.isnan(one.low) and "n = 1" in one.text()
+    assert one.n == 1 and one.mean == 0.7 and np.isnan(one.low) and "n = 1: too few runs" in one.text()
     assert mean_interval([]).n == 0 and mean_interval([]).text() == "–"
+
+
+#: Shapes like the measures' (fitness and shares in [0, 1], AEL in [4, 10]), with their true means.
+COVERAGE_SHAPES = {
+    "normal(0.5, 0.1)": (lambda r, size: r.normal(0.5, 0.1, size), 0.5),
+    "uniform(4, 10)": (lambda r, size: r.uniform(4, 10, size), 7.0),
+    "beta(2, 5)": (lambda r, size: r.beta(2, 5, size), 2 / 7),
+}
+
+
+@pytest.mark.parametrize("shape", list(COVERAGE_SHAPES))
+def test_mean_intervals_cover_a_known_mean_95_percent_of_the_time(shape: str) -> None:
+    """2,000 samples of n runs from a known distribution: the 95 % interval covers its mean in 93-97 % of them at
+    n = 5, 10, 50; at n = 2 there is no interval (and the text says why).  The percentile bootstrap used before
+    fails this at n = 5 (about 83 %) and n = 10 (about 90 %)."""
+    draw, mu = COVERAGE_SHAPES[shape]
+    for n in (5, 10, 50):
+        x = draw(np.random.default_rng(n), (n, 2000))  # a column is one sample of n runs
+        _, low, high = mean_intervals(x)
+        covered = float(np.mean((low <= mu) & (mu <= high)))
+        assert 0.93 <= covered <= 0.97, (shape, n, covered)
+    first = mean_interval(x[:, 0])
+    assert (first.low, first.high) == pytest.approx((low[0], high[0]), rel=1e-12)  # the same interval one at a time
+    two = draw(np.random.default_rng(2), (2, 2000))
+    _, low, high = mean_intervals(two)
+    assert np.isnan(low).all() and np.isnan(high).all()
+    assert "too few runs for an interval" in mean_interval(two[:, 0]).text()
+
+
+def test_difference_interval_covers_a_known_difference_95_percent_of_the_time() -> None:
+    from coevo.experiments.study.intervals import difference_interval
+
+    for shape, n in (("beta(2, 5)", 5), ("uniform(4, 10)", 10)):  # one call per sample: two cases keep it quick
+        draw = COVERAGE_SHAPES[shape][0]
+        rng = np.random.default_rng(100 + n)
+        hits = 0
+        for _ in range(2000):
+            d = difference_interval("a", draw(rng, n), "b", draw(rng, n) + 0.1)
+            hits += d.low <= 0.1 <= d.high
+        assert 0.93 <= hits / 2000 <= 0.97, (shape, n, hits)
+    assert np.isnan(difference_interval("a", [0.1, 0.2], "b", [0.3, 0.4, 0.5]).low)  # too few runs: no interval
+
+
+def test_small_designs_get_exact_p_values_and_their_smallest_p() -> None:
+    from coevo.experiments.compare.stats import smallest_p
+
+    # two runs a regime: fully separated is the most extreme of the C(4, 2) = 6 splits, either way: p = 2/6
+    t = compare_samples("x", "a", [0.04, 0.10], "b", [0.20, 0.30])
+    assert t.p_value == pytest.approx(1 / 3) and t.min_p == pytest.approx(1 / 3)
+    tied = compare_samples("x", "a", [0.0, 0.0], "b", [0.2, 0.2])  # scipy's normal approximation gives 0.12 here
+    assert tied.p_value == pytest.approx(1 / 3) and stats.mannwhitneyu([0.2, 0.2], [0.0, 0.0]).pvalue < 1 / 3
+    assert smallest_p([3, 3]) == pytest.approx(0.1) and smallest_p([5, 5]) == pytest.approx(2 / 252)
+    assert smallest_p([10, 10]) == pytest.approx(2 / 184756)
+    assert smallest_p([2, 3]) == pytest.approx(1 / 10) and smallest_p([3, 3, 3]) == pytest.approx(6 / 1680)
+    assert compare_samples("x", "a", [0.0, 0.0], "b", [1.0, 1.0, 1.0]).p_value == pytest.approx(1 / 10)  # reached
+    assert smallest_p([2, 2, 3]) == pytest.approx(2 / 210)
+    assert compare_groups("x", {"r1": [0, 0], "r2": [1, 1], "r3": [2, 2, 2]}).p_value == pytest.approx(2 / 210)
+    rng = np.random.default_rng(11)
+    for na, nb in ((2, 2), (2, 3), (3, 4), (5, 5)):  # whatever the values, no p below the design's smallest
+        for _ in range(20):
+            a, b = rng.integers(0, 3, na).astype(float), rng.integers(0, 3, nb).astype(float)
+            t = compare_samples("x", "a", a, "b", b)
+            assert t.min_p - 1e-12 <= t.p_value <= 1.0
+    one = compare_groups("x", {"r1": [0.3], "r2": [0.5]})  # one run a level (a study's --runs 1): p = 1, said
+    assert one.p_value == 1.0 and one.min_p == 1.0 and compare_samples("x", "a", [0.3], "b", [0.5]).p_value == 1.0
+    g = compare_groups("x", {"r1": [0.1, 0.2], "r2": [0.3, 0.4]})  # the χ² approximation would say 0.12
+    assert g.p_value == pytest.approx(1 / 3) and g.min_p == pytest.approx(1 / 3)
 
 
 def test_mean_intervals_is_mean_interval_per_generation() -> None:
@@ -265,7 +339,9 @@ def test_kruskal_wallis_across_groups_and_its_effect_size() -> None:
     assert same.h == 0.0 and same.p_value == 1.0 and not same.appreciable
     apart = compare_groups("x", {"r1": [0.1, 0.2, 0.3], "r2": [0.4, 0.5, 0.6], "r3": [0.7, 0.8, 0.9]})
     ref = stats.kruskal([0.1, 0.2, 0.3], [0.4, 0.5, 0.6], [0.7, 0.8, 0.9])
-    assert apart.h == pytest.approx(ref.statistic) and apart.p_value == pytest.approx(ref.pvalue)
+    assert apart.h == pytest.approx(ref.statistic) and apart.p_value == pytest.approx(6 / 1680)  # exact: 1680 splits
+    big = {f"r{i}": list(np.random.default_rng(i).random(12)) for i in range(3)}  # 12 runs a group: approximate
+    assert compare_groups("x", big).p_value == pytest.approx(stats.kruskal(*big.values()).pvalue)
     assert apart.epsilon2 == pytest.approx(ref.statistic / 8) and apart.magnitude == "large" and apart.appreciable
     with pytest.raises(ValueError, match="two groups"):
         compare_groups("x", {"r1": [1.0]})
@@ -318,3 +394,14 @@ def test_a_history_that_is_incomplete_is_refused(tmp_path: Path) -> None:
     assert r.returncode == 2 and "is incomplete" in r.stderr and "tracking" in r.stderr and "12 generations" in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "x").exists()
+
+
+def test_every_flag_of_compare_is_described_in_its_help() -> None:
+    import argparse
+
+    from coevo.experiments.compare.command import configure_compare
+
+    p = argparse.ArgumentParser()
+    configure_compare(p)
+    bare = [a.option_strings for a in p._actions if not a.help]
+    assert not bare, f"flags without a description in coevo compare --help: {bare}"

@@ -7,6 +7,7 @@ from __future__ import annotations
 import base64
 import io
 import json
+import math
 import os
 import re
 import shutil
@@ -249,7 +250,7 @@ def test_a_comparison_shows_replicates_by_state_and_table_1_so_far(tmp_path: Pat
     ec = c["executive_curve"]
     assert set(ec) == {"mutual", "independent"} and ec["mutual"]["end"]["n"] == 1
     assert ec["mutual"]["end"]["mean"] == pytest.approx(0.3) and ec["mutual"]["last_generations"]["mean"] == pytest.approx(0.2)
-    assert "Executive curve (finished runs)" in html and "0.30 (n = 1)" in html
+    assert "Executive curve (finished runs)" in html and "0.30 (n = 1: too few runs for an interval)" in html
 
 
 def test_a_comparison_page_has_table_1_beside_the_report_and_per_regime_lines_bands_and_a_run_selector(
@@ -283,10 +284,10 @@ def test_a_comparison_page_has_table_1_beside_the_report_and_per_regime_lines_ba
     assert "No report yet" in render.verdict_html(view) and "below the report" in render.verdict_html(view)
     executive = next(p for p in c["panels"] if p["behaviour"] == "executive" and p["column"] == "best_fitness")
     band, lines = render.regime_columns(executive, "mutual", picked={"mutual-01"})
-    # mutual-00's executive curve 0.1, 0.2, 0.3 and mutual-01's 0.1, 0.2, 0.6: their mean and its bootstrap interval
+    # mutual-00's executive curve 0.1, 0.2, 0.3 and mutual-01's 0.1, 0.2, 0.6: their mean, and no interval from two runs
     assert band["generation"] == [1, 2, 3] and band["n"] == [2, 2, 2]
-    assert band["mean"] == pytest.approx([0.1, 0.2, 0.45]) and band["low"] == pytest.approx([0.1, 0.2, 0.3])
-    assert band["high"] == pytest.approx([0.1, 0.2, 0.6]) and band["regime"] == ["mutual"] * 3
+    assert band["mean"] == pytest.approx([0.1, 0.2, 0.45]) and all(math.isnan(v) for v in band["low"] + band["high"])
+    assert band["regime"] == ["mutual"] * 3
     assert lines["run"] == ["mutual-00", "mutual-01"] and lines["dash"] == ["solid", "solid"]
     assert lines["width"] == [render.RUN_WIDTH, render.PICKED_WIDTH]  # the picked run thick, the other thin
 
@@ -403,7 +404,7 @@ def test_a_study_of_learning_runs_shows_its_runs_and_measures_and_no_comparison(
     assert row["n"] == 1 and row["measures"]["quality_tracking"]["mean"] == 62.5
     assert row["measures"]["quality_tracking"]["median"] == 62.5 and second["rows"][0]["n"] == 0
     page = render.study_progress_html(view) + render.study_tables_html(view)
-    assert "Quality Tracking (%): mean [95 %] · median" in page and "62.50 · 62.50" in page
+    assert "Quality Tracking (%): mean [95 %] · median" in page and "62.50 (too few runs for an interval) · 62.50" in page
     assert "Table 1" not in page and "coevo compare" not in render.study_cell_note_html(view, first["id"])
     doc = Document()
     make_document(dash, [])(doc)  # the page as the server builds it: no cell selector, no comparison's panels
@@ -921,7 +922,7 @@ class TestAStudyOnThePage:
             poll(lambda: "Cell 01-max_lead=off (max_lead off): 2 done" in browser.execute_script(DEEP_TEXT), 30,
                  lambda: f"the second cell shown: {browser.execute_script(DEEP_TEXT)[:1500]}")
             legends = browser.execute_script(HEADLINE_BOXES)["legends"]
-            assert legends and all(x["labels"] == ["mutual, 2 runs"] for x in legends), legends
+            assert legends and all(x["labels"] == ["mutual, 2 runs, no band (needs 3)"] for x in legends), legends
         finally:
             browser.quit()
 
@@ -1124,3 +1125,30 @@ def test_sigterm_ends_it_at_once_while_it_is_still_connecting(argv: list[str], t
             p.kill()
         mute.close()
     assert "Traceback" not in (tmp_path / "log").read_text()
+
+
+def test_a_finished_studys_verdict_keeps_the_smoke_test_warning() -> None:
+    """The issue: a finished study's page dropped the "settings below the report's" line that its running page and
+    its report.md show; a verdict is never shown without it."""
+    from types import SimpleNamespace
+
+    from coevo.dashboard import render
+
+    caveat = "These settings are below the report's: generations 3 (the report's 50). This is a smoke test"
+    study = {"caveat": caveat, "runs_done": 4, "runs_total": 4, "dir": "runs/s",
+             "verdict": {"text": "- No detectable effect of max_lead on x.", "finished": 4, "expected": 4}}
+    finished = render.study_verdict_html(SimpleNamespace(study=study))  # type: ignore[arg-type]
+    shown = render._e(caveat)  # as the page escapes it
+    assert "No detectable effect" in finished and shown in finished
+    running = render.study_verdict_html(SimpleNamespace(study=study | {"verdict": None}))  # type: ignore[arg-type]
+    assert "No report yet" in running and shown in running
+    assert shown not in render.study_verdict_html(SimpleNamespace(study=study | {"caveat": ""}))  # type: ignore[arg-type]
+
+
+def test_a_regimes_legend_counts_its_runs_in_words_and_says_when_there_is_no_band() -> None:
+    from coevo.dashboard import render
+
+    assert render.legend_label("mutual", 1, 0) == "mutual, 1 run, no band (needs 3)"  # not "1 runs"
+    assert render.legend_label("mutual", 2, 1) == "mutual, 2 runs, no band (needs 3) (+1 going)"
+    assert render.legend_label("independent", 10, 0) == "independent, 10 runs"
+    assert render.legend_label("independent", 0, 2) == "independent, 0 runs (+2 going)"

@@ -7,6 +7,7 @@ import json
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -274,3 +275,26 @@ def test_bad_values_exit_2_before_anything_runs(tmp_path: Path, capsys: pytest.C
     err = capsys.readouterr().err
     assert named in err and "ConfigError" in err
     assert not (tmp_path / "never").exists()
+
+
+def test_gm_like_fm_needs_runs_that_could_have_told_them_apart() -> None:
+    """"GM performs like FM(0.03)" held whenever p >= 0.05 (issue 55: no evidence is not evidence of likeness): two
+    runs each, a fourfold gap, held.  Now it holds only when the design can reach p < 0.05 and the effect is small."""
+    from coevo.experiments.evolvability.experiment import GridResults, GridSpec
+    from coevo.experiments.evolvability.report import _ranking_claims
+
+    def claim(gm: np.ndarray, fm: np.ndarray) -> dict[str, Any]:
+        spec = GridSpec.make(classes=("gradual",), rates=(0.03,), models=("fm", "gm"), landscapes=1, runs=gm.size,
+                             generations=1)
+        best = np.stack([fm, gm]).reshape(2, 1, 1, gm.size, 1)
+        res = GridResults(spec, mean={"gradual": best}, best={"gradual": best}, control={"gradual": best})
+        return next(c for c in _ranking_claims(res) if c["id"] == "gm_like_fm003")
+
+    few = claim(np.array([80.0, 90.0]), np.array([20.0, 25.0]))
+    assert few["tests"][0]["p"] >= 0.05 and not few["tests"][0]["holds"] and few["verdict"] == "too few runs to tell"
+    gm = np.linspace(60, 90, 6)
+    apart = claim(gm, gm - 40)  # 6 runs each, fully apart: p < 0.05
+    assert apart["tests"][0]["p"] < 0.05 and apart["verdict"] == "does not hold"
+    rng = np.random.default_rng(4)
+    many = claim(rng.normal(50, 5, 40), rng.normal(50, 5, 40))
+    assert many["tests"][0]["holds"] and many["tests"][0]["magnitude"] in ("negligible", "small")

@@ -4,12 +4,11 @@ verdict of its report once written; and the regimes' curves.
 
 The curves are the report's panels (:data:`coevo.experiments.compare.plots.PANELS`: each behaviour's best fitness per
 generation, and the Executive's and Docking's measures), per regime: every live run's line (a running one as far as
-it got) and, over the finished runs, the mean per generation with a 95 % percentile-bootstrap interval
-(:func:`~coevo.experiments.compare.stats.mean_intervals`, the statistic of the report's Executive-curve table, so a
-band ends on the report's interval at the last generation).  A bootstrap, not a normal interval: the values are
-bounded (fitness in [0, 1], shares in %) and a regime's runs split into starved and docking ones, where a normal
-interval is symmetric and spills past the bounds.  A band is computed once per set of finished runs (a run that has
-finished no longer changes).
+it got) and, over the finished runs, the mean per generation with its 95 % t interval, none below three runs
+(:func:`~coevo.experiments.compare.stats.mean_intervals`, the statistic of the report's Executive-curve table and of
+regimes.png, so a band ends on the report's interval at the last generation; the percentile bootstrap used before
+covered the mean far less often than 95 % at a comparison's usual 2–10 runs).  A band is computed once per set of
+finished runs (a run that has finished no longer changes).
 
 The replicates, their run directories, what "finished" means and the Table 1 classes are the
 comparison's own (:mod:`coevo.experiments.compare`), so the page counts exactly what the report
@@ -200,7 +199,8 @@ class ComparisonFiles:
 
     @staticmethod
     def _band(lines: list[dict[str, Any]]) -> dict[str, list[float]] | None:
-        """The mean per generation of finished runs' lines and its 95 % interval; None below two runs."""
+        """The mean per generation of finished runs' lines and its 95 % interval (NaN ends below three runs); None
+        below two runs."""
         import numpy as np
 
         from coevo.experiments.compare.stats import mean_intervals

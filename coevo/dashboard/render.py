@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from coevo.dashboard.model import View
+from coevo.experiments.glossary import TERMS, with_unit
 
 __all__ = ["PALETTE", "REGIME_COLOURS", "problems_html", "runs_html", "workers_html", "comparison_html",
            "table1_html", "verdict_html", "regime_colour", "regime_columns", "curve_lines", "behaviours",
@@ -84,12 +85,12 @@ def runs_html(view: View) -> str:
     for r in view.runs:
         b = r.broker or {}
         stored = " ".join(f"{_e(k)}:{v}" for k, v in sorted(b.get("stored", {}).items())) or "-"
-        final = ", ".join(f"{_e(k)} {v:.1f}" for k, v in r.final.items()
+        final = ", ".join(_e(with_unit(k, v)) for k, v in r.final.items()
                           if k in ("quality_tracking", "successful_docking", "dock_choice", "docking_success_rate")) or "-"
         rows.append([_e(r.run), _e(r.task), _e(r.regime), _state(r.state), _e(r.source), _state(b.get("state", "-")),
                      stored, _reasons(b.get("rejected", {})), final])
     return "<h3 class='coevo'>Runs</h3>" + _table("runs", ["run", "task", "regime", "state", "seen on", "broker",
-                                                            "stored", "rejected", "final measures (%)"], rows)
+                                                            "stored", "rejected", "final measures"], rows)
 
 
 def workers_html(view: View) -> str:
@@ -98,8 +99,10 @@ def workers_html(view: View) -> str:
     for r in view.runs:
         for w in r.workers:
             partners = " ".join(f"{_e(k[0].upper())}v{v}" for k, v in sorted(w["partner_versions"].items())) or "-"
+            curve = r.curves.get(str(w["worker"]))
+            so_far = curve[1].best_so_far[-1] if curve and curve[1].best_so_far else w["best_fitness"]
             rows.append([_e(r.run), _e(w["worker"]), _e(w["behaviour"]), f"{w['generation']}/{w['generations']}",
-                         f"{w['best_fitness']:.3f}", _measures(w.get("measures", {})), partners, str(w.get("buffered", 0)),
+                         f"{so_far:.3f}", _measures(w.get("measures", {})), partners, str(w.get("buffered", 0)),
                          _reasons(w.get("rejected_by_reason", {})), _state(w["state"])])
         for x in r.robots:
             rows.append([_e(r.run), _e(x["robot"]), "execution", str(x["generation"]), "",
@@ -108,9 +111,11 @@ def workers_html(view: View) -> str:
                          _reasons(x.get("rejected_by_reason", {})), _state(x["state"])])
     if not rows:
         return ""
-    return "<h3 class='coevo'>Workers</h3>" + _table(
-        "workers", ["run", "worker", "behaviour", "gen", "best", "own measures", "partners", "unconfirmed", "rejected",
-                    "state"], rows, numeric={3, 4, 7})
+    return ("<h3 class='coevo'>Workers</h3>" + _table(
+        "workers", ["run", "worker", "behaviour", "gen", "best so far", "own measures", "partners", "unconfirmed",
+                    "rejected", "state"], rows, numeric={3, 4, 7})
+        + f"<p class='definition' style='font:12px sans-serif;color:#555'><b>best so far</b>: "
+          f"{_e(TERMS['best_so_far'].definition)} The curves' thin line is each <b>generation's best</b>.</p>")
 
 
 def comparison_html(view: View) -> str:
@@ -173,6 +178,16 @@ def verdict_html(view: View) -> str:
     return f"<h3 class='coevo'>Verdict</h3><div class='verdict' style='{box}'>{body}</div>"
 
 
+def legend_label(group: str, done: int, going: int) -> str:
+    """A regime's legend on the comparison's panels: its finished runs (in the mean and the band), those going, and,
+    below the runs an interval needs, that there is no band: 'mutual, 2 runs, no band (needs 3) (+1 going)'."""
+    from coevo.experiments.common import plural
+    from coevo.experiments.compare.stats import MIN_RUNS
+
+    band = f", no band (needs {MIN_RUNS})" if 0 < done < MIN_RUNS else ""
+    return f"{group}, {plural(done, 'run')}{band}" + (f" (+{going} going)" if going else "")
+
+
 def regime_colour(view: View, group: str) -> str:
     """A comparison group's colour: its place among the comparison's groups, as in the report's regimes.png."""
     groups = list((view.comparison or {}).get("table1", {}))
@@ -209,6 +224,7 @@ def regime_columns(panel: dict[str, Any], group: str, picked: set[str] | frozens
 def _executive_curve_html(curves: dict[str, dict]) -> str:
     """The Executive curve of each regime's finished runs: its last generation's best and the mean over the last
     generations, means over the runs with 95 % intervals (coevo compare's report)."""
+    from coevo.experiments.compare.report import tail_text
     from coevo.experiments.compare.stats import MeanInterval
 
     if not curves:
@@ -216,8 +232,8 @@ def _executive_curve_html(curves: dict[str, dict]) -> str:
     tail = next(iter(curves.values()))["tail_generations"]
     rows = [[_e(g), _e(MeanInterval(**c["end"]).text()), _e(MeanInterval(**c["last_generations"]).text())]
             for g, c in curves.items()]
-    return _table("executive-curve", ["Executive curve (finished runs)", "best at the last generation",
-                                      f"mean best over the last {tail} generations"], rows)
+    return _table("executive-curve", ["Executive curve (finished runs)", "generation's best at the last generation",
+                                      f"generation's best, mean of its last {tail_text(tail)}"], rows)
 
 
 def behaviours(view: View) -> list[str]:
@@ -255,8 +271,8 @@ def curve_lines(view: View, behaviour: str, what: str = "fitness") -> dict[str, 
     policy it publishes as its best (``fitness``: thick the published best, thin the generation's), or each of the task's
     measures (``measures``: a dash per measure); a colour per run, and only the colour says which run.
 
-    The published best's fitness is the mean of all its re-evaluations (``GAConfig.best_candidates``), so it can go
-    down as evidence comes in: it is not a running maximum, and is not labelled one."""
+    The best so far's fitness is, with ``GAConfig.best_candidates`` (Docking's default), the mean of all its
+    re-evaluations, so it can go down as evidence comes in: it is not labelled a running maximum."""
     cols: dict[str, list[Any]] = {"xs": [], "ys": [], "run": [], "line": [], "color": [], "dash": [], "width": []}
     for i, r in enumerate(view.runs):
         colour = _colour(i)
@@ -265,7 +281,7 @@ def curve_lines(view: View, behaviour: str, what: str = "fitness") -> dict[str, 
                 continue
             lines: list[tuple[str, Sequence[float | None], float]]
             if what == "fitness":
-                lines = [("published best (mean of its re-evaluations)", c.best_so_far, 2.5),
+                lines = [("best so far (the published policy)", c.best_so_far, 2.5),
                          ("generation's best", c.best, 1.0)]
             else:
                 labels = _labels()
@@ -337,13 +353,11 @@ def _share(d: dict[str, Any]) -> str:
 
 
 def _mean(d: dict[str, Any]) -> str:
-    """mean [low, high] of a bootstrap interval's dict (:meth:`~coevo.experiments.compare.stats.MeanInterval.as_dict`),
-    its n left to the runs' column."""
-    if not d["n"]:
-        return "–"
-    if math.isnan(d["low"]):
-        return f"{d['mean']:.2f}"
-    return f"{d['mean']:.2f} [{d['low']:.2f}, {d['high']:.2f}]"
+    """mean [low, high] of an interval's dict (:meth:`~coevo.experiments.compare.stats.MeanInterval.as_dict`), its n
+    left to the runs' column, or why there is no interval (the report's :func:`~coevo.experiments.study.report.format_mean`)."""
+    from coevo.experiments.study.report import format_mean
+
+    return _e(format_mean(d, False))
 
 
 def _median(d: dict[str, Any]) -> str:
@@ -374,7 +388,7 @@ def study_title_html(view: View) -> str:
 def study_progress_html(view: View) -> str:
     """The study's headline: runs and cells done of the total, its state (finished only when its completion marker
     says so), a bar, and a row per cell and group: its state, runs, and the report's numbers so far (Good and No
-    Docking with 95 % Wilson intervals, the Executive curve's end and AEL with 95 % bootstrap intervals)."""
+    Docking with 95 % Wilson intervals, the Executive curve's end and AEL with 95 % t intervals)."""
     s = view.study
     if not s:
         return ""
@@ -425,7 +439,7 @@ def study_verdict_html(view: View) -> str:
         return ""
     v = s.get("verdict")
     box = "font:13px/1.35 sans-serif;max-height:200px;overflow:auto;margin:0 0 0 12px"
-    caveat = f"<p><i>{_e(s['caveat'])}</i></p>" if s.get("caveat") else ""
+    caveat = f"<p class='caveat'><i>{_e(s['caveat'])}</i></p>" if s.get("caveat") else ""
     if v is None:
         body = (f"<p>No report yet: it is written when the study ends ({s['runs_done']} of {s['runs_total']} runs "
                 f"finished). <code>coevo study --report-only --out {_e(s['dir'])}</code> writes one from the runs "
@@ -441,8 +455,9 @@ def study_verdict_html(view: View) -> str:
                 items.append(f"<li>{text[2:]}</li>")
             elif part.strip():
                 paras.append(f"<p>{text}</p>")
-        body = (f"<ul style='padding-left:18px;margin:4px 0'>{''.join(items)}</ul>" if items else "") + "".join(paras)
-        body += f"<p><i>{stale}</i></p>" if stale else ""
+        # the smoke-test warning first: a finished study's verdict is read with it, as its report.md says it
+        body = caveat + (f"<ul style='padding-left:18px;margin:4px 0'>{''.join(items)}</ul>" if items else "")
+        body += "".join(paras) + (f"<p><i>{stale}</i></p>" if stale else "")
     return f"<h3 class='coevo'>The study's verdict</h3><div class='study-verdict' style='{box}'>{body}</div>"
 
 

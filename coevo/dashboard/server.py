@@ -111,7 +111,7 @@ class _Page:
                 shown.text = title
         if key not in self.plots:
             if what == "fitness":
-                fig, src = self._figure(f"curve-{behaviour}", f"{behaviour}: best fitness (thick: the published best)",
+                fig, src = self._figure(f"curve-{behaviour}", f"{behaviour}: fitness (thick: best so far; thin: generation's best)",
                                         "fitness")
                 self.fitness_row.children.append(fig)
             elif what == "measures":
@@ -212,8 +212,9 @@ class _Regimes:
                                   options=[], value=[], name="run-selector", width=560)
         self.picker.on_change("value", self._picked)
         key = Div(text=("<p style='font:13px sans-serif;color:#333;margin:22px 0 0 12px'>Per regime: "
-                        "<b>thick line</b> the mean of its finished runs, <b>band</b> the 95 % bootstrap interval of "
-                        "that mean, <b>thin lines</b> its runs (<b>dotted</b>: not finished). Hover for values.</p>"),
+                        "<b>thick line</b> the mean of its finished runs, <b>band</b> the 95 % interval of that mean "
+                        "(Student t; none below 3 runs; as in the report's regimes.png), <b>thin lines</b> its runs "
+                        "(<b>dotted</b>: not finished). Hover for values.</p>"),
                   sizing_mode="stretch_width")
         self.controls = row(self.picker, key, sizing_mode="stretch_width")
         self.panels = list(PANELS)
@@ -331,7 +332,7 @@ class _Regimes:
         for i, g, item in self.items:
             lines = c["panels"][i]["groups"].get(g, {"lines": []})["lines"]
             done = sum(ln["state"] == "done" for ln in lines)
-            label = f"{g}, {done} runs" + (f" (+{len(lines) - done} going)" if done < len(lines) else "")
+            label = render.legend_label(g, done, len(lines) - done)
             if self.labels.get((i, g)) != label:  # a legend redrawn only when its text changes
                 self.labels[(i, g)] = label
                 item.label = value(label)
@@ -362,7 +363,7 @@ class _Study:
                 "<p style='font:13px sans-serif;color:#333;margin:4px 0'>Each cell is a set of learning runs "
                 f"(<code>coevo learn --behaviour {render._e(s.get('behaviour'))}</code>, one per seed), not a "
                 "comparison: above, each measure of its finished runs' best policies, the mean with its 95 % "
-                "bootstrap interval and the median.</p>"), sizing_mode="stretch_width"), sizing_mode="stretch_width")
+                "t interval (none below 3 runs) and the median.</p>"), sizing_mode="stretch_width"), sizing_mode="stretch_width")
             return
         self.options = self._options(view)  # as last given to the selector
         self.selector = Select(title="The cell shown below, as a comparison:", options=self.options,

@@ -1,6 +1,6 @@
 """A study directory (``coevo study --out OUT``) as the dashboard shows it: how far it is, overall and per cell, which
 cells are running, finished, stopped or not started, and per cell and group the report's numbers so far (Table 1's
-classes with 95 % Wilson intervals, the Executive curve's end and AEL with 95 % bootstrap intervals); and, for the
+classes with 95 % Wilson intervals, the Executive curve's end and AEL with 95 % t intervals); and, for the
 cells a page asks for, each one's comparison (:class:`~coevo.dashboard.compare.ComparisonFiles`).
 
 Everything is counted by the study's own code, so the page says what its report will: the runs done and whether
@@ -8,7 +8,7 @@ the study is complete are :func:`~coevo.experiments.study.experiment.study_progr
 makes a study finished); a cell's numbers are :func:`~coevo.experiments.study.report.cell_rows` over
 :func:`~coevo.experiments.study.report.collect_cell`'s records.  What they cost is paid once: a finished run's record
 is made once (it holds a Docking probe of 300 episodes) and a cell's rows are made again only when its set of finished
-runs changes (each mean's interval is 9,999 bootstrap resamples).
+runs changes.
 
 A cell's replicates are followed by a :class:`~coevo.dashboard.compare.ComparisonFiles` on its folder with the cell's
 settings from the declaration (so a cell whose folder is not written yet shows as waiting, not as an error) and the
@@ -18,7 +18,7 @@ files moved for ``stale`` seconds.
 
 A study of learning runs (``learn``) has no comparison to show: per cell its runs' states and the report's rows so far
 (:func:`~coevo.experiments.study.learn_report.learn_cell_rows`: each of the behaviour's measures as a mean with its
-95 % bootstrap interval, and the median), and ``shown`` is empty.  A ``coevo learn`` writes nothing until it ends
+95 % t interval, and the median), and ``shown`` is empty.  A ``coevo learn`` writes nothing until it ends
 (its folder appears whole, its log gets its lines), so an unfinished run with an empty log is running while the study's
 files moved in the last ``stale`` seconds, and stopped after; one whose log has lines but no folder failed.
 """

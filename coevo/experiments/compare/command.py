@@ -21,7 +21,7 @@ from coevo.console import (
     seed_arg,
     world_settings,
 )
-from coevo.config import DEFAULT_MAX_LEAD
+from coevo.config import DEFAULT_MAX_LEAD, MODELS
 from coevo.errors import ConfigError
 from coevo.replicates.flags import add_backend_flags, backend_of, check_backend_flags
 
@@ -30,7 +30,7 @@ __all__ = ["configure_compare", "cmd_compare"]
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from coevo.experiments.compare.experiment import CompareSpec, prepare, run_all
-    from coevo.experiments.compare.report import write_report
+    from coevo.experiments.compare.report import tail_text, write_report
     from coevo.experiments.compare.stats import MeanInterval
     from coevo.experiments.compare.experiment import default_jobs, replicates
     from coevo.replicates.backends import ClusterLost
@@ -75,8 +75,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
     for r, counts in results["table1"].items():
         print(f"  {r}: " + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
     for r, c in results["executive_curve"].items():
-        print(f"  {r}: Executive curve at the last generation {MeanInterval(**c['end']).text()}, over the last "
-              f"{c['tail_generations']} {MeanInterval(**c['last_generations']).text()}")
+        print(f"  {r}: Executive's generation's best at the last generation {MeanInterval(**c['end']).text()}, "
+              f"mean of its last {tail_text(c['tail_generations'])} {MeanInterval(**c['last_generations']).text()}")
     print(results["verdict"])
     return 1 if results["runs_finished"] < results["runs_expected"] and not args.report_only else 0
 
@@ -96,7 +96,10 @@ def configure_compare(p: argparse.ArgumentParser) -> None:
     add_backend_flags(p, jobs_help="runs at once on this machine (default: one per two cores; an offline Executive "
                                    "counts half)")
     p.add_argument("--seed", type=seed_arg, default=0, help="base seed; run i of every regime uses seed + 1000 i")
-    p.add_argument("--model", default="best", choices=["best", "current", "recent"])
+    p.add_argument("--model", default="best", choices=MODELS,
+                   help="how a worker models its partners: best, their newest published best so far (the report's "
+                        "choice, default); current, the best individual of their latest generation; recent, each "
+                        "generation one of their last 5 bests so far at random")
     p.add_argument("--measure-epochs", type=count_arg(1, 100_000), default=100, help="fresh epochs measuring each final robot")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     add_max_lead(p)

@@ -1,8 +1,9 @@
 """Learning-curve plots of a comparison (the report's Figures 5 and 6), as PNG files.
 
-Each curve is a mean over a regime's runs with the band between the lowest and
-highest run, and the individual runs drawn thin, so starved and successful runs
-remain visible instead of being averaged into one another.
+A regime's own figure draws each curve as the mean over its runs with the band between the lowest and highest
+run, and the individual runs thin, so starved and successful runs remain visible instead of being averaged into one
+another.  ``regimes.png`` draws each regime's mean with the band of its 95 % interval (the dashboard's bands and the
+report's Executive-curve table: :func:`~coevo.experiments.compare.stats.mean_intervals`); each legend says which.
 """
 
 from __future__ import annotations
@@ -13,17 +14,18 @@ from pathlib import Path
 import numpy as np
 
 from coevo.experiments.common import plural
+from coevo.experiments.compare.stats import MIN_RUNS, mean_intervals
 
 __all__ = ["PANELS", "figure_for_regime", "figure_regimes", "figure_rates"]
 
 # (title, behaviour, curve column, y label, y scale)
 PANELS = (
-    ("Executive learning curve", "executive", "best_fitness", "best fitness", 1.0),
-    ("Docking learning curve", "docking", "best_fitness", "best fitness", 1.0),
-    ("Tracking learning curve", "tracking", "best_fitness", "best fitness", 1.0),
-    ("Quality Tracking (Executive's best)", "executive", "quality_tracking", "% of episodes", 100.0),
-    ("Docking from random starts (Docking's best)", "docking", "docking_from_random", "% of fresh starts", 100.0),
-    ("Docking picked (Executive's best)", "executive", "dock_choice", "% of episodes", 100.0),
+    ("Executive learning curve", "executive", "best_fitness", "generation's best fitness", 1.0),
+    ("Docking learning curve", "docking", "best_fitness", "generation's best fitness", 1.0),
+    ("Tracking learning curve", "tracking", "best_fitness", "generation's best fitness", 1.0),
+    ("Quality Tracking (Executive's generation's best)", "executive", "quality_tracking", "% of episodes", 100.0),
+    ("Docking alone (Docking's generation's best)", "docking", "docking_from_random", "% of fresh starts", 100.0),
+    ("Docking picked (Executive's generation's best)", "executive", "dock_choice", "% of episodes", 100.0),
 )
 
 Curves = Mapping[str, Mapping[str, Mapping[str, Sequence[float]]]]  # run -> behaviour -> column -> per generation
@@ -74,7 +76,7 @@ def figure_for_regime(curves: Curves, regime: str, path: Path) -> None:
                 ax.plot(g, row, color="0.75", linewidth=0.7)
             ax.fill_between(g, np.nanmin(m, axis=0), np.nanmax(m, axis=0), color="tab:blue", alpha=0.12)
             ax.plot(g, np.nanmean(m, axis=0), color="tab:blue", linewidth=2,
-                    label=f"mean of {plural(m.shape[0], 'run')}")
+                    label=f"mean of {plural(m.shape[0], 'run')} (band: lowest to highest run)")
             ax.legend(loc="upper left", fontsize=8)
         _axis(ax, title, ylabel, top)
     fig.suptitle(f"{regime.capitalize()} regime: learning and performance")
@@ -93,10 +95,11 @@ def figure_regimes(by_regime: Mapping[str, Curves], path: Path) -> None:
             if not m.size or np.isnan(m).all():
                 continue
             g = np.arange(1, m.shape[1] + 1)
-            mean = np.nanmean(m, axis=0)
-            sd = np.nanstd(m, axis=0)
-            ax.fill_between(g, mean - sd, mean + sd, color=colour, alpha=0.15)
-            ax.plot(g, mean, color=colour, linewidth=2, label=f"{regime} (mean ± s.d., {plural(m.shape[0], 'run')})")
+            mean, low, high = mean_intervals(m)
+            ax.fill_between(g, low, high, color=colour, alpha=0.15)
+            band = ("band: 95 % interval of the mean" if m.shape[0] >= MIN_RUNS
+                    else f"no band: an interval needs {MIN_RUNS} runs")
+            ax.plot(g, mean, color=colour, linewidth=2, label=f"{regime}: mean of {plural(m.shape[0], 'run')} ({band})")
         _axis(ax, title, ylabel, top)
         ax.legend(loc="upper left", fontsize=8)
     fig.suptitle("Regimes compared")
@@ -112,8 +115,8 @@ def figure_rates(by_group: Mapping[str, Curves], path: Path) -> None:
     offline = [g for g in by_group if g not in ("mutual", "independent")]
     styles = {"mutual": ("tab:red", "--"), "independent": ("black", "--")}
     styles |= {g: (cmap(i / max(1, len(offline) - 1)), "-") for i, g in enumerate(offline)}
-    panels = (("Executive learning curve", "best_fitness", "best fitness", 1.0),
-              ("Docking picked (Executive's best)", "dock_choice", "% of episodes", 100.0))
+    panels = (("Executive learning curve", "best_fitness", "generation's best fitness", 1.0),
+              ("Docking picked (Executive's generation's best)", "dock_choice", "% of episodes", 100.0))
     for ax, (title, col, ylabel, top) in zip(axes, panels, strict=True):
         for g, curves in by_group.items():
             m = _matrix(curves, "executive", col)

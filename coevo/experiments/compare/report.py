@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from coevo.errors import CoevoError, RuleSetError, RunDirError
-from coevo.experiments.common import below_report
+from coevo.experiments.common import below_report, plural
 from coevo.experiments.compare import plots
 from coevo.experiments.compare.experiment import (
     OFFLINE,
@@ -38,11 +38,14 @@ from coevo.experiments.compare.stats import (
     RankComparison,
     compare_groups,
     compare_samples,
+    EXACT_ARRANGEMENTS,
+    design_floor,
     format_p,
     MeanInterval,
     mean_interval,
 )
 from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
+from coevo.experiments.glossary import TERMS, label
 from coevo.policy.text import parse_ruleset
 from coevo.rundir.layout import (
     LearnPaths,
@@ -55,7 +58,7 @@ from coevo.rundir.layout import (
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.robot import docking_from_random_starts
 
-__all__ = ["collect", "write_report", "MEASURES"]
+__all__ = ["collect", "write_report", "MEASURES", "executive_curve", "tail_text"]
 
 # The combined robot's measures shown per run (docs/spec.md §2 "Measures").
 MEASURES = ("quality_tracking", "successful_docking", "docking_success_rate", "average_epoch_length", "dock_choice",
@@ -161,18 +164,24 @@ TAIL_GENERATIONS = 10
 
 
 def executive_curve(curves: list[list[float]]) -> dict[str, Any]:
-    """The Executive curve of a group's runs (each run's best per generation): the mean of its last generation's
-    best (the report's measure), and the mean of each run's last TAIL_GENERATIONS, each with a 95 % bootstrap
-    interval over the runs."""
+    """The Executive curve of a group's runs (each run's generation's best, per generation): the mean of its last
+    generation's best (the report's measure), and the mean of each run's last TAIL_GENERATIONS (all of them in a
+    shorter run: ``tail_generations`` says how many were averaged), each with a 95 % interval over the runs."""
     curves = [c for c in curves if c]
+    tail = min(TAIL_GENERATIONS, max((len(c) for c in curves), default=TAIL_GENERATIONS))
     return {"end": mean_interval([float(c[-1]) for c in curves]).as_dict(),
-            "last_generations": mean_interval([statistics.fmean(c[-TAIL_GENERATIONS:]) for c in curves]).as_dict(),
-            "tail_generations": TAIL_GENERATIONS}
+            "last_generations": mean_interval([statistics.fmean(c[-tail:]) for c in curves]).as_dict(),
+            "tail_generations": tail}
 
 
 def _executive_curves(records: list[dict[str, Any]], group: str) -> list[list[float]]:
     return [x["curves"].get(Behaviour.EXECUTIVE.value, {}).get("best_fitness", []) for x in records
             if x["group"] == group]
+
+
+def tail_text(n: int) -> str:
+    """'last 10 generations', or 'last 3 generations' of a 3-generation run: what was averaged."""
+    return f"{plural(n, 'generation')}" if n != 1 else "generation"
 
 
 RATE_MEASURES = ("final_executive_fitness", "successful_docking", "docking_success_rate")
@@ -201,17 +210,31 @@ def _rate_tests(offline: dict[str, list[dict[str, Any]]]) -> tuple[list[GroupCom
     return every, (tests(paced) if len(paced) < len(offline) else [])
 
 
+def _undecided(magnitude: str, significant: bool) -> bool:
+    """A large effect the test could not establish: neither "differs" nor "does not differ" is true of it."""
+    return not significant and magnitude == "large"
+
+
 def _rates_sentence(tests: list[GroupComparison], which: str) -> str:
     parts = []
     for t in tests:
-        name = t.measure.replace("_", " ")
+        name = label(t.measure)
         meds = ", ".join(f"{_rate_of(g):g}: {m:.3g}" for g, m in zip(t.groups, t.medians, strict=True))
-        parts.append(f"{name} {'differs appreciably' if t.appreciable else 'does not differ appreciably'} "
+        floor = design_floor(t.min_p, f"{t.n} runs in {len(t.groups)} groups")
+        said = ("differs appreciably" if t.appreciable else
+                "may differ: its effect is large, but not established" if _undecided(t.magnitude, t.p_value < 0.05)
+                else "does not differ appreciably")
+        parts.append(f"{name} {said} "
                      f"(medians by rate {meds}; Kruskal–Wallis H = {t.h:.2f}, p = {format_p(t.p_value)}, "
-                     f"ε² = {t.epsilon2:.2f}, {t.magnitude})")
-    held = not any(t.appreciable for t in tests)
+                     f"ε² = {t.epsilon2:.2f}, {t.magnitude}{'; ' + floor if floor else ''})")
+    if any(t.appreciable for t in tests):
+        held = "does not hold"
+    elif any(_undecided(t.magnitude, t.p_value < 0.05) for t in tests):
+        held = "can be neither confirmed nor refuted with these runs"
+    else:
+        held = "holds"
     return (f" Across {which}: " + "; ".join(parts) + ": the report's \"no appreciable differences in the rate of "
-            f"asynchrony\" {'holds' if held else 'does not hold'} there.")
+            f"asynchrony\" {held} there.")
 
 
 def _rates_verdict(every: list[GroupComparison], paced: list[GroupComparison]) -> str:
@@ -232,16 +255,18 @@ def _verdict(spec: CompareSpec, records: list[dict[str, Any]], tests: list[RankC
     for t in tests:
         med = {t.a: t.median_a, t.b: t.median_b}
         mean = {t.a: t.mean_a, t.b: t.mean_b}
-        name = t.measure.replace("_", " ")
+        name = label(t.measure)
         if t.p_value < 0.05 and t.a12 != 0.5:
             hi, lo = _winner(t)
             parts.append(f"{hi} beats {lo} on {name} (medians {med[hi]:.3g} vs {med[lo]:.3g}, "
                          f"means {mean[hi]:.3g} vs {mean[lo]:.3g}, "
                          f"Mann–Whitney p = {format_p(t.p_value)}, A = {t.a12:.2f}, {t.magnitude})")
         else:
-            parts.append(f"the regimes do not differ significantly on {name} "
-                         f"({t.b} median {t.median_b:.3g}, {t.a} median {t.median_a:.3g}, p = {format_p(t.p_value)}, "
-                         f"A = {t.a12:.2f})")
+            floor = design_floor(t.min_p, f"{t.n_a} and {t.n_b} runs")
+            said = (f"a {t.magnitude} difference on {name} is not established" if _undecided(t.magnitude, False)
+                    else f"the regimes do not differ significantly on {name}")
+            parts.append(f"{said} ({t.b} median {t.median_b:.3g}, {t.a} median {t.median_a:.3g}, "
+                         f"p = {format_p(t.p_value)}, A = {t.a12:.2f}, {t.magnitude}{'; ' + floor if floor else ''})")
     text = "; ".join(parts) + "."
     text = text[0].upper() + text[1:]
     for r, runs in by.items():
@@ -263,17 +288,22 @@ def _verdict(spec: CompareSpec, records: list[dict[str, Any]], tests: list[RankC
             return t is not None and t.p_value < 0.05 and t.a12 != 0.5 and _winner(t)[0] == "independent"
 
         checks = [
-            ("Independent beats Mutual on final Executive fitness", independent_wins(exec_t)),
-            ("Independent beats Mutual on Successful Docking", independent_wins(dock_t)),
+            (f"Independent beats Mutual on {label('final_executive_fitness')}", independent_wins(exec_t)),
+            (f"Independent beats Mutual on {label('successful_docking')}", independent_wins(dock_t)),
             ("in most Mutual runs the Executive stops picking Docking", mutual_starved > len(by["mutual"]) / 2),
             ("Independent runs dock well", sum(x["class"].startswith("Good Docking") for x in by["independent"])
              > len(by["independent"]) / 2),
         ]
+        # a rank test whose design cannot reach p < 0.05 neither reproduces nor fails to reproduce its finding
+        untestable = {c for c, t in zip((checks[0][0], checks[1][0]), (exec_t, dock_t), strict=True)
+                      if t is not None and t.min_p >= 0.05}
         held = [c for c, ok in checks if ok]
-        missed = [c for c, ok in checks if not ok]
+        missed = [c for c, ok in checks if not ok and c not in untestable]
+        cannot = [c for c, ok in checks if not ok and c in untestable]
         exp.append(f" Against the report: {len(held)} of {len(checks)} of its findings hold here"
                    + (f" ({'; '.join(held)})" if held else "")
-                   + (f"; not reproduced: {'; '.join(missed)}." if missed else "."))
+                   + (f"; not reproduced: {'; '.join(missed)}" if missed else "")
+                   + (f"; too few runs to test: {'; '.join(cannot)}" if cannot else "") + ".")
     return text + "".join(exp)
 
 
@@ -392,13 +422,50 @@ def _executive_curve_lines(exec_curve: dict[str, dict[str, Any]]) -> list[str]:
     """report.md's section on the Executive's curve: its end and its steadier reading, per group."""
     tail = next(iter(exec_curve.values()))["tail_generations"]
     lines = ["## The Executive's curve", "",
-             "Each generation's best re-evaluated (the report's learning curve), means over the runs with 95 % bootstrap "
-             f"intervals: at the last generation, and each run's mean over its last {tail} generations (steadier: one "
-             "generation's best swings by ~0.1). The report: \"the maximum fitness for these should be roughly 80%\".", "",
-             f"| regime | best at the last generation | mean best over the last {tail} generations |", "|---|---|---|"]
+             "*Generation's best*: the fitness of the best Executive of one generation, re-evaluated on "
+             "best_episodes (the report's learning curve). Means over the runs with 95 % t intervals (none below "
+             f"3 runs): at the last generation, and each run's mean of its last {tail_text(tail)} (steadier: one "
+             "generation's best swings by ~0.1). The report: \"the maximum fitness for these should be roughly "
+             "80%\". Not the *best so far* of the tests below, the highest such re-evaluation of any generation "
+             "(the policy the worker publishes): a maximum over noisy re-evaluations, so higher.", "",
+             f"| regime | generation's best at the last generation | generation's best, mean of its last "
+             f"{tail_text(tail)} |", "|---|---|---|"]
     for g, c in exec_curve.items():
         lines.append(f"| {g} | {MeanInterval(**c['end']).text()} | {MeanInterval(**c['last_generations']).text()} |")
     return [*lines, ""]
+
+
+def _rank_test_lines(tests: list[RankComparison]) -> list[str]:
+    """report.md's rank tests of the two live regimes: a row per measure, then what p, its floor and A mean."""
+    if not tests:
+        return []
+    a, b = tests[0].a, tests[0].b
+    lines = ["## Statistical comparison", "",
+             f"| measure | median {a} | median {b} | Mann–Whitney U | p | smallest p possible | A ({b} > {a}) | effect |",
+             "|---|---|---|---|---|---|---|---|"]
+    for t in tests:
+        lines.append(f"| {label(t.measure)} | {t.median_a:.3g} | {t.median_b:.3g} | {t.u:.1f} | "
+                     f"{format_p(t.p_value)} | {format_p(t.min_p)} | {t.a12:.2f} | {t.magnitude} |")
+    lines += ["", f"p: exact (a permutation of the runs) when they split in at most {EXACT_ARRANGEMENTS:,} ways, else "
+              "the normal approximation; *smallest p possible*: the lowest p any outcome of this many runs can give, "
+              f"so a p near it is as strong as this design can show. A: the chance that a run of {b} scores above "
+              f"one of {a} (ties half); 0.5 is no effect, beyond 0.71 or below 0.29 large.", ""]
+    return lines
+
+
+#: The runs table's measure columns, in its order (their names and units: :mod:`coevo.experiments.glossary`).
+RUN_COLUMNS = ("quality_tracking", "dock_choice", "docking_success_rate", "successful_docking", "average_epoch_length",
+               "executive_payoff", "docking_from_random_starts")
+
+
+def _heading(field: str) -> str:
+    """A table heading: the glossary's name and its unit ('Quality Tracking %', 'Average Epoch Length (episodes)')."""
+    unit = TERMS[field].unit.strip()
+    return label(field) + ("" if not unit else f" {unit}" if unit == "%" else f" ({unit})")
+
+
+def _digits(field: str) -> int:
+    return {"average_epoch_length": 2, "executive_payoff": 3}.get(field, 1)
 
 
 def _markdown(spec: CompareSpec, records: list[dict[str, Any]], table: dict[str, dict[str, int]],
@@ -423,58 +490,49 @@ def _markdown(spec: CompareSpec, records: list[dict[str, Any]], table: dict[str,
         lines.append(f"| {r} (ours) | " + " | ".join(str(table[r][c] or "") for c in CLASSES) + " |")
         if r in REPORT_COUNTS:
             lines.append(f"| {r} (report) | " + " | ".join(str(REPORT_COUNTS[r].get(c, "")) for c in CLASSES) + " |")
-    lines += ["", "Docking alone docks %: the run's final Docking policy on its own, from fresh random starts "
-              f"({DOCKING_PROBE_EPISODES} single episodes); it separates a starved Docking agent from one that "
-              "never learned to dock.", ""]
-    lines += ["Classes: Good Docking ≥ 20 % of the episodes in which the Executive picked Docking end docked "
-              "(docs/spec.md §2's reading of the report's 20 %: with the fuel as the report states it an ideal robot docks in "
-              "only ~10 % of all its episodes), Poor Docking < 20 %, No Docking = Docking picked in < 5 % of episodes; "
-              "Hi tracking > 60 % quality tracking, Med > 30 %, Lo otherwise. The runs table shows both numbers.", ""]
+    lines += ["", "Classes: Good Docking when docked of picked is ≥ 20 % (docs/spec.md §2's reading of the report's "
+              "20 %: with the fuel as the report states it an ideal robot docks in only ~10 % of all its episodes), "
+              "Poor Docking < 20 %, No Docking when Docking picked is < 5 % of episodes; Hi tracking when Quality "
+              "Tracking is > 60 %, Med > 30 %, Lo otherwise. The runs table below shows both docking numbers, and "
+              "Docking alone.", ""]
     if exec_curve:
         lines += _executive_curve_lines(exec_curve)
-    if tests:
-        lines += ["## Statistical comparison", "",
-                  "| measure | median " + tests[0].a + " | median " + tests[0].b + " | Mann–Whitney U | p | A (" + tests[0].b
-                  + " > " + tests[0].a + ") | effect |", "|---|---|---|---|---|---|---|"]
-        for t in tests:
-            lines.append(f"| {t.measure.replace('_', ' ')} | {t.median_a:.3g} | {t.median_b:.3g} | {t.u:.1f} | "
-                         f"{format_p(t.p_value)} | {t.a12:.2f} | {t.magnitude} |")
-        lines.append("")
+    lines += _rank_test_lines(tests)
     if rate_tests:
         lines += [f"## Rates of asynchrony ({OFFLINE})", "",
                   "Per replicate, the Executive learns on the Tracking and Docking best-so-far histories recorded by "
                   "the live independent run of the same seed, once per rate (partner generations per Executive "
                   "generation), with the live Executive's seed: the rate is the only difference. Below rate 1 its "
                   "last generation still sees partly learned partners, so the rates >= 1 are also compared alone.", "",
-                  "| rates compared | measure | medians by rate | Kruskal–Wallis H | p | ε² | effect |",
-                  "|---|---|---|---|---|---|---|"]
+                  "| rates compared | measure | medians by rate | Kruskal–Wallis H | p | smallest p possible | ε² | effect |",
+                  "|---|---|---|---|---|---|---|---|"]
         for g in rate_tests:
             rates = ", ".join(f"{_rate_of(x):g}" for x in g.groups)
             meds = ", ".join(f"{_rate_of(x):g}: {m:.3g}" for x, m in zip(g.groups, g.medians, strict=True))
-            lines.append(f"| {rates} | {g.measure.replace('_', ' ')} | {meds} | {g.h:.2f} | {format_p(g.p_value)} | "
-                         f"{g.epsilon2:.2f} | {g.magnitude} |")
+            lines.append(f"| {rates} | {label(g.measure)} | {meds} | {g.h:.2f} | {format_p(g.p_value)} | "
+                         f"{format_p(g.min_p)} | {g.epsilon2:.2f} | {g.magnitude} |")
         lines.append("")
     lines += ["## Runs", "",
-              "| run | class | quality tracking % | Docking picked % | docked % of picked | docked % of all episodes "
-              "| avg epoch length | executive payoff | final E / D / T best fitness | Docking alone docks % | minutes |",
-              "|---|---|---|---|---|---|---|---|---|---|---|"]
+              "| run | class | " + " | ".join(_heading(k) for k in RUN_COLUMNS) + " | final best so far E / D / T "
+              "| minutes |", "|---|---|" + "---|" * (len(RUN_COLUMNS) + 2)]
     for x in records:
         m, f = x["measures"], x["final_best_so_far"]
-        lines.append(f"| {x['run']} | {x['class']} | {m['quality_tracking']:.1f} | {m['dock_choice']:.1f} | "
-                     f"{m['docking_success_rate']:.1f} | {m['successful_docking']:.1f} | "
-                     f"{m['average_epoch_length']:.2f} | {m['executive_payoff']:.3f} | "
-                     f"{f['executive']:.3f} / {f['docking']:.3f} / {f['tracking']:.3f} | "
-                     f"{x['docking_from_random_starts']:.1f} | {x['seconds'] / 60:.1f} |")
+        values = [x["docking_from_random_starts"] if k == "docking_from_random_starts" else m[k] for k in RUN_COLUMNS]
+        lines.append(f"| {x['run']} | {x['class']} | "
+                     + " | ".join(f"{v:.{_digits(k)}f}" for k, v in zip(RUN_COLUMNS, values, strict=True))
+                     + f" | {f['executive']:.3f} / {f['docking']:.3f} / {f['tracking']:.3f} | {x['seconds'] / 60:.1f} |")
+    lines += ["", "The columns (docs/glossary.md lists every measure once):", ""]
+    lines += [f"- **{label(k)}**: {TERMS[k].definition}" for k in (*RUN_COLUMNS, "best_so_far")]
     lines += ["", "## Learning curves", ""]
     lines += [f"![{f}]({f})" for f in figures]
     if robots:
         lines += ["", "## The combined robots of the best and worst runs", "",
-                  "Per regime, the final Executive, Tracking and Docking policies of its best and worst run by executive "
+                  "Per regime, the final Executive, Tracking and Docking policies of its best and worst run by Executive "
                   "payoff, playing one epoch from the run's seed (`coevo show runs/RUN --seed SEED` draws it again): "
                   "the path is coloured by the Executive's choice, the green ring is the tracking range around the "
                   "Target, and markers show where each episode began and how it ended.", ""]
         for robot in robots:
-            head = (f"**{robot['regime']}, {robot['which']}**: {robot['run']} (executive payoff "
+            head = (f"**{robot['regime']}, {robot['which']}**: {robot['run']} (Executive payoff "
                     f"{robot['executive_payoff']:.3f})")
             lines += [head, "", f"![{robot['file']}]({robot['file']})" if robot["file"]
                       else f"(no picture: {robot['problem']})", ""]

@@ -138,6 +138,8 @@ def cmd_study(args: argparse.Namespace) -> int:
     print(f"report: {out / 'report.md'} ({results['runs_finished']} of {results['runs_expected']} runs"
           f"{'' if complete else '; the study is not complete: --resume runs the rest'})")
     _print_cells(results, learn=spec.learn is not None)
+    if results.get("caveat"):  # the smoke-test warning with the verdict, as report.md and the dashboard show it
+        print(results["caveat"])
     print(results["verdict"])
     return 0 if complete or args.report_only else 1
 

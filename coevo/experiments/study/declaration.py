@@ -40,7 +40,6 @@ behaviours would have no measure in common).  A comparison study's declaration, 
 from __future__ import annotations
 
 import argparse
-import difflib
 import hashlib
 import itertools
 import json
@@ -54,7 +53,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from coevo.config import MODELS, DEFAULT_MAX_LEAD, GAConfig, build
+from coevo.config import MODELS, DEFAULT_MAX_LEAD, GAConfig, build, did_you_mean
 from coevo.console import Lead, count_arg, max_lead_arg, positive_float_arg, seed_arg
 from coevo.errors import ConfigError
 from coevo.experiments.compare.experiment import OFFLINE, REGIMES, SEED_STRIDE, CompareSpec
@@ -103,12 +102,9 @@ def _check_name(name: str, where: str) -> None:
             return
         if head == "ga" and sub in WorldConfig.model_fields:  # the fuel task's Docking settings (GA settings before November 2026)
             raise ConfigError(f"{where}: {name!r} is a world setting of the fuel task now: use world.{sub}")
-        near = difflib.get_close_matches(sub, fields, n=1)
-        hint = f"; did you mean {head}.{near[0]}?" if near else f" (see coevo compare --{head} and docs/spec.md)"
+        hint = did_you_mean(sub, fields, prefix=f"{head}.") or f" (see coevo compare --{head} and docs/spec.md)"
         raise ConfigError(f"{where}: unknown {'GA' if head == 'ga' else 'world'} setting {name!r}{hint}")
-    near = difflib.get_close_matches(name, [*NAMES, "ga.", "world."], n=1)
-    hint = f"; did you mean {near[0]}?" if near and not near[0].endswith(".") else ""
-    raise ConfigError(f"{where}: unknown factor {name!r}: use {_names_help()}{hint}")
+    raise ConfigError(f"{where}: unknown factor {name!r}: use {_names_help()}{did_you_mean(name, NAMES)}")
 
 
 def _level(name: str, raw: Any, where: str) -> Any:

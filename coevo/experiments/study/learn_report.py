@@ -6,7 +6,8 @@ trials), so the report can be rebuilt at any time (``--report-only``).
 
 Per cell, each of the behaviour's measures (:data:`LEARN_MEASURES`: its learning target's measure first, as ``coevo
 seeds`` judges it, then a second of its own and the GA's best fitness) as the mean over the cell's finished runs with
-its 95 % percentile-bootstrap interval (:func:`~coevo.experiments.compare.stats.mean_interval`) and the median.
+its 95 % t interval, none below three runs (:func:`~coevo.experiments.compare.stats.mean_interval`), and
+the median.
 
 Per factor with two levels or more, on each measure: the Kruskal–Wallis test across its levels, pooled over the
 other factors' levels, its ε², and the largest difference between two levels that the data allow
@@ -79,7 +80,7 @@ def _summary(values: list[float]) -> dict[str, Any]:
 
 def learn_cell_rows(the_cells: list[LearnCell], records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Per cell: its runs (``n`` of ``runs_expected``) and each of the behaviour's measures as a mean with its 95 %
-    bootstrap interval, and the median."""
+    t interval, and the median."""
     rows = []
     for c in the_cells:
         xs = [x for x in records if x["cell"] == c.id]
@@ -179,8 +180,8 @@ def _markdown(spec: StudySpec, the_cells: list[LearnCell], rows: list[dict[str, 
                               "runs finished", elapsed,
                         f"GA: {c0.ga.generations} generations, population {c0.ga.population}, {c0.ga.episodes} episodes "
                         f"per evaluation; each final policy measured on {c0.measure_epochs} fresh epochs.", caveat, verdict)
-    lines += ["Each measure of the cell's runs' best policies (their measures.json): the mean with its 95 % bootstrap "
-              "interval, and the median.", "",
+    lines += ["Each measure of the cell's runs' best policies (their measures.json): the mean with its 95 % t "
+              "interval (none below 3 runs), and the median.", "",
               "| cell | cell seed | runs | " + " | ".join(f"{t} mean [95 %] | median" for _, t in measures) + " |",
               "|---|---|---|" + "---|---|" * len(measures)]
     for r in rows:
@@ -194,16 +195,19 @@ def _markdown(spec: StudySpec, the_cells: list[LearnCell], rows: list[dict[str, 
         lines += ["## Factor tests", "",
                   "Kruskal–Wallis across the factor's levels, pooled over the other factors; p-values corrected "
                   f"together with Holm's method ({len(tests)} tests); *largest difference*: the farthest end of any "
-                  "two levels' 95 % bootstrap interval of their difference: a larger difference would very likely "
-                  "have been seen.", "",
-                  "| factor | measure | levels (mean [95 %]; median) | H | p | Holm p | ε² | largest difference |",
-                  "|---|---|---|---|---|---|---|---|"]
+                  "two levels' 95 % Welch t interval of their difference (– when a level has too few runs): a larger "
+                  "difference would very likely have been seen. p is exact for small designs; *smallest p possible*: the "
+                  "lowest any outcome of this many runs can give.", "",
+                  "| factor | measure | levels (mean [95 %]; median) | H | p | smallest p possible | Holm p | ε² | "
+                  "largest difference |",
+                  "|---|---|---|---|---|---|---|---|---|"]
         for t in tests:
             levels = "; ".join(f"{r['level']}: {format_mean(r, False)}; {r['median']:.2f}" if r["n"] else
                                f"{r['level']}: –" for r in t["levels"])
             big = "–" if math.isnan(t["largest_difference"]) else difference_unit(False, t["largest_difference"])
             lines.append(f"| {t['factor']} | {titles[t['measure']]} | {levels} | {t['h']:.2f} | {format_p(t['p'])} | "
-                         f"{format_p(t['p_holm'])} | {t['epsilon2']:.2f} ({t['magnitude']}) | {big} |")
+                         f"{format_p(t['min_p'])} | {format_p(t['p_holm'])} | {t['epsilon2']:.2f} ({t['magnitude']}) | "
+                         f"{big} |")
         lines.append("")
     lines += ["## Figures", ""] + [f"![{f}]({f})" for f in figures]
     lines += ["", "Files: `results.json` (everything above, and every run's measures), `study.json` (the declaration), "

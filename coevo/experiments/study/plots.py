@@ -2,8 +2,8 @@
 study of learning runs: every cell's runs on its behaviour's first measure).
 
 An effect plot shows, per level of the factor, each measure's mean over the runs at that level with its 95 %
-interval (bootstrap for means, Wilson for shares), one line per stratum (regime or rate group), pooled over the
-other factors' levels: the main effect, as the report's tests take it.
+interval (Student t for means, none below three runs; Wilson for shares), one line per stratum (regime or rate
+group), pooled over the other factors' levels: the main effect, as the report's tests take it.
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ def effect_figure(factor: str, levels: Sequence[str], panels: Mapping[str, Mappi
         ax.set_title(titles[measure], fontsize=10)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    fig.suptitle(f"Effect of {factor} (mean and 95 % interval per level)")
+    fig.suptitle(f"Effect of {factor} (mean and 95 % interval per level; a mean of fewer than 3 runs has no bar)")
     fig.savefig(path, dpi=90)
     plt.close(fig)
 
@@ -78,7 +78,7 @@ def cells_figure(rows: Sequence[Mapping[str, Any]], path: Path) -> None:
 def learn_cells_figure(cells: Sequence[str], values: Mapping[str, Sequence[float]],
                        summaries: Sequence[Mapping[str, Any]], title: str, path: Path) -> None:
     """One row per cell of a study of learning runs: each run's value of one measure (a dot), the mean with its 95 %
-    bootstrap interval, and the median (a bar)."""
+    t interval, and the median (a bar)."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(9, 1.2 + 0.4 * len(cells)), constrained_layout=True)
     y = np.arange(len(cells))

@@ -5,15 +5,17 @@ Everything is computed from the cells' run files (each cell read by the comparis
 
 Per cell and group (a regime, or independent-offline at one rate): the nine Table 1 classes and the three docking
 classes, each k of n with its 95 % Wilson interval (:mod:`.intervals`); the Executive curve's end (its best fitness
-at the last generation) and the Average Epoch Length (AEL), each a mean with its 95 % bootstrap interval
-(:func:`~coevo.experiments.compare.stats.mean_interval`).
+at the last generation) and the Average Epoch Length (AEL), each a mean with its 95 % t interval, none below three
+runs (:func:`~coevo.experiments.compare.stats.mean_interval`).
 
 Per factor with two levels or more, and per stratum (a between-cell factor is tested within each group; ``regime``
 across the live regimes; ``rate`` across independent-offline's rates), on each of four measures (the Executive
 curve's end, AEL, and the shares of Good Docking and of No Docking runs): the Kruskal–Wallis test across the
 levels, pooled over the other factors' levels (on a 0/1 measure it is the χ² test of the 2 × k table, scaled by
-(N − 1)/N), its ε², and the largest difference between two levels that the data allow (:mod:`.intervals`).  The
-p-values of every test in the study are corrected together with Holm's method; the verdict reads the corrected ones.
+(N − 1)/N; exact for small designs, with the smallest p its design can give), its ε², and the largest difference
+between two levels that the data allow (:mod:`.intervals`).  The p-values of every test in the study are corrected
+together with Holm's method; the verdict reads the corrected ones, and never calls an effect absent beside a large
+effect size or two levels whose intervals do not overlap: that is "not established", with the reason.
 
 Files: ``results.json`` (everything), ``report.md``, ``effect-FACTOR.png``, ``cells.png``.
 """
@@ -30,8 +32,10 @@ from coevo.errors import RunDirError
 from coevo.experiments.common import below_report
 from coevo.experiments.compare.experiment import OFFLINE, groups, replicates
 from coevo.experiments.compare.report import collect
-from coevo.experiments.compare.stats import compare_groups, format_p, holm, mean_interval
+from coevo.experiments.compare.stats import (MeanInterval, compare_groups, design_floor, format_p, holm,
+                                             mean_interval)
 from coevo.experiments.compare.table1 import CLASSES, DOCKING, REPORT_COUNTS
+from coevo.experiments.glossary import TERMS, label
 from coevo.experiments.study import plots
 from coevo.experiments.study.declaration import Cell, StudySpec, cells, level_text
 from coevo.experiments.study.experiment import cell_dir
@@ -39,15 +43,16 @@ from coevo.experiments.study.intervals import Difference, difference_interval, s
 from coevo.rundir.layout import write_json, write_text
 
 __all__ = ["MEASURES", "collect_cell", "collect_study", "cell_rows", "analyse", "factor_test", "adjust", "write_report",
-           "strict_json", "format_mean", "difference_unit", "verdict_lines"]
+           "strict_json", "format_mean", "difference_unit", "verdict_lines", "undecided"]
 
 #: The measures every factor is tested on: name -> (title, value of a run record, is it a 0/1 share?).
 MEASURES: dict[str, tuple[str, Callable[[dict[str, Any]], float], bool]] = {
-    "executive_end": ("Executive curve's end (best fitness)", lambda r: _executive_end(r), False),
-    "average_epoch_length": ("Average Epoch Length (episodes)",
+    "executive_end": (f"{label('executive_end')} (generation's best fitness)", lambda r: _executive_end(r), False),
+    "average_epoch_length": (f"{label('average_epoch_length')} (episodes)",
                              lambda r: float(r["measures"]["average_epoch_length"]), False),
-    "good_docking": ("Good Docking (share of runs)", lambda r: float(r["class"].startswith("Good Docking")), True),
-    "no_docking": ("No Docking (share of runs)", lambda r: float(r["class"].startswith("No Docking")), True),
+    "good_docking": (f"{label('good_docking')} (share of runs)",
+                     lambda r: float(r["class"].startswith("Good Docking")), True),
+    "no_docking": (f"{label('no_docking')} (share of runs)", lambda r: float(r["class"].startswith("No Docking")), True),
 }
 ALPHA = 0.05
 
@@ -71,7 +76,7 @@ def collect_study(out: Path, spec: StudySpec) -> tuple[list[Cell], list[dict[str
 
 
 def _summary(values: Sequence[float], share: bool) -> dict[str, Any]:
-    """Mean with its interval: Wilson for a 0/1 share, bootstrap for the rest."""
+    """Mean with its interval: Wilson for a 0/1 share, Student t for the rest."""
     v = [x for x in values if not math.isnan(x)]
     if share:
         p = wilson(int(sum(v)), len(v))
@@ -81,7 +86,7 @@ def _summary(values: Sequence[float], share: bool) -> dict[str, Any]:
 
 def cell_rows(the_cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Per cell and group: its runs (``n`` of ``runs_expected``), Table 1's classes and the docking classes as k of n
-    with 95 % Wilson intervals, and the Executive curve's end and AEL as means with 95 % bootstrap intervals."""
+    with 95 % Wilson intervals, and the Executive curve's end and AEL as means with 95 % t intervals."""
     rows = []
     for c in the_cells:
         for g in groups(c.spec):
@@ -141,12 +146,13 @@ def factor_test(factor: str, stratum: str, measure: str, samples: dict[str, list
     g = compare_groups(measure, present)
     names = list(present)
     diffs = [_difference(a, present[a], b, present[b], share) for i, a in enumerate(names) for b in names[i + 1:]]
-    bounds = [d.bound for d in diffs if not math.isnan(d.bound)]
+    bounds = [d.bound for d in diffs]
     return {
         "factor": factor, "stratum": stratum, "measure": measure, "share": share,
         "levels": [{"level": k, **_summary(samples[k], share)} for k in samples],
-        "h": g.h, "p": g.p_value, "epsilon2": g.epsilon2, "magnitude": g.magnitude, "n": g.n,
-        "largest_difference": max(bounds) if bounds else float("nan"),
+        "h": g.h, "p": g.p_value, "min_p": g.min_p, "epsilon2": g.epsilon2, "magnitude": g.magnitude, "n": g.n,
+        # only when every pair has an interval: "excluded by every pair's interval" is then true
+        "largest_difference": max(bounds) if bounds and not any(math.isnan(b) for b in bounds) else float("nan"),
         "differences": [d.as_dict() for d in diffs],
     }
 
@@ -166,13 +172,36 @@ def _difference(a: str, xa: Sequence[float], b: str, xb: Sequence[float], share:
 
 
 def format_mean(row: dict[str, Any], share: bool) -> str:
+    """A level's or cell's summary as the reports print it (its n shown elsewhere): a share with its Wilson
+    interval, a mean with its t interval or why it has none (:meth:`MeanInterval.text`)."""
     if row["n"] == 0:
         return "–"
     if share:
         return f"{100 * row['mean']:.0f} % [{100 * row['low']:.0f}–{100 * row['high']:.0f}]"
-    if math.isnan(row["low"]):
-        return f"{row['mean']:.2f}"
-    return f"{row['mean']:.2f} [{row['low']:.2f}, {row['high']:.2f}]"
+    low, high = (float("nan") if row[k] is None else float(row[k]) for k in ("low", "high"))  # null in results.json
+    return MeanInterval(int(row["n"]), float(row["mean"]), low, high).text(runs=False)
+
+
+def _apart(levels: list[dict[str, Any]]) -> list[tuple[str, str]]:
+    """The pairs of levels whose 95 % intervals do not overlap."""
+    have = [r for r in levels if r["n"] and r["low"] is not None and r["high"] is not None
+            and not (math.isnan(r["low"]) or math.isnan(r["high"]))]
+    return [(a["level"], b["level"]) for i, a in enumerate(have) for b in have[i + 1:]
+            if a["high"] < b["low"] or b["high"] < a["low"]]
+
+
+def undecided(test: dict[str, Any]) -> str:
+    """Why a test that detected nothing cannot be read as "no effect" ('' when it can): a large effect size, or two
+    levels whose intervals do not overlap."""
+    if test["detected"]:
+        return ""
+    why = []
+    if test["magnitude"] == "large":
+        why.append(f"the effect size is large (ε² = {test['epsilon2']:.2f})")
+    apart = _apart(test["levels"])
+    if apart:
+        why.append("the 95 % intervals of " + ", ".join(f"{a} and {b}" for a, b in apart) + " do not overlap")
+    return " and ".join(why)
 
 
 def difference_unit(share: bool, x: float) -> str:
@@ -181,7 +210,7 @@ def difference_unit(share: bool, x: float) -> str:
 
 def _verdict(spec: StudySpec, cell_rows: list[dict[str, Any]], tests: list[dict[str, Any]], finished: int,
              expected: int) -> str:
-    parts = verdict_lines(tests, lambda t: (MEASURES[t["measure"]][0].lower(), f" in {t['stratum']}"), finished,
+    parts = verdict_lines(tests, lambda t: (MEASURES[t["measure"]][0], f" in {t['stratum']}"), finished,
                           expected)
     starved = [r for r in cell_rows if r["n"] and r["no_docking"]["k"] * 2 > r["n"]]
     if starved:
@@ -208,11 +237,23 @@ def verdict_lines(tests: list[dict[str, Any]], subject: Callable[[dict[str, Any]
                          f"H = {t['h']:.2f}, p = {format_p(t['p'])}, Holm-adjusted {format_p(t['p_holm'])}; ε² = "
                          f"{t['epsilon2']:.2f}, {t['magnitude']}).")
         else:
-            res = "" if math.isnan(t["largest_difference"]) else (
-                f"; a difference between two levels beyond {difference_unit(share, t['largest_difference'])} is "
-                "excluded by every pair's 95 % interval")
-            parts.append(f"- No detectable effect of {t['factor']} on {what}{where} (Holm-adjusted "
-                         f"p = {format_p(t['p_holm'])}; {levels}{res}).")
+            runs = f"{t['n']} runs in {len(t['levels'])} levels"
+            floor = design_floor(float(t.get("min_p", 0.0)), runs)
+            p_text = f"Holm-adjusted p = {format_p(t['p_holm'])}" + (f"; {floor}" if floor else "")
+            why = undecided(t)
+            if why:
+                parts.append(f"- **Not established**: an effect of {t['factor']} on {what}{where} ({levels}; {p_text}):"
+                             f" {why}, but the test does not reach 5 % after Holm's correction; more runs would tell.")
+                continue
+            if float(t.get("min_p", 0.0)) >= ALPHA:  # "no detectable effect" from a test that could detect none
+                parts.append(f"- Too few runs to test {t['factor']} on {what}{where}: {runs} cannot give p below "
+                             f"{format_p(t['min_p'])} ({levels}).")
+                continue
+            res = ("; too few runs to bound the difference between two levels (an interval needs 3 runs a level)"
+                   if math.isnan(t["largest_difference"]) else
+                   f"; a difference between two levels beyond {difference_unit(share, t['largest_difference'])} is "
+                   "excluded by every pair's 95 % interval")
+            parts.append(f"- No detectable effect of {t['factor']} on {what}{where} ({p_text}; {levels}{res}).")
     if not tests:
         parts.append("No factor has two levels with finished runs: nothing to test; the cells' numbers are below.")
     return parts
@@ -302,9 +343,9 @@ def _markdown(spec: StudySpec, the_cells: list[Cell], rows: list[dict[str, Any]]
     lines = report_head(spec, f"{len(the_cells)} cells, {finished} of {expected} runs finished", elapsed,
                         f"GA: {c0.ga.generations} generations, population {c0.ga.population}, {c0.ga.episodes} "
                         "episodes per evaluation.", caveat, verdict)
-    lines += ["Shares are k/n with the 95 % Wilson interval; means with the 95 % bootstrap interval. Executive end: "
-              "the Executive's best fitness at the last generation (the report's learning curve's end); AEL: Average "
-              "Epoch Length in episodes.", "",
+    lines += ["Shares are k/n with the 95 % Wilson interval; means with the 95 % t interval (none below 3 runs). "
+              f"Executive end: {TERMS['executive_end'].definition} AEL: Average Epoch Length, "
+              f"{TERMS['average_epoch_length'].definition} (docs/glossary.md lists every measure once.)", "",
               "| cell | group | cell seed | runs | Good Docking | No Docking | Executive end | AEL |",
               "|---|---|---|---|---|---|---|---|"]
     for r in rows:
@@ -329,15 +370,18 @@ def _markdown(spec: StudySpec, the_cells: list[Cell], rows: list[dict[str, Any]]
         lines += ["## Factor tests", "",
                   "Kruskal–Wallis across the factor's levels, pooled over the other factors; p-values corrected "
                   f"together with Holm's method ({len(tests)} tests); *largest difference*: the farthest end of any "
-                  "two levels' 95 % interval of their difference (Newcombe's for shares, the bootstrap for means): "
-                  "a larger difference would very likely have been seen.", "",
-                  "| factor | stratum | measure | levels (mean [95 %]) | H | p | Holm p | ε² | largest difference |",
-                  "|---|---|---|---|---|---|---|---|---|"]
+                  "two levels' 95 % interval of their difference (Newcombe's for shares, Welch's t for means; – when "
+                  "a level has too few runs): a larger difference would very likely have been seen. p is exact for "
+                  "small designs; *smallest p possible*: the lowest any outcome of this many runs can give.", "",
+                  "| factor | stratum | measure | levels (mean [95 %]) | H | p | smallest p possible | Holm p | ε² | "
+                  "largest difference |",
+                  "|---|---|---|---|---|---|---|---|---|---|"]
         for t in tests:
             levels = "; ".join(f"{r['level']}: {format_mean(r, t['share'])}" for r in t["levels"])
             big = "–" if math.isnan(t["largest_difference"]) else difference_unit(t["share"], t["largest_difference"])
             lines.append(f"| {t['factor']} | {t['stratum']} | {MEASURES[t['measure']][0]} | {levels} | {t['h']:.2f} | "
-                         f"{format_p(t['p'])} | {format_p(t['p_holm'])} | {t['epsilon2']:.2f} ({t['magnitude']}) | {big} |")
+                         f"{format_p(t['p'])} | {format_p(t['min_p'])} | {format_p(t['p_holm'])} | "
+                         f"{t['epsilon2']:.2f} ({t['magnitude']}) | {big} |")
         lines.append("")
     lines += ["## Figures", ""] + [f"![{f}]({f})" for f in figures]
     lines += ["", "Files: `results.json` (everything above, and every run's measures), `study.json` (the declaration), "
