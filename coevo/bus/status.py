@@ -313,11 +313,11 @@ _STATE_STYLE = {"starting": "cyan", "alive": "green", "done": "blue", "stalled":
                 "degraded": "bold yellow"}
 
 
-def _own(measures: dict[str, float]) -> str:
+def _own(measures: dict[str, float], behaviour: str) -> str:
     """A worker's own measures, short, one word each: 'QT=62%', 'docks=71%', 'picks-D=23% docked=40%'."""
     from coevo.tasks import measure_labels
 
-    labels = measure_labels()
+    labels = measure_labels([behaviour])
     return " ".join(f"{labels.get(k, k)}={v:.0f}%" for k, v in measures.items()) or "-"
 
 
@@ -333,7 +333,7 @@ def _status_rows(board: StatusBoard) -> list[tuple[str, ...]]:
     for w in board.snapshot():
         who = w["worker"] if w["worker"].startswith(w["behaviour"]) else f"{w['worker']} ({w['behaviour']})"
         partners = " ".join(f"{k[0].upper()}v{v}" for k, v in sorted(w["partner_versions"].items())) or "-"
-        rows.append((who, f"{w['generation']}/{w['generations']}", f"{w['best_fitness']:.3f}", _own(w.get("measures", {})),
+        rows.append((who, f"{w['generation']}/{w['generations']}", f"{w['best_fitness']:.3f}", _own(w.get("measures", {}), w["behaviour"]),
                      partners, str(w["buffered"]), _reasons(w["rejected_by_reason"]), _state(w)))
     for r in board.robots_view():  # a CEL run's execution module, short (coevo cel has its own table)
         rows.append((r["robot"], f"{r['generation']}", "", f"ext={r['performance']:.0f}%",
@@ -346,7 +346,8 @@ def _status_rows(board: StatusBoard) -> list[tuple[str, ...]]:
     return rows
 
 
-#: The table's columns: generations done of the run's, best fitness of the latest generation, the task's own
+#: The table's columns: generations done of the run's, the best fitness so far (what a worker's heartbeat carries:
+#: the best of every generation up to the latest, which the docs' glossary calls "best so far"), the task's own
 #: measures, the partner versions in use, messages rejected by reason, and the state, followed by the count of
 #: published versions the broker's store has not confirmed yet when there are any ("alive 12 unstored").
 _STATUS_HEADERS = ("worker", "gen", "best", "measures", "partners", "rejected", "state")

@@ -58,14 +58,14 @@ def _reasons(counts: dict[str, int]) -> str:
     return ", ".join(f"{_e(r)} {n}" for r, n in sorted(counts.items())) or "0"
 
 
-def _labels() -> dict[str, str]:
+def _labels(behaviours: Sequence[str] = ()) -> dict[str, str]:
     from coevo.tasks import measure_labels
 
-    return measure_labels()
+    return measure_labels(behaviours)
 
 
-def _measures(m: dict[str, float]) -> str:
-    labels = _labels()
+def _measures(m: dict[str, float], behaviour: str = "") -> str:
+    labels = _labels([behaviour] if behaviour else [])
     return " ".join(f"{_e(labels.get(k, k))}={v:.0f}%" for k, v in m.items()) or "-"
 
 
@@ -102,7 +102,7 @@ def workers_html(view: View) -> str:
             curve = r.curves.get(str(w["worker"]))
             so_far = curve[1].best_so_far[-1] if curve and curve[1].best_so_far else w["best_fitness"]
             rows.append([_e(r.run), _e(w["worker"]), _e(w["behaviour"]), f"{w['generation']}/{w['generations']}",
-                         f"{so_far:.3f}", _measures(w.get("measures", {})), partners, str(w.get("buffered", 0)),
+                         f"{so_far:.3f}", _measures(w.get("measures", {}), str(w.get("behaviour", ""))), partners, str(w.get("buffered", 0)),
                          _reasons(w.get("rejected_by_reason", {})), _state(w["state"])])
         for x in r.robots:
             rows.append([_e(r.run), _e(x["robot"]), "execution", str(x["generation"]), "",
@@ -253,7 +253,7 @@ def behaviours(view: View) -> list[str]:
 
 def measure_names(view: View, behaviour: str) -> str:
     """What the lines of ``behaviour``'s measures plot are: 'picks-D (solid), docked (dotted)'."""
-    labels = _labels()
+    labels = _labels([behaviour])
     keys = sorted({k for r in view.runs for b, c in r.curves.values() if b == behaviour for k in c.measures})
     return ", ".join(f"{labels.get(k, k)} ({DASHES[j % len(DASHES)] if j else 'solid'})" for j, k in enumerate(keys))
 
@@ -284,7 +284,7 @@ def curve_lines(view: View, behaviour: str, what: str = "fitness") -> dict[str, 
                 lines = [("best so far (the published policy)", c.best_so_far, 2.5),
                          ("generation's best", c.best, 1.0)]
             else:
-                labels = _labels()
+                labels = _labels([behaviour])
                 lines = [(labels.get(k, k), col, 2.0) for k, col in sorted(c.measures.items())]
             for j, (name, ys, width) in enumerate(lines):
                 cols["xs"].append(list(c.generation))

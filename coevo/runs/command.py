@@ -68,8 +68,9 @@ def configure_run(p: argparse.ArgumentParser) -> None:
     p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
     p.add_argument("--resume", metavar="RUN_DIR", help="continue this run from its workers' checkpoints, with its settings")
     p.add_argument("--settings", metavar="RUN_JSON", help="start a run with these settings (a run.json, e.g. one coevo compare wrote)")
-    p.add_argument("--measure-epochs", type=count_arg(1, 1_000_000), default=100)
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--measure-epochs", type=count_arg(1, 1_000_000), default=100,
+                   help="fresh epochs measuring the final policies together at the end (default 100)")
+    p.add_argument("--quiet", action="store_true", help="no live status table")
     p.add_argument("--open", action="store_true",
                    help="make no key: the run's messages are unauthenticated (local experiments only)")
     p.add_argument("--listen", metavar="ENDPOINT",
@@ -230,8 +231,9 @@ def configure_chaos(p: argparse.ArgumentParser) -> None:
                    metavar=("MIN", "MAX"), help="seconds between faults (default 1 4)")
     p.add_argument("--down", type=positive_float_arg(allow_zero=True, maximum=3600), nargs=2, default=[0.5, 3.0],
                    metavar=("MIN", "MAX"), help="seconds a killed process stays down or a paused one stopped (default 0.5 3)")
-    p.add_argument("--measure-epochs", type=count_arg(1, 1_000_000), default=20)
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--measure-epochs", type=count_arg(1, 1_000_000), default=20,
+                   help="fresh epochs measuring the final policies together at the end (default 20)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
     add_settings(p)
     p.set_defaults(func=cmd_chaos)
 

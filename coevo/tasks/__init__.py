@@ -21,7 +21,7 @@ GA settings in the runs saved before November 2026, world settings since).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 from coevo.config import GAConfig, Settings, saved_ga
@@ -80,8 +80,14 @@ def register_task(task: Task[Any] | type[Task[Any]] | str, name: str | None = No
     TASKS.register(name, task)
 
 
-def measure_labels() -> dict[str, str]:
-    """The short names of the status measures of every task loaded so far (a measure arrives with its task)."""
+def measure_labels(behaviours: Iterable[str] = ()) -> dict[str, str]:
+    """The short names of the status measures of the tasks of ``behaviours`` (found and loaded if need be) and of
+    every task loaded so far."""
+    for b in behaviours:
+        try:
+            task_of(b)
+        except ConfigError:
+            pass  # an unknown behaviour's measures keep their own names
     return {k: v for t in TASKS.loaded().values() for k, v in t.measure_labels.items()}
 
 

@@ -63,13 +63,7 @@ def _declaration(args: argparse.Namespace, out: Path | None) -> StudySpec:
 
 def cmd_study(args: argparse.Namespace) -> int:
     from coevo.experiments.compare.experiment import default_jobs
-    from coevo.experiments.study.experiment import (
-        SEP,
-        held_declaration,
-        mark_complete,
-        prepare_study,
-        run_study,
-    )
+    from coevo.experiments.study.experiment import SEP, held_declaration, mark_complete, prepare_study, run_study
     from coevo.experiments.study.learn_report import write_learn_report
     from coevo.experiments.study.report import write_report
     from coevo.replicates.backends import ClusterLost
@@ -130,7 +124,7 @@ def cmd_study(args: argparse.Namespace) -> int:
                   "retry them.", file=sys.stderr)
             for name, why in prog.failed.items():
                 print(f"  {name}: {why}", file=sys.stderr)
-    report = write_report if spec.learn is None else write_learn_report  # a study of learning runs has its own
+    report = write_report if spec.learn is None else write_learn_report  # a study of learning runs: its own report
     results = report(out, spec, elapsed=None if args.report_only else time.time() - t0)
     complete = results["runs_finished"] == results["runs_expected"]
     if complete:
