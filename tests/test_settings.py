@@ -208,3 +208,24 @@ def test_a_worker_resumed_before_its_first_start_made_anything_starts_with_empty
                     resume=True)
         assert all(f.exists() and f.stat().st_size == 0 for f in logs), before
         assert json.loads(w.worker_json.read_text()) == {"run": "r"}
+
+
+def test_a_run_json_of_the_code_before_kinds_were_plugins_loads_as_it_ran(tmp_path: Path) -> None:
+    """Before kinds were found by name, every run.json held a "cel" key, null for a co-evolution run: such a run
+    loads as a co-evolution run (it was refused as a CEL run of the wrong task), and a CEL run's block still loads
+    as the CEL kind's settings; saved again, neither gains nor loses a key but the null."""
+    from coevo.cel_service.kind import CEL
+    from coevo.rundir.settings import RunSettings
+    from coevo.runs.kinds import COEVOLUTION, kind_of_settings
+
+    fuel = RunSettings.make(run="old", regime="mutual").model_dump(mode="json") | {"cel": None}
+    (tmp_path / "fuel.json").write_text(json.dumps(fuel))
+    loaded = RunSettings.load(tmp_path / "fuel.json")
+    assert kind_of_settings(loaded) is COEVOLUTION and loaded.blocks == {}
+    assert set(loaded.model_dump(mode="json")) == set(fuel) - {"cel"}
+    door = RunSettings.make(run="oldcel", task="door", regime="independent", cel={"schedule": [[2, ["front"]]]})
+    saved = door.model_dump(mode="json")
+    assert saved["cel"]["schedule"] == [[2, ["front"]]] and "blocks" not in saved
+    (tmp_path / "door.json").write_text(json.dumps(saved))
+    again = RunSettings.load(tmp_path / "door.json")
+    assert kind_of_settings(again) is CEL and again.block("cel") == door.block("cel")

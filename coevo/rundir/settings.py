@@ -69,7 +69,8 @@ class RunSettings(Settings):
         named = {k: v for k, v in data.items() if k not in cls.model_fields and k in KINDS}
         if not named:
             return data
-        return {k: v for k, v in data.items() if k not in named} | {"blocks": {**(data.get("blocks") or {}), **named}}
+        blocks = {k: v for k, v in named.items() if v is not None}  # runs saved before kinds were plugins: "cel": null
+        return {k: v for k, v in data.items() if k not in named} | {"blocks": {**(data.get("blocks") or {}), **blocks}}
 
     @model_serializer(mode="wrap")
     def _spread_blocks(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
