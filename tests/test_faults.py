@@ -26,7 +26,7 @@ import msgpack
 import numpy as np
 import pytest
 import zenoh
-from procs import SMALL, coevo_proc, ctrl_c_heard, poll, stop
+from procs import SMALL, coevo_proc, copy_of, ctrl_c_heard, poll, stop
 
 from coevo.agents.checkpoint import load_checkpoint, save_checkpoint
 from coevo.agents.models import PartnerModels
@@ -575,15 +575,12 @@ def test_a_worker_that_keeps_dying_ends_the_run_after_its_restarts_in_one_line(t
     assert "worker-docking.log" in last and "coevo run --resume" in last and "Traceback" not in out.read_text()
 
 
-def test_run_resume_refuses_a_damaged_checkpoint_before_starting_anything(tmp_path: Path) -> None:
+def test_run_resume_refuses_a_damaged_checkpoint_before_starting_anything(finished_mutual: Path,
+                                                                          tmp_path: Path) -> None:
     """``coevo run --resume`` reads every checkpoint first: damage is one line naming the file, and the run
     directory is left as it was (no process started, nothing written).  (A damaged store file is set aside and
-    refilled instead: tests/test_damaged_files.py.)"""
-    r = subprocess.run([sys.executable, "-m", "coevo", "run", "--run", "dm", "--root", str(tmp_path), *SMALL,
-                        "--generations", "2", "--measure-epochs", "2", "--quiet"], capture_output=True, text=True,
-                       timeout=120)
-    assert r.returncode == 0, r.stdout + r.stderr
-    run_dir = tmp_path / "dm"
+    refilled instead: tests/test_damaged_files.py.)  On a copy of the session's finished Mutual run."""
+    run_dir = copy_of(finished_mutual, tmp_path)
 
     def files() -> dict[str, bytes]:
         return {str(f): f.read_bytes() for f in sorted(run_dir.rglob("*")) if f.is_file()}
