@@ -17,7 +17,7 @@ from coevo.bus import keys
 from coevo.bus.session import make_config, open_session
 from coevo.runs.local import end_processes, free_port, wait_until
 
-__all__ = ["SMALL", "poll", "coevo_proc", "stop", "broker", "ctrl_c_heard", "made_once", "copy_of", "finished_mutual",
+__all__ = ["SMALL", "poll", "coevo_proc", "coevo_main", "stop", "broker", "ctrl_c_heard", "made_once", "copy_of", "finished_mutual",
            "finished_independent", "FINISHED_MUTUAL", "FINISHED_INDEPENDENT"]
 
 SMALL = ["--population", "6", "--episodes", "10", "--ga", "best_episodes=10", "--ga", "initial_rules=8"]
@@ -39,6 +39,32 @@ def coevo_proc(*args: str, log: Path) -> subprocess.Popen:
     with open(log, "wb") as f:
         return subprocess.Popen([sys.executable, "-m", "coevo", "--log-level", "INFO", *args], stdout=f,
                                 stderr=subprocess.STDOUT)
+
+
+def coevo_main(*args: str) -> subprocess.CompletedProcess[str]:
+    """``coevo ARGS`` in this process (coevo.cli.main, as ``python -m coevo`` runs it), for a refusal that happens
+    before anything starts: no interpreter started for it (0.5-1 CPU-s each, numpy and pydantic imported again).
+    Its exit status (a bad flag's SystemExit included), what it printed, and what it logged at WARNING and above,
+    as the process's basicConfig handler would print it, on stderr."""
+    import contextlib
+    import io
+    import logging
+
+    from coevo.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    handler = logging.StreamHandler(err)
+    handler.setLevel(logging.WARNING)
+    logging.getLogger().addHandler(handler)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                code = main(list(args))
+            except SystemExit as exc:  # argparse: a bad flag or value, --help
+                code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    finally:
+        logging.getLogger().removeHandler(handler)
+    return subprocess.CompletedProcess(["coevo", *args], code, out.getvalue(), err.getvalue())
 
 
 def stop(p: subprocess.Popen) -> None:
