@@ -2,8 +2,10 @@
 
 One small finished run (the session's, shared with other modules: tests/procs.py) is copied for each case; one file
 of the copy is damaged in one way (not UTF-8, not a JSON object, NaN, fields of the wrong type, a torn last line) and
-each command that reads that file is run on it as a process.  None may end in a traceback; each names the file (and the line, for a log).
-"""
+each command that reads that file is run on it: coevo's own main() in the test's process (procs.coevo_main, what
+``python -m coevo`` runs, without an interpreter started for each of some 35 reads), and ``coevo run --resume``, which
+starts processes, as a process.  None may end in a traceback (in process: raise anything but its one-line error);
+each names the file (and the line, for a log)."""
 
 from __future__ import annotations
 
@@ -13,7 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from procs import copy_of
+from procs import coevo_main, copy_of
 
 from coevo.broker.store import PolicyStore
 from coevo.dashboard.model import RunFiles
@@ -65,7 +67,7 @@ def reader(command: str, run: Path, tmp_path: Path) -> subprocess.CompletedProce
             "history": ["learn", "--behaviour", "executive", "--history", str(run), "--generations", "1",
                         "--population", "4", "--episodes", "2", "--measure-epochs", "1", "--quiet",
                         "--out", str(tmp_path / "learned")]}[command]
-    return coevo(*args)
+    return coevo_main(*args)  # a reader of files: coevo's main() in this process, no interpreter started for it
 
 
 def one_line_naming(res: subprocess.CompletedProcess[str], path: Path) -> str:

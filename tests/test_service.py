@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from procs import SMALL, coevo_proc, copy_of, poll, stop
+from procs import SMALL, coevo_main, coevo_proc, copy_of, poll, stop
 
 from coevo.bus import keys
 from coevo.bus.messages import PolicyUpdate, decode, encode
@@ -104,7 +104,7 @@ def test_coevo_run_end_to_end_and_replay_reproduces_it(request: pytest.FixtureRe
             assert (a["partner"], a["version"]) in stored
     if regime == "independent":
         assert adopters <= {"executive"}  # Tracking and Docking learn with the trivial Executive
-    rr = subprocess.run([sys.executable, "-m", "coevo", "replay", str(run_dir)], capture_output=True, text=True, timeout=300)
+    rr = coevo_main("replay", str(run_dir))  # a reader of files: in this process
     assert rr.returncode == 0, rr.stdout + rr.stderr
     assert rr.stdout.count("reproduced exactly") == 3
 
@@ -115,7 +115,7 @@ def test_replay_detects_a_tampered_log(finished_mutual: Path, tmp_path: Path) ->
     rows = [json.loads(x) for x in curve.read_text().splitlines()]
     rows[1]["population_mean"] += 0.125
     curve.write_text("".join(json.dumps(x) + "\n" for x in rows))
-    rr = subprocess.run([sys.executable, "-m", "coevo", "replay", str(run)], capture_output=True, text=True, timeout=300)
+    rr = coevo_main("replay", str(run))
     assert rr.returncode == 1 and "tracking: 3 generations DIFFERS at generation 2" in rr.stdout
 
 
@@ -159,7 +159,7 @@ def test_current_policy_model_end_to_end_replays_from_the_log(tmp_path: Path) ->
 
     shutil.rmtree(run_dir / "store")  # the log alone must suffice
     (run_dir / "store").mkdir()
-    rr = subprocess.run([sys.executable, "-m", "coevo", "replay", str(run_dir)], capture_output=True, text=True, timeout=300)
+    rr = coevo_main("replay", str(run_dir))  # a reader of files: in this process
     assert rr.returncode == 0, rr.stdout + rr.stderr
 
 
