@@ -26,7 +26,7 @@ import msgpack
 import numpy as np
 import pytest
 import zenoh
-from procs import SMALL, coevo_proc, copy_of, ctrl_c_heard, poll, stop
+from procs import SMALL, coevo_main, coevo_proc, copy_of, ctrl_c_heard, poll, stop
 
 from coevo.agents.checkpoint import load_checkpoint, save_checkpoint
 from coevo.agents.models import PartnerModels
@@ -152,16 +152,16 @@ def test_a_damaged_or_removed_checkpoint_never_leads_to_a_fresh_start_that_reuse
 
 
 def test_worker_directory_rules_fail_before_connecting(tmp_path: Path) -> None:
-    base = [sys.executable, "-m", "coevo", "worker", "--behaviour", "tracking", "--regime", "mutual", "--run", "x",
+    base = ["worker", "--behaviour", "tracking", "--regime", "mutual", "--run", "x",
             "--connect", "tcp/127.0.0.1:9", "--connect-timeout", "1", "--out", str(tmp_path / "w")]
     (tmp_path / "w").mkdir()
     (tmp_path / "w" / "curve.jsonl").write_text('{"generation": 1}\n')
-    r = subprocess.run(base, capture_output=True, text=True, timeout=60)
+    r = coevo_main(*base)  # refused before connecting: in this process
     assert r.returncode == 2 and "already holds a worker's run" in r.stderr and "--resume" in r.stderr
     (tmp_path / "w" / "curve.jsonl").unlink()
     (tmp_path / "w" / "worker.json").write_text(json.dumps({"behaviour": "tracking", "regime": "mutual", "run": "x",
                                                             "seed": 5}))
-    r = subprocess.run(base + ["--resume"], capture_output=True, text=True, timeout=60)
+    r = coevo_main(*base, "--resume")
     assert r.returncode == 2 and "seed was 5, now 0" in r.stderr
 
 
@@ -289,8 +289,7 @@ def test_a_whole_run_killed_at_once_continues_with_run_resume(tmp_path: Path) ->
         p.wait()
     time.sleep(0.5)
     assert not (tmp_path / "crash" / "summary.json").exists()
-    bad = subprocess.run([sys.executable, "-m", "coevo", "run", "--resume", str(tmp_path / "crash"), "--generations", "5"],
-                         capture_output=True, text=True, timeout=60)
+    bad = coevo_main("run", "--resume", str(tmp_path / "crash"), "--generations", "5")  # refused first: in process
     assert bad.returncode == 2 and "--generations" in bad.stderr
     r = subprocess.run([sys.executable, "-m", "coevo", "run", "--resume", str(tmp_path / "crash"), "--quiet"],
                        capture_output=True, text=True, timeout=300)
@@ -571,8 +570,7 @@ def test_run_resume_refuses_a_damaged_checkpoint_before_starting_anything(finish
 
     def refused(damaged: Path) -> None:
         before = files()
-        r = subprocess.run([sys.executable, "-m", "coevo", "run", "--resume", str(run_dir), "--quiet"],
-                           capture_output=True, text=True, timeout=60)
+        r = coevo_main("run", "--resume", str(run_dir), "--quiet")  # refused before anything starts: in process
         assert r.returncode == 2 and not r.stdout and len(r.stderr.strip().splitlines()) == 1, r.stdout + r.stderr
         assert r.stderr.startswith(f"RunDirError: cannot resume {run_dir}: ") and str(damaged) in r.stderr, r.stderr
         assert files() == before  # run.json, logs, summary: untouched
