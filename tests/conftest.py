@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from procs import broker  # noqa: F401  (a fixture for every test module)
+from procs import broker, finished_independent, finished_mutual  # noqa: F401  (fixtures for every test module)
 
 from coevo.config import GAConfig
 from coevo.tasks.fuel.settings import WorldConfig
@@ -51,11 +51,12 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Without --all, the fast set: tests marked service or slow (and any using the broker fixture, a process) are
+    """Without --all, the fast set: tests marked service or slow (and any using the broker fixture or a shared finished
+    run, processes) are
     left out, and say so in the summary.  With it, the slow tests first, then the other service tests, then the rest
     (each in file order), for the scheduler below: the longest start first and short ones fill in at the end."""
     for item in items:
-        if "broker" in getattr(item, "fixturenames", ()):
+        if {"broker", "finished_mutual", "finished_independent"} & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.service)
     if config.getoption("--all"):
         items.sort(key=lambda i: 0 if i.get_closest_marker("slow") else 1 if i.get_closest_marker("service") else 2)
@@ -122,3 +123,21 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
     yield
     with open(path, "a", encoding="utf-8") as f:
         f.write(f"{cpu() - c0:.2f} {time.monotonic() - w0:.2f} {item.nodeid}\n")
+
+
+# ---------------------------------------------------------------- what tests share stayed as it was made
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """The directories made once and shared (tests/procs.py: made_once) are read-only for the tests: one a test
+    changed would make the tests after it depend on the order they ran in.  The controller (or the only process,
+    without xdist) compares each with what it held when it was made, and fails the session if one moved."""
+    if hasattr(session.config, "workerinput") or not hasattr(session.config, "_tmp_path_factory"):
+        return
+    from procs import tree_digest
+
+    shared = session.config._tmp_path_factory.getbasetemp() / "shared"
+    moved = [d.name.removesuffix(".done") for d in sorted(shared.glob("*.done"))
+             if d.read_text() != tree_digest(shared / d.name.removesuffix(".done"))]
+    if moved:
+        session.config.get_terminal_writer().line(
+            f"a test changed the shared {', '.join(moved)} (tests/procs.py: made_once) instead of a copy", red=True)
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED

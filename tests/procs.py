@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import fcntl
+import os
+import shutil
 import signal
 import subprocess
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -14,7 +17,8 @@ from coevo.bus import keys
 from coevo.bus.session import make_config, open_session
 from coevo.runs.local import end_processes, free_port, wait_until
 
-__all__ = ["SMALL", "poll", "coevo_proc", "stop", "broker", "ctrl_c_heard"]
+__all__ = ["SMALL", "poll", "coevo_proc", "coevo_main", "stop", "broker", "ctrl_c_heard", "made_once", "copy_of", "finished_mutual",
+           "finished_independent", "FINISHED_MUTUAL", "FINISHED_INDEPENDENT"]
 
 SMALL = ["--population", "6", "--episodes", "10", "--ga", "best_episodes=10", "--ga", "initial_rules=8"]
 
@@ -37,6 +41,32 @@ def coevo_proc(*args: str, log: Path) -> subprocess.Popen:
                                 stderr=subprocess.STDOUT)
 
 
+def coevo_main(*args: str) -> subprocess.CompletedProcess[str]:
+    """``coevo ARGS`` in this process (coevo.cli.main, as ``python -m coevo`` runs it), for a refusal that happens
+    before anything starts: no interpreter started for it (0.5-1 CPU-s each, numpy and pydantic imported again).
+    Its exit status (a bad flag's SystemExit included), what it printed, and what it logged at WARNING and above,
+    as the process's basicConfig handler would print it, on stderr."""
+    import contextlib
+    import io
+    import logging
+
+    from coevo.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    handler = logging.StreamHandler(err)
+    handler.setLevel(logging.WARNING)
+    logging.getLogger().addHandler(handler)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                code = main(list(args))
+            except SystemExit as exc:  # argparse: a bad flag or value, --help
+                code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    finally:
+        logging.getLogger().removeHandler(handler)
+    return subprocess.CompletedProcess(["coevo", *args], code, out.getvalue(), err.getvalue())
+
+
 def stop(p: subprocess.Popen) -> None:
     end_processes([p])
 
@@ -52,3 +82,79 @@ def broker(tmp_path: Path) -> Iterator[tuple[str, Path]]:
     yield endpoint, data
     stop(p)
     assert p.returncode == 0, (tmp_path / "broker.log").read_text()
+
+
+# ---------------------------------------------------------------- what tests share: made once per test session
+def made_once(factory: pytest.TempPathFactory, name: str, make: Callable[[Path], None]) -> Path:
+    """The directory ``name``, made by ``make(path)`` once per test session and shared by every test (and every
+    xdist worker) that asks for it: the whole suite's cost is mostly the processes its runs start (docs/development.md),
+    so tests that only read a finished run, comparison or study read one.  Under xdist the workers' base temporary
+    directories (``popen-gwN``) share a parent, the session's; a lock file there makes the first worker to ask make it
+    while the others wait.  A make that failed is not tried again by each later test: they fail at once with its error.
+
+    Shared means read-only: a test that changes what it was given works on :func:`copy_of` it."""
+    base = factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        base = base.parent
+    root = base / "shared"
+    root.mkdir(exist_ok=True)
+    out, done, failed = root / name, root / f"{name}.done", root / f"{name}.failed"
+    with open(root / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when closed, also when this process dies
+        if failed.exists():
+            pytest.fail(f"the shared {name} could not be made (the first test that asked says why): "
+                        f"{failed.read_text()}")
+        if not done.exists():
+            if out.exists():
+                shutil.rmtree(out)
+            try:
+                make(out)
+            except BaseException as exc:
+                failed.write_text(f"{type(exc).__name__}: {exc}"[:3000])
+                raise
+            done.write_text(tree_digest(out))  # tests/conftest.py checks it at the session's end: nobody changed it
+    return out
+
+
+def tree_digest(root: Path) -> str:
+    """Each file under ``root``, its size and its time of change: what a test that changed a shared directory
+    (instead of a copy) would have moved."""
+    return "".join(f"{p.relative_to(root)} {p.stat().st_size} {p.stat().st_mtime_ns}\n"
+                   for p in sorted(root.rglob("*")) if p.is_file())
+
+
+def copy_of(shared: Path, where: Path) -> Path:
+    """A copy of a shared directory, under its own name (a run's run.json names it), to change."""
+    out = where / shared.name
+    shutil.copytree(shared, out)
+    return out
+
+
+def _coevo_ok(*args: str) -> None:
+    r = subprocess.run([sys.executable, "-m", "coevo", *args], capture_output=True, text=True, timeout=600, check=False)
+    assert r.returncode == 0, r.stdout + r.stderr
+
+
+#: A finished Mutual run, as small as a run can be while each worker has a few generations: 3 generations of 6
+#: episodes-4 policies, seed 0.  tests/test_damaged_files.py damages copies of it, tests/test_service.py replays it
+#: and tampers with a copy, tests/test_faults.py damages a copy's checkpoint.
+FINISHED_MUTUAL = ["run", "--regime", "mutual", "--generations", "3", "--population", "6", "--episodes", "4",
+                   "--measure-epochs", "1", "--run", "small", "--quiet"]
+#: A finished Independent run (the history an offline Executive learns from): 4 generations at SMALL.
+FINISHED_INDEPENDENT = ["run", "--regime", "independent", "--run", "hist", "--generations", "4", *SMALL,
+                        "--measure-epochs", "2", "--quiet"]
+
+
+@pytest.fixture(scope="session")
+def finished_mutual(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The run directory of FINISHED_MUTUAL, made once per session (read-only: change a :func:`copy_of` it)."""
+    root = made_once(tmp_path_factory, "mutual-run", lambda out: _coevo_ok(*FINISHED_MUTUAL, "--root", str(out)))
+    return root / "small"
+
+
+@pytest.fixture(scope="session")
+def finished_independent(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The run directory of FINISHED_INDEPENDENT, made once per session (read-only)."""
+    root = made_once(tmp_path_factory, "independent-run",
+                     lambda out: _coevo_ok(*FINISHED_INDEPENDENT, "--root", str(out)))
+    return root / "hist"

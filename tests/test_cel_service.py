@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 import pytest
-from procs import coevo_proc, poll, stop
+from procs import coevo_main, coevo_proc, poll, stop
 
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
@@ -194,7 +194,7 @@ def test_the_wire_refuses_foreign_and_malformed_cel_messages(tmp_path: Path) -> 
     (["--zero-run", "0"], "invalid number 0"),
 ])
 def test_bad_cel_command_lines_end_in_one_line(tmp_path: Path, argv: list[str], says: str) -> None:
-    r = _cel(tmp_path, *argv, timeout=60)
+    r = coevo_main("cel", "--root", str(tmp_path), "--quiet", *argv)  # refused before anything starts: in process
     assert r.returncode == 2, r.stdout + r.stderr
     assert says in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert "Traceback" not in r.stderr
@@ -202,8 +202,7 @@ def test_bad_cel_command_lines_end_in_one_line(tmp_path: Path, argv: list[str], 
 
 def test_execution_refuses_a_run_that_is_not_a_cel_run(tmp_path: Path) -> None:
     RunSettings.make(run="plain", task="door", regime="independent").save(tmp_path / "run.json")
-    r = subprocess.run([sys.executable, "-m", "coevo", "execution", "--settings", str(tmp_path / "run.json"),
-                        "--connect-timeout", "0"], capture_output=True, text=True, timeout=60)
+    r = coevo_main("execution", "--settings", str(tmp_path / "run.json"), "--connect-timeout", "0")
     assert r.returncode == 2 and "cel block" in r.stderr, r.stderr
 
 

@@ -1,4 +1,7 @@
-"""`coevo compare`: a tiny real comparison end to end, resuming it, its bad input, and its pieces."""
+"""`coevo compare`: a tiny real comparison end to end, resuming it, its bad input, and its pieces.
+
+Refusals that come before anything starts run coevo's command line in this process (procs.coevo_main): the same
+main() as ``python -m coevo``, without an interpreter started for each."""
 
 from __future__ import annotations
 
@@ -11,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from procs import coevo_main
 from scipy import stats
 
 from coevo.experiments.compare.stats import compare_groups, compare_samples, magnitude, mean_interval, mean_intervals
@@ -141,7 +145,7 @@ class TestTinyComparison:
         (tiny / "runs" / "mutual-01" / "summary.json").unlink()  # as if killed before the end
         curve = (tiny / "runs" / "mutual-01" / "workers" / "docking" / "curve.jsonl").read_bytes()
 
-        again = coevo("compare", "--out", str(tiny), *TINY)
+        again = coevo_main("compare", "--out", str(tiny), *TINY)
         assert again.returncode == 2 and "add --resume" in again.stderr
         r = coevo("compare", "--out", str(tiny), "--resume", *TINY)
         assert r.returncode == 0, r.stdout + r.stderr
@@ -153,7 +157,7 @@ class TestTinyComparison:
         assert (tiny / "runs" / "mutual-01" / "workers" / "docking" / "curve.jsonl").read_bytes() == curve
         assert json.loads((tiny / "results.json").read_text())["runs_finished"] == 4
 
-        other = coevo("compare", "--out", str(tiny), "--resume", *TINY, "--seed", "7")
+        other = coevo_main("compare", "--out", str(tiny), "--resume", *TINY, "--seed", "7")
         assert other.returncode == 2 and "different comparison" in other.stderr and "seed" in other.stderr
 
 
@@ -174,7 +178,7 @@ class TestTinyComparison:
 ])
 def test_bad_settings_fail_before_anything_starts(tmp_path: Path, args: list[str], message: str) -> None:
     out = tmp_path / "never"
-    r = coevo("compare", "--out", str(out), "--quiet", *args, timeout=60)
+    r = coevo_main("compare", "--out", str(out), "--quiet", *args)
     assert r.returncode == 2, r.stdout + r.stderr
     assert message in r.stderr
     assert not out.exists()
@@ -183,13 +187,13 @@ def test_bad_settings_fail_before_anything_starts(tmp_path: Path, args: list[str
 def test_an_output_directory_that_is_not_a_comparison_is_refused(tmp_path: Path) -> None:
     (tmp_path / "busy").mkdir()
     (tmp_path / "busy" / "notes.txt").write_text("mine")
-    r = coevo("compare", "--out", str(tmp_path / "busy"), "--quiet", timeout=60)
+    r = coevo_main("compare", "--out", str(tmp_path / "busy"), "--quiet")
     assert r.returncode == 2 and "holds no comparison" in r.stderr
     assert [p.name for p in (tmp_path / "busy").iterdir()] == ["notes.txt"]
     (tmp_path / "file").write_text("x")
-    r = coevo("compare", "--out", str(tmp_path / "file"), "--quiet", timeout=60)
+    r = coevo_main("compare", "--out", str(tmp_path / "file"), "--quiet")
     assert r.returncode == 2 and "is a file" in r.stderr
-    r = coevo("compare", "--out", str(tmp_path / "nothing"), "--report-only", "--quiet", timeout=60)
+    r = coevo_main("compare", "--out", str(tmp_path / "nothing"), "--report-only", "--quiet")
     assert r.returncode == 2 and "no compare.json" in r.stderr
 
 
@@ -389,8 +393,7 @@ def test_a_history_that_is_incomplete_is_refused(tmp_path: Path) -> None:
     (run / "workers" / "tracking").mkdir(parents=True)
     (run / "run.json").write_text("{}")
     (run / "workers" / "tracking" / "done.json").write_text(json.dumps({"finished": False, "generations": 12}))
-    r = coevo("learn", "--behaviour", "executive", "--history", str(run), "--quiet", "--out", str(tmp_path / "x"),
-              timeout=60)
+    r = coevo_main("learn", "--behaviour", "executive", "--history", str(run), "--quiet", "--out", str(tmp_path / "x"))
     assert r.returncode == 2 and "is incomplete" in r.stderr and "tracking" in r.stderr and "12 generations" in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "x").exists()

@@ -1,19 +1,21 @@
 """Damaged run files (issue 39): every reader of a run directory, as a real command, says what is wrong in one line.
 
-One small finished run is made per module and copied for each case; one file of the copy is damaged in one way
-(not UTF-8, not a JSON object, NaN, fields of the wrong type, a torn last line) and each command that reads that
-file is run on it as a process.  None may end in a traceback; each names the file (and the line, for a log).
-"""
+One small finished run (the session's, shared with other modules: tests/procs.py) is copied for each case; one file
+of the copy is damaged in one way (not UTF-8, not a JSON object, NaN, fields of the wrong type, a torn last line) and
+each command that reads that file is run on it: coevo's own main() in the test's process (procs.coevo_main, what
+``python -m coevo`` runs, without an interpreter started for each of some 35 reads), and ``coevo run --resume``, which
+starts processes, as a process.  None may end in a traceback (in process: raise anything but its one-line error);
+each names the file (and the line, for a log)."""
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from procs import coevo_main, copy_of
 
 from coevo.broker.store import PolicyStore
 from coevo.dashboard.model import RunFiles
@@ -48,20 +50,11 @@ SETTINGS: dict[str, Callable[[bytes], bytes]] = {
 }
 
 
-@pytest.fixture(scope="module")
-def finished(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    root = tmp_path_factory.mktemp("runs")
-    res = coevo("run", "--regime", "mutual", "--generations", "3", "--population", "6", "--episodes", "4",
-                "--measure-epochs", "1", "--root", str(root), "--run", "small", "--quiet")
-    assert res.returncode == 0, res.stderr
-    return root / "small"
-
-
-def copy_of(run: Path, tmp_path: Path) -> Path:
-    """The finished run, copied under its own name (run.json names it) to damage."""
-    out = tmp_path / run.name
-    shutil.copytree(run, out)
-    return out
+@pytest.fixture
+def finished(finished_mutual: Path) -> Path:
+    """The session's small finished Mutual run (tests/procs.py: FINISHED_MUTUAL, run "small"), shared with the other
+    tests that read one; each case here damages a copy of it."""
+    return finished_mutual
 
 
 def coevo(*args: str) -> subprocess.CompletedProcess[str]:
@@ -74,7 +67,7 @@ def reader(command: str, run: Path, tmp_path: Path) -> subprocess.CompletedProce
             "history": ["learn", "--behaviour", "executive", "--history", str(run), "--generations", "1",
                         "--population", "4", "--episodes", "2", "--measure-epochs", "1", "--quiet",
                         "--out", str(tmp_path / "learned")]}[command]
-    return coevo(*args)
+    return coevo_main(*args)  # a reader of files: coevo's main() in this process, no interpreter started for it
 
 
 def one_line_naming(res: subprocess.CompletedProcess[str], path: Path) -> str:
@@ -94,7 +87,7 @@ def damage_log(run: Path, log: str, damage: str) -> tuple[Path, str]:
     return f, f"{f} line {lines + 1} "
 
 class TestDamagedRuns:
-    """One class, so that one xdist worker makes the module's finished run once and takes every case."""
+    """The cases on the session's finished run (made once, whichever worker asks first)."""
 
     @pytest.mark.parametrize("damage", LINES)
     def test_coevo_check_names_each_damaged_line_in_one_line(self, finished: Path, tmp_path: Path,

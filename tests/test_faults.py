@@ -4,8 +4,8 @@ Every test here runs real processes with real signals over real Zenoh sessions o
 loopback, bounded in time; one runs ``coevo chaos``.  Kills and bad
 messages tried (the README's fault table counts these): worker SIGKILL 2 (one
 directly, one as part of a whole ``coevo run`` group), worker SIGKILL inside
-``coevo run`` 8 (one restarted, one whose checkpoint was zeroed first, six in a row
-for the restart bound), a Ctrl-C to a whole ``coevo run`` group, broker SIGKILL 2 (one
+``coevo run`` 8 (one restarted, in the run whose broker is killed twice; one whose
+checkpoint was zeroed first; six in a row for the restart bound), a Ctrl-C to a whole ``coevo run`` group, broker SIGKILL 2 (one
 directly, one with the group), a hung worker 1, and one message of each of 12
 malformed kinds plus a flood of 3,000 on the worker's keys and a 40 MB flood on
 a broker with a 1 MB inbox.
@@ -26,7 +26,7 @@ import msgpack
 import numpy as np
 import pytest
 import zenoh
-from procs import SMALL, coevo_proc, ctrl_c_heard, poll, stop
+from procs import SMALL, coevo_main, coevo_proc, copy_of, ctrl_c_heard, poll, stop
 
 from coevo.agents.checkpoint import load_checkpoint, save_checkpoint
 from coevo.agents.models import PartnerModels
@@ -152,16 +152,16 @@ def test_a_damaged_or_removed_checkpoint_never_leads_to_a_fresh_start_that_reuse
 
 
 def test_worker_directory_rules_fail_before_connecting(tmp_path: Path) -> None:
-    base = [sys.executable, "-m", "coevo", "worker", "--behaviour", "tracking", "--regime", "mutual", "--run", "x",
+    base = ["worker", "--behaviour", "tracking", "--regime", "mutual", "--run", "x",
             "--connect", "tcp/127.0.0.1:9", "--connect-timeout", "1", "--out", str(tmp_path / "w")]
     (tmp_path / "w").mkdir()
     (tmp_path / "w" / "curve.jsonl").write_text('{"generation": 1}\n')
-    r = subprocess.run(base, capture_output=True, text=True, timeout=60)
+    r = coevo_main(*base)  # refused before connecting: in this process
     assert r.returncode == 2 and "already holds a worker's run" in r.stderr and "--resume" in r.stderr
     (tmp_path / "w" / "curve.jsonl").unlink()
     (tmp_path / "w" / "worker.json").write_text(json.dumps({"behaviour": "tracking", "regime": "mutual", "run": "x",
                                                             "seed": 5}))
-    r = subprocess.run(base + ["--resume"], capture_output=True, text=True, timeout=60)
+    r = coevo_main(*base, "--resume")
     assert r.returncode == 2 and "seed was 5, now 0" in r.stderr
 
 
@@ -289,8 +289,7 @@ def test_a_whole_run_killed_at_once_continues_with_run_resume(tmp_path: Path) ->
         p.wait()
     time.sleep(0.5)
     assert not (tmp_path / "crash" / "summary.json").exists()
-    bad = subprocess.run([sys.executable, "-m", "coevo", "run", "--resume", str(tmp_path / "crash"), "--generations", "5"],
-                         capture_output=True, text=True, timeout=60)
+    bad = coevo_main("run", "--resume", str(tmp_path / "crash"), "--generations", "5")  # refused first: in process
     assert bad.returncode == 2 and "--generations" in bad.stderr
     r = subprocess.run([sys.executable, "-m", "coevo", "run", "--resume", str(tmp_path / "crash"), "--quiet"],
                        capture_output=True, text=True, timeout=300)
@@ -446,34 +445,37 @@ def _broker_of(pid: int) -> int | None:
 
 
 @pytest.mark.slow
-def test_coevo_run_whose_broker_is_killed_twice_restarts_it_completes_and_checks(tmp_path: Path) -> None:
-    """Item 3 of issue 29: the run supervises its broker (same endpoint, same data directory); nothing is lost and
-    the store's latest is each worker's newest (coevo check); a finishing worker is never shown dead."""
-    # 30 generations: the second kill comes when the slowest worker (Tracking) has 6, the fastest (Docking) near its end
+def test_coevo_run_restarts_its_killed_worker_and_its_twice_killed_broker_completes_and_checks(tmp_path: Path) -> None:
+    """Issue 39 and item 3 of issue 29, in one run (two faults one after the other, each let finish before the next):
+    the run supervises its workers and its broker.  A worker SIGKILLed mid-run is started again from its checkpoint
+    and the table says so; the broker, killed twice, is started again on the same endpoint and data directory.  The
+    run ends 0, nothing is lost and the store's latest is each worker's newest (coevo check, replay exact); a finishing
+    worker is never shown dead.  (The worker's kill had a 12-generation run of its own before: the same assertions.)"""
+    # 30 generations: the second broker kill comes when the slowest worker (Tracking) has 6, the fastest (Docking, set
+    # back by its restart) before its end
     generations = 30
-    out = tmp_path / "run.out"
-    with open(out, "wb") as f:
-        p = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--run", "sup", "--root", str(tmp_path),
-                              "--generations", str(generations), *SMALL, "--measure-epochs", "2", "--max-lead", "off"], stdout=f,
-                             stderr=subprocess.STDOUT)
+    p, out = _coevo_run(tmp_path, "sup", "--generations", str(generations), "--max-lead", "off")
     run_dir = tmp_path / "sup"
     try:
+        poll(lambda: _lines(run_dir / "workers" / "docking" / "curve.jsonl") >= 3, 120, "three docking generations")
+        _kill_worker(p, "docking")
+        poll(lambda: "starting it again (restart 1 of at most 5)" in out.read_text(), 30, "the docking worker restarted")
         for n in (1, 2):
-            poll(lambda: _curve_len_dir(run_dir) >= 3 * n, 180, f"generations before kill {n}")
+            poll(lambda: _curve_len_dir(run_dir) >= 3 * n, 180, f"generations before broker kill {n}")
             pid = poll(lambda: _broker_of(p.pid), 30, "the broker process")
             os.kill(pid, signal.SIGKILL)
             poll(lambda: (run_dir / "logs" / "broker.log").read_text().count("--- start") >= n + 1, 30,
                  f"the broker started again ({n})")
         assert p.wait(timeout=600) == 0, out.read_text()[-3000:]
     finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
+        stop(p)
     text = out.read_text()
+    assert "the docking worker was killed by SIGKILL; starting it again (restart 1 of at most 5)" in text
+    assert "alive, restarted 1x" in text and "Traceback" not in text
     summary = json.loads((run_dir / "summary.json").read_text())
     assert not summary["interrupted"], summary
     check = check_run(run_dir)
-    assert check.ok, check.problems
+    assert check.ok and check.facts["docking"]["generations"] == generations, check.problems
     # While the broker (the router the status session reaches the workers through) is down every worker looks dead;
     # a worker that finished its generations never does.
     done = f" gen {generations}/{generations} "
@@ -513,25 +515,6 @@ def _kill_worker(p: subprocess.Popen, behaviour: str, *, before: int | None = No
     pid = poll(lambda: (w := _worker_of(p.pid, behaviour)) != before and w, 30, f"the {behaviour} worker process")
     os.kill(pid, signal.SIGKILL)
     return pid
-
-
-def test_a_worker_killed_inside_coevo_run_is_restarted_and_the_run_completes_exact(tmp_path: Path) -> None:
-    """Issue 39: the run supervises its workers as its broker: a worker SIGKILLed mid-run is started again from its
-    checkpoint, the table says so, the run ends 0 and its replay is exact."""
-    p, out = _coevo_run(tmp_path, "wk", "--generations", "12")
-    curve = tmp_path / "wk" / "workers" / "docking" / "curve.jsonl"
-    try:
-        poll(lambda: _lines(curve) >= 3, 120, "three docking generations")
-        _kill_worker(p, "docking")
-        assert p.wait(timeout=300) == 0, out.read_text()[-3000:]
-    finally:
-        stop(p)
-    text = out.read_text()
-    assert "the docking worker was killed by SIGKILL; starting it again (restart 1 of at most 5)" in text
-    assert "alive, restarted 1x" in text and "Traceback" not in text
-    assert not json.loads((tmp_path / "wk" / "summary.json").read_text())["interrupted"]
-    check = check_run(tmp_path / "wk")
-    assert check.ok and check.facts["docking"]["generations"] == 12, check.problems
 
 
 def test_a_worker_that_cannot_start_stops_the_run_at_once_with_its_reason(tmp_path: Path) -> None:
@@ -575,23 +558,19 @@ def test_a_worker_that_keeps_dying_ends_the_run_after_its_restarts_in_one_line(t
     assert "worker-docking.log" in last and "coevo run --resume" in last and "Traceback" not in out.read_text()
 
 
-def test_run_resume_refuses_a_damaged_checkpoint_before_starting_anything(tmp_path: Path) -> None:
+def test_run_resume_refuses_a_damaged_checkpoint_before_starting_anything(finished_mutual: Path,
+                                                                          tmp_path: Path) -> None:
     """``coevo run --resume`` reads every checkpoint first: damage is one line naming the file, and the run
     directory is left as it was (no process started, nothing written).  (A damaged store file is set aside and
-    refilled instead: tests/test_damaged_files.py.)"""
-    r = subprocess.run([sys.executable, "-m", "coevo", "run", "--run", "dm", "--root", str(tmp_path), *SMALL,
-                        "--generations", "2", "--measure-epochs", "2", "--quiet"], capture_output=True, text=True,
-                       timeout=120)
-    assert r.returncode == 0, r.stdout + r.stderr
-    run_dir = tmp_path / "dm"
+    refilled instead: tests/test_damaged_files.py.)  On a copy of the session's finished Mutual run."""
+    run_dir = copy_of(finished_mutual, tmp_path)
 
     def files() -> dict[str, bytes]:
         return {str(f): f.read_bytes() for f in sorted(run_dir.rglob("*")) if f.is_file()}
 
     def refused(damaged: Path) -> None:
         before = files()
-        r = subprocess.run([sys.executable, "-m", "coevo", "run", "--resume", str(run_dir), "--quiet"],
-                           capture_output=True, text=True, timeout=60)
+        r = coevo_main("run", "--resume", str(run_dir), "--quiet")  # refused before anything starts: in process
         assert r.returncode == 2 and not r.stdout and len(r.stderr.strip().splitlines()) == 1, r.stdout + r.stderr
         assert r.stderr.startswith(f"RunDirError: cannot resume {run_dir}: ") and str(damaged) in r.stderr, r.stderr
         assert files() == before  # run.json, logs, summary: untouched

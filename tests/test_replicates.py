@@ -15,6 +15,7 @@ from functools import partial
 from pathlib import Path
 
 import pytest
+from procs import coevo_main
 
 from coevo.errors import ConfigError
 from coevo.replicates.backends import ClusterLost, LocalBackend, parse_cluster
@@ -213,7 +214,7 @@ def test_a_tiny_comparison_on_a_local_dask_cluster_writes_the_report_it_writes_h
     res = json.loads((dask / "results.json").read_text())
     assert res["runs_finished"] == res["runs_expected"] == 2
     for run in (dask / "runs").iterdir():
-        c = coevo("check", str(run))
+        c = coevo_main("check", str(run))  # a reader of files: in this process
         assert c.returncode == 0 and "complete" in c.stdout, c.stdout + c.stderr
 
 
@@ -300,5 +301,5 @@ def test_a_comparison_across_namespaced_dask_hosts_survives_a_dead_worker(tmp_pa
     res = json.loads((out / "results.json").read_text())
     assert res["runs_finished"] == res["runs_expected"] == 2, text
     for run in (out / "runs").iterdir():
-        c = coevo("check", str(run))
+        c = coevo_main("check", str(run))  # a reader of files: in this process
         assert c.returncode == 0 and "complete" in c.stdout, c.stdout + c.stderr

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from procs import SMALL, coevo_proc, poll, stop
+from procs import SMALL, coevo_main, coevo_proc, copy_of, poll, stop
 
 from coevo.bus import keys
 from coevo.bus.messages import PolicyUpdate, decode, encode
@@ -82,18 +82,17 @@ def test_status_sees_a_worker_die(broker, tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("regime", ["independent", "mutual"])
-def test_coevo_run_end_to_end_and_replay_reproduces_it(tmp_path: Path, regime: str) -> None:
-    r = subprocess.run([sys.executable, "-m", "coevo", "run", "--regime", regime, "--run", f"e2e-{regime}", "--root", str(tmp_path),
-                        "--generations", "4", *SMALL, "--measure-epochs", "5", "--quiet"],
-                       capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stdout + r.stderr
-    run_dir = tmp_path / f"e2e-{regime}"
+def test_coevo_run_end_to_end_and_replay_reproduces_it(request: pytest.FixtureRequest, regime: str) -> None:
+    """A whole ``coevo run`` of each regime (the session's shared finished runs, tests/procs.py: the fixture asserts
+    it ended 0) has every worker's logs and the run's measures, adopts only stored versions, and replays exactly."""
+    run_dir = request.getfixturevalue(f"finished_{regime}")
+    generations = {"mutual": 3, "independent": 4}[regime]  # FINISHED_MUTUAL's and FINISHED_INDEPENDENT's
     summary = json.loads((run_dir / "summary.json").read_text())
     assert set(summary["versions"]) == {"tracking", "docking", "executive"}
     assert "measures" in summary and (run_dir / "measures.json").exists()
     for beh in ("tracking", "docking", "executive"):
         w = run_dir / "workers" / beh
-        assert len((w / "curve.jsonl").read_text().splitlines()) == 4
+        assert len((w / "curve.jsonl").read_text().splitlines()) == generations
         assert (w / "best.rules").exists() and (w / "done.json").exists()
     adopters = {b for b in ("tracking", "docking", "executive") if (run_dir / "workers" / b / "adoptions.jsonl").read_text().strip()}
     # Which adoptions happen depends on scheduling (that is the point); what is adopted must be in the store.
@@ -105,20 +104,18 @@ def test_coevo_run_end_to_end_and_replay_reproduces_it(tmp_path: Path, regime: s
             assert (a["partner"], a["version"]) in stored
     if regime == "independent":
         assert adopters <= {"executive"}  # Tracking and Docking learn with the trivial Executive
-    rr = subprocess.run([sys.executable, "-m", "coevo", "replay", str(run_dir)], capture_output=True, text=True, timeout=300)
+    rr = coevo_main("replay", str(run_dir))  # a reader of files: in this process
     assert rr.returncode == 0, rr.stdout + rr.stderr
     assert rr.stdout.count("reproduced exactly") == 3
 
 
-def test_replay_detects_a_tampered_log(tmp_path: Path) -> None:
-    r = subprocess.run([sys.executable, "-m", "coevo", "run", "--regime", "mutual", "--run", "tamper", "--root", str(tmp_path),
-                        "--generations", "3", *SMALL, "--measure-epochs", "2", "--quiet"], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
-    curve = tmp_path / "tamper" / "workers" / "tracking" / "curve.jsonl"
+def test_replay_detects_a_tampered_log(finished_mutual: Path, tmp_path: Path) -> None:
+    run = copy_of(finished_mutual, tmp_path)  # the session's 3-generation Mutual run
+    curve = run / "workers" / "tracking" / "curve.jsonl"
     rows = [json.loads(x) for x in curve.read_text().splitlines()]
     rows[1]["population_mean"] += 0.125
     curve.write_text("".join(json.dumps(x) + "\n" for x in rows))
-    rr = subprocess.run([sys.executable, "-m", "coevo", "replay", str(tmp_path / "tamper")], capture_output=True, text=True, timeout=300)
+    rr = coevo_main("replay", str(run))
     assert rr.returncode == 1 and "tracking: 3 generations DIFFERS at generation 2" in rr.stdout
 
 
@@ -130,14 +127,12 @@ def test_worker_with_no_broker_fails_clearly(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_executive_learns_from_a_recorded_history_at_a_rate(tmp_path: Path) -> None:
-    r = subprocess.run([sys.executable, "-m", "coevo", "run", "--regime", "independent", "--run", "hist", "--root", str(tmp_path),
-                        "--generations", "4", *SMALL, "--measure-epochs", "2", "--quiet"], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
+def test_executive_learns_from_a_recorded_history_at_a_rate(finished_independent: Path, tmp_path: Path) -> None:
+    history = str(finished_independent)  # the session's 4-generation Independent run (read, not changed)
     outs = {}
     for rate in ("0.5", "2"):
         out = tmp_path / f"exec-{rate}"
-        e = subprocess.run([sys.executable, "-m", "coevo", "learn", "--behaviour", "executive", "--history", str(tmp_path / "hist"),
+        e = subprocess.run([sys.executable, "-m", "coevo", "learn", "--behaviour", "executive", "--history", history,
                             "--rate", rate, "--generations", "4", *SMALL, "--measure-epochs", "2", "--out", str(out), "--quiet"],
                            capture_output=True, text=True, timeout=300)
         assert e.returncode == 0, e.stderr
@@ -145,7 +140,7 @@ def test_executive_learns_from_a_recorded_history_at_a_rate(tmp_path: Path) -> N
     for rate, rows in outs.items():
         for a in rows:  # never adopts a version from the partner's future at this rate
             assert a["partner_generation"] <= a["generation"] * float(rate)
-    bad = subprocess.run([sys.executable, "-m", "coevo", "learn", "--behaviour", "executive", "--history", str(tmp_path / "hist"),
+    bad = subprocess.run([sys.executable, "-m", "coevo", "learn", "--behaviour", "executive", "--history", history,
                           "--rate", "0", "--out", str(tmp_path / "bad"), "--quiet"], capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and "rate" in bad.stderr and not (tmp_path / "bad").exists()
 
@@ -164,7 +159,7 @@ def test_current_policy_model_end_to_end_replays_from_the_log(tmp_path: Path) ->
 
     shutil.rmtree(run_dir / "store")  # the log alone must suffice
     (run_dir / "store").mkdir()
-    rr = subprocess.run([sys.executable, "-m", "coevo", "replay", str(run_dir)], capture_output=True, text=True, timeout=300)
+    rr = coevo_main("replay", str(run_dir))  # a reader of files: in this process
     assert rr.returncode == 0, rr.stdout + rr.stderr
 
 

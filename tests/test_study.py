@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from procs import coevo_main
 from scipy import stats
 
 from coevo.errors import ConfigError, RunDirError
@@ -149,7 +150,7 @@ def test_parse_factor() -> None:
 ])
 def test_the_command_refuses_bad_input_before_anything_runs(tmp_path: Path, args: list[str], message: str) -> None:
     out = tmp_path / "never"
-    r = coevo("study", "--out", str(out), "--quiet", *args) if "--resume" not in args else coevo("study", *args)
+    r = coevo_main("study", "--out", str(out), "--quiet", *args) if "--resume" not in args else coevo_main("study", *args)
     assert r.returncode == 2, r.stdout + r.stderr
     assert message in r.stderr and "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert not out.exists()
@@ -345,9 +346,9 @@ def test_a_tiny_study_killed_with_a_signal_resumes_and_reports(tmp_path: Path) -
     assert not progress.complete and progress.runs_done == len(kept) and progress.runs_total == 4
     assert not (out / COMPLETE).exists() and not (out / "report.md").exists()
 
-    again = coevo("study", "--out", str(out), "--quiet", *TINY, timeout=300)
+    again = coevo_main("study", "--out", str(out), "--quiet", *TINY)
     assert again.returncode == 2 and "add --resume" in again.stderr
-    other = coevo("study", "--out", str(out), "--resume", "--quiet", *TINY[:-1], "4")
+    other = coevo_main("study", "--out", str(out), "--resume", "--quiet", *TINY[:-1], "4")
     assert other.returncode == 2 and "differs in: seed" in other.stderr
     _resume_keeps_what_was_done(out, kept, timeout=400)
     res = json.loads((out / "results.json").read_text())
