@@ -63,6 +63,15 @@ class CelRun(LocalRun):
         # the execution module's line per generation is that generation's trials
         return self.execution_paths.performance if b == EXECUTION else super().progress_log(b)
 
+    def processes(self) -> dict[str, Any]:
+        from coevo.cel_service.robot import Execution
+
+        return {**super().processes(), EXECUTION: Execution(self.settings, out_dir=self.execution_paths.dir,
+                                                            conf=self.client_config(), resume=True, run_key=self.key)}
+
+    def processes_names(self) -> list[str]:
+        return [*super().processes_names(), EXECUTION]
+
     def start(self, *, resume: bool) -> None:
         super().start(resume=resume)
         self.start_worker(EXECUTION, resume=resume)

@@ -1,0 +1,177 @@
+"""A refused command changes nothing (issue 54).
+
+Every command that writes into an existing directory reads every file it will read before it changes anything: a
+damaged one is refused in one line naming it, status 2, no traceback, and the directory is left byte for byte as it
+was (a digest of every path, kind, mode and content before and after).  Tried as a matrix of command x file x damage
+(64 random bytes appended, cut to half, not UTF-8, a directory in its place, deleted), each command a real process.
+
+A damage that a command is built to take is not refused: a log's bytes after what the checkpoint saw (a crash's
+leftovers, cut aside by the resume), a store file (a replica of the workers' published.jsonl, set aside and refilled),
+a done.json or summary.json (written again).  For those the matrix asks, in process, that the command's verification
+finds nothing (their real resumes are run in tests/test_damaged_files.py and tests/test_faults.py); one finished run
+and one finished comparison are made per module and copied for every case, so the matrix costs little CPU.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import random
+import shutil
+import subprocess
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from coevo.experiments.compare.experiment import held_spec, problems
+from coevo.runs.local import LocalRun
+
+pytestmark = pytest.mark.service
+
+
+def _append(f: Path) -> None:
+    with open(f, "ab") as fh:
+        fh.write(random.Random(54).randbytes(64))
+
+
+def _truncate(f: Path) -> None:
+    data = f.read_bytes()
+    f.write_bytes(data[: len(data) // 2])
+
+
+def _not_utf8(f: Path) -> None:
+    f.write_bytes(b"\xff\xfe" + f.read_bytes()[2:])
+
+
+def _directory(f: Path) -> None:
+    f.unlink()
+    f.mkdir()
+
+
+DAMAGES: dict[str, Callable[[Path], None]] = {"appended": _append, "truncated": _truncate, "not_utf8": _not_utf8,
+                                              "directory": _directory, "deleted": Path.unlink}
+
+#: The files of a finished run that ``coevo run --resume`` reads or replaces, and the damages it takes (not refused).
+REPLACED = {"appended", "truncated", "not_utf8", "deleted"}  # a file the command writes again
+RUN_FILES: dict[str, set[str]] = {
+    "run.json": set(),
+    "secret.key": set(),
+    "workers/tracking/worker.json": set(),
+    "workers/tracking/checkpoint.msgpack": set(),
+    "workers/tracking/curve.jsonl": {"appended"},  # after what the checkpoint saw: cut aside, kept in .cut-1
+    "workers/tracking/published.jsonl": {"appended"},
+    "workers/docking/adoptions.jsonl": {"appended"},
+    "store/tracking.jsonl": REPLACED,  # a replica of published.jsonl: set aside and refilled
+    "workers/tracking/done.json": REPLACED,
+    "summary.json": REPLACED,
+    "logs/worker-tracking.log": REPLACED,  # appended to
+}
+
+#: The files of a finished comparison that ``coevo compare --resume`` and ``--report-only`` read, and the damages
+#: each takes.  A finished run's summary.json deleted makes it unfinished: resumed, or left out of the report.
+RUN = "runs/independent-00"
+COMPARE_FILES: dict[str, dict[str, set[str]]] = {
+    "compare.json": {"resume": set(), "report-only": set()},
+    f"{RUN}/summary.json": {"resume": {"deleted"}, "report-only": {"deleted"}},
+    f"{RUN}/workers/executive/curve.jsonl": {"resume": set(), "report-only": set()},
+    f"{RUN}/workers/docking/best.rules": {"resume": set(), "report-only": set()},
+}
+
+
+def coevo(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "coevo", *args], capture_output=True, text=True, errors="replace",
+                          timeout=120)
+
+
+def digest(d: Path) -> str:
+    """Every path under ``d`` with its kind, mode and content, as one sha256."""
+    h = hashlib.sha256()
+    for root, dirs, files in sorted(os.walk(d)):
+        dirs.sort()
+        for name in sorted(dirs + files):
+            p = Path(root) / name
+            st = p.lstat()
+            h.update(f"{p.relative_to(d)}\0{st.st_mode}\0".encode())
+            if p.is_file():
+                h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+def refused_in_one_line(res: subprocess.CompletedProcess[str], f: Path) -> str:
+    """The command's one-line refusal (status 2), which names ``f`` (a deleted one: its name and folder)."""
+    assert "Traceback" not in res.stderr, res.stderr
+    err = res.stderr.strip()
+    assert res.returncode == 2 and len(err.splitlines()) == 1, (res.returncode, res.stdout, err)
+    assert str(f) in err or (f.name in err and str(f.parent) in err), err
+    return err
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("runs")
+    res = coevo("run", "--regime", "mutual", "--generations", "3", "--population", "6", "--episodes", "4",
+                "--measure-epochs", "1", "--root", str(root), "--run", "small", "--quiet")
+    assert res.returncode == 0, res.stderr
+    return root / "small"
+
+
+@pytest.fixture(scope="module")
+def comparison(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("compare") / "cmp"
+    res = coevo("compare", "--regimes", "independent", "--runs", "1", "--generations", "3", "--population", "6",
+                "--episodes", "4", "--measure-epochs", "1", "--out", str(out), "--quiet")
+    assert res.returncode == 0, res.stdout + res.stderr
+    return out
+
+
+class TestRefusals:
+    """One class, so that one xdist worker makes the module's run and comparison once and takes every case."""
+
+    @pytest.mark.parametrize("how", DAMAGES)
+    @pytest.mark.parametrize("name", RUN_FILES)
+    def test_run_resume_refuses_a_damaged_file_and_changes_nothing(self, finished: Path, tmp_path: Path, name: str,
+                                                                  how: str) -> None:
+        run = tmp_path / finished.name
+        shutil.copytree(finished, run)
+        f = run / name
+        DAMAGES[how](f)
+        if how in RUN_FILES[name]:  # taken: the resume's verification finds nothing to refuse
+            assert LocalRun.resumable(run).problems() == []
+            return
+        before = digest(run)
+        refused_in_one_line(coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet"), f)
+        assert digest(run) == before
+
+    @pytest.mark.parametrize("command", ["resume", "report-only"])
+    @pytest.mark.parametrize("how", DAMAGES)
+    @pytest.mark.parametrize("name", COMPARE_FILES)
+    def test_compare_refuses_a_damaged_file_and_changes_nothing(self, comparison: Path, tmp_path: Path, name: str,
+                                                                how: str, command: str) -> None:
+        out = tmp_path / "cmp"
+        shutil.copytree(comparison, out)
+        f = out / name
+        DAMAGES[how](f)
+        if how in COMPARE_FILES[name][command]:
+            spec = held_spec(out)
+            assert spec is not None and problems(out, spec, report_only=command == "report-only") == []
+            return
+        before = digest(out)
+        # no settings repeated: the comparison's own are used (compare.json)
+        refused_in_one_line(coevo("compare", f"--{command}", "--out", str(out), "--quiet"), f)
+        assert digest(out) == before
+
+    def test_compare_resume_and_report_only_use_the_comparisons_own_settings(self, comparison: Path,
+                                                                             tmp_path: Path) -> None:
+        out = tmp_path / "cmp"
+        shutil.copytree(comparison, out)
+        for command in ("--resume", "--report-only"):
+            res = coevo("compare", command, "--out", str(out), "--quiet")
+            assert res.returncode == 0 and "Traceback" not in res.stderr, res.stdout + res.stderr
+            assert "differs" not in res.stderr
+        assert "1 of 1 runs already done, 0 to run" in coevo("compare", "--resume", "--out", str(out),
+                                                             "--quiet").stdout
+        # a setting given that is not the comparison's is still refused, naming it
+        res = coevo("compare", "--resume", "--out", str(out), "--runs", "2", "--quiet")
+        assert res.returncode == 2 and "differs in: runs" in res.stderr and "Traceback" not in res.stderr
