@@ -26,6 +26,8 @@ from pathlib import Path
 import pytest
 
 from coevo.experiments.compare.experiment import held_spec, problems
+from coevo.experiments.study.declaration import study_cells
+from coevo.experiments.study.experiment import check_cells, held_declaration
 from coevo.runs.local import LocalRun
 
 pytestmark = pytest.mark.service
@@ -80,6 +82,16 @@ COMPARE_FILES: dict[str, dict[str, set[str]]] = {
 }
 
 
+#: The same for ``coevo study --resume`` and ``--report-only`` (a study of one cell, a comparison of one run).
+CELL = "cells/00-all"
+STUDY_FILES: dict[str, set[str]] = {
+    "study.json": set(),
+    f"{CELL}/compare.json": set(),
+    f"{CELL}/{RUN}/summary.json": {"deleted"},
+    f"{CELL}/{RUN}/workers/executive/curve.jsonl": set(),
+}
+
+
 def coevo(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "coevo", *args], capture_output=True, text=True, errors="replace",
                           timeout=120)
@@ -121,6 +133,15 @@ def finished(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def comparison(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("compare") / "cmp"
     res = coevo("compare", "--regimes", "independent", "--runs", "1", "--generations", "3", "--population", "6",
+                "--episodes", "4", "--measure-epochs", "1", "--out", str(out), "--quiet")
+    assert res.returncode == 0, res.stdout + res.stderr
+    return out
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("study") / "st"
+    res = coevo("study", "--factor", "regime=independent", "--runs", "1", "--generations", "3", "--population", "6",
                 "--episodes", "4", "--measure-epochs", "1", "--out", str(out), "--quiet")
     assert res.returncode == 0, res.stdout + res.stderr
     return out
@@ -175,3 +196,21 @@ class TestRefusals:
         # a setting given that is not the comparison's is still refused, naming it
         res = coevo("compare", "--resume", "--out", str(out), "--runs", "2", "--quiet")
         assert res.returncode == 2 and "differs in: runs" in res.stderr and "Traceback" not in res.stderr
+
+    @pytest.mark.parametrize("command", ["resume", "report-only"])
+    @pytest.mark.parametrize("how", DAMAGES)
+    @pytest.mark.parametrize("name", STUDY_FILES)
+    def test_study_refuses_a_damaged_file_and_changes_nothing(self, study: Path, tmp_path: Path, name: str, how: str,
+                                                              command: str) -> None:
+        out = tmp_path / "st"
+        shutil.copytree(study, out)
+        f = out / name
+        DAMAGES[how](f)
+        if how in STUDY_FILES[name]:
+            spec = held_declaration(out)
+            assert spec is not None
+            check_cells(out, study_cells(spec), report_only=command == "report-only")  # raises what it finds
+            return
+        before = digest(out)
+        refused_in_one_line(coevo("study", f"--{command}", "--out", str(out), "--quiet"), f)
+        assert digest(out) == before
