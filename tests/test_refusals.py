@@ -214,3 +214,57 @@ class TestRefusals:
         before = digest(out)
         refused_in_one_line(coevo("study", f"--{command}", "--out", str(out), "--quiet"), f)
         assert digest(out) == before
+
+    def test_check_is_not_complete_for_a_run_whose_checkpoint_a_resume_refuses(self, finished: Path,
+                                                                                tmp_path: Path) -> None:
+        from coevo.runs.check import check_run
+
+        run = tmp_path / finished.name
+        shutil.copytree(finished, run)
+        assert check_run(run, replay=False).ok
+        f = run / "workers" / "tracking" / "checkpoint.msgpack"
+        f.write_bytes(random.Random(54).randbytes(300))
+        problems = check_run(run, replay=False).problems
+        assert len(problems) == 1 and str(f) in problems[0], problems
+
+
+def test_an_endpoint_of_an_unknown_protocol_is_refused_before_zenoh_tries_it() -> None:
+    from coevo.bus.session import PROTOCOLS, check_endpoint
+    from coevo.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="unknown protocol 'xyz'") as exc:
+        check_endpoint("xyz/127.0.0.1:7447", listen=False)
+    assert all(p in str(exc.value) for p in PROTOCOLS)
+    for p in ("tcp/127.0.0.1:7447", "unixsock-stream//tmp/sock"):
+        check_endpoint(p, listen=False)
+
+
+class TestHistory:
+    """``coevo learn --history RUN`` reads a run's partner logs as every reader does (in process: not about processes)."""
+
+    @pytest.mark.parametrize("log", ["published.jsonl", "adoptions.jsonl"])
+    def test_a_damaged_partner_log_is_refused_naming_file_and_line(self, finished: Path, tmp_path: Path,
+                                                                   log: str) -> None:
+        from coevo.agents.history import HistoryFeed
+        from coevo.errors import RunDirError
+
+        run = tmp_path / finished.name
+        shutil.copytree(finished, run)
+        HistoryFeed(run, 1.0, partners=("tracking", "docking"))
+        f = run / "workers" / "docking" / log
+        lines = len(f.read_bytes().splitlines())
+        with open(f, "ab") as fh:
+            fh.write(b"\xff\xfe\n")
+        with pytest.raises(RunDirError, match=f"{f} line {lines + 1} is not UTF-8"):
+            HistoryFeed(run, 1.0, partners=("tracking", "docking"))
+
+    def test_a_run_of_another_task_is_named_as_such_not_as_unfinished(self, finished: Path, tmp_path: Path) -> None:
+        from coevo.agents.history import HistoryFeed
+        from coevo.errors import RunDirError
+        from coevo.rundir.settings import RunSettings
+
+        run = tmp_path / finished.name
+        shutil.copytree(finished, run)
+        RunSettings.make(run=run.name, task="door", regime="independent").save(run / "run.json")
+        with pytest.raises(RunDirError, match="is a run of the door task .* holds no tracking or docking history"):
+            HistoryFeed(run, 1.0, partners=("tracking", "docking"))
