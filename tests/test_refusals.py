@@ -268,3 +268,21 @@ class TestHistory:
         RunSettings.make(run=run.name, task="door", regime="independent").save(run / "run.json")
         with pytest.raises(RunDirError, match="is a run of the door task .* holds no tracking or docking history"):
             HistoryFeed(run, 1.0, partners=("tracking", "docking"))
+
+
+def test_cluster_says_at_once_where_it_connects_and_gives_up_after_its_timeout(tmp_path: Path) -> None:
+    """``--cluster ADDRESS`` with nothing listening: a line naming the scheduler first, then one error after
+    ``--cluster-timeout`` (it was 30 s of silence)."""
+    import time
+
+    t0 = time.monotonic()
+    p = subprocess.Popen([sys.executable, "-m", "coevo", "seeds", "--cluster", "tcp://127.0.0.1:1", "--cluster-timeout",
+                          "8", "--out", str(tmp_path / "seeds"), "--quiet"], stderr=subprocess.PIPE, text=True)
+    assert p.stderr is not None
+    first = p.stderr.readline()
+    said = time.monotonic() - t0
+    rest = p.stderr.read()
+    p.wait(timeout=60)
+    assert "connecting to the Dask scheduler at tcp://127.0.0.1:1" in first and said < 8, (first, said)
+    assert p.returncode != 0 and "Traceback" not in rest and len(rest.strip().splitlines()) == 1, rest
+    assert "cannot reach the Dask scheduler tcp://127.0.0.1:1 within 8 s" in rest
