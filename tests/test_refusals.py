@@ -92,6 +92,17 @@ STUDY_FILES: dict[str, set[str]] = {
 }
 
 
+#: The same for ``coevo seeds --resume`` (one docking seed): a run without its measures is unfinished and run again;
+#: the report's files are written again.
+SEEDS = ["seeds", "--behaviours", "docking", "--seeds", "1", "--generations", "2", "--learn-arg=--population=6",
+         "--learn-arg=--episodes=4", "--learn-arg=--measure-epochs=1", "--quiet"]
+SEEDS_FILES: dict[str, set[str]] = {
+    "runs/docking-seed0/measures.json": {"deleted"},
+    "runs/docking-seed0/timing.json": {"deleted"},
+    "summary.json": REPLACED,
+}
+
+
 def coevo(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "coevo", *args], capture_output=True, text=True, errors="replace",
                           timeout=120)
@@ -143,6 +154,14 @@ def study(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("study") / "st"
     res = coevo("study", "--factor", "regime=independent", "--runs", "1", "--generations", "3", "--population", "6",
                 "--episodes", "4", "--measure-epochs", "1", "--out", str(out), "--quiet")
+    assert res.returncode == 0, res.stdout + res.stderr
+    return out
+
+
+@pytest.fixture(scope="module")
+def seeds(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("seeds") / "sd"
+    res = coevo(*SEEDS, "--out", str(out))
     assert res.returncode == 0, res.stdout + res.stderr
     return out
 
@@ -213,6 +232,23 @@ class TestRefusals:
             return
         before = digest(out)
         refused_in_one_line(coevo("study", f"--{command}", "--out", str(out), "--quiet"), f)
+        assert digest(out) == before
+
+    @pytest.mark.parametrize("how", DAMAGES)
+    @pytest.mark.parametrize("name", SEEDS_FILES)
+    def test_seeds_resume_refuses_a_damaged_file_and_changes_nothing(self, seeds: Path, tmp_path: Path, name: str,
+                                                                     how: str) -> None:
+        from coevo.experiments.seeds.experiment import problems as seeds_problems
+
+        out = tmp_path / "sd"
+        shutil.copytree(seeds, out)
+        f = out / name
+        DAMAGES[how](f)
+        if how in SEEDS_FILES[name]:
+            assert seeds_problems(out, ["docking"], [0]) == []
+            return
+        before = digest(out)
+        refused_in_one_line(coevo(*SEEDS, "--resume", "--out", str(out)), f)
         assert digest(out) == before
 
     def test_check_is_not_complete_for_a_run_whose_checkpoint_a_resume_refuses(self, finished: Path,
