@@ -103,6 +103,18 @@ SEEDS_FILES: dict[str, set[str]] = {
 }
 
 
+#: The same for ``coevo cel --resume``: the execution module's directory and the learner's own logs.
+CEL_FILES: dict[str, set[str]] = {
+    "execution/execution.json": set(),
+    "execution/checkpoint.msgpack": set(),
+    "execution/performance.jsonl": {"appended"},
+    "workers/door/cases.jsonl": {"appended", "truncated", "not_utf8"},  # empty (no case base): all past the checkpoint
+    "workers/door/changes.jsonl": {"appended"},
+    "execution/done.json": REPLACED,
+    "cel.json": REPLACED,
+}
+
+
 def coevo(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "coevo", *args], capture_output=True, text=True, errors="replace",
                           timeout=120)
@@ -164,6 +176,15 @@ def seeds(tmp_path_factory: pytest.TempPathFactory) -> Path:
     res = coevo(*SEEDS, "--out", str(out))
     assert res.returncode == 0, res.stdout + res.stderr
     return out
+
+
+@pytest.fixture(scope="module")
+def cel_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("cel")
+    res = coevo("cel", "--root", str(root), "--run", "c", "--generations", "3", "--fail", "2:front", "--population", "6",
+                "--episodes", "4", "--quiet")
+    assert res.returncode == 0, res.stdout + res.stderr
+    return root / "c"
 
 
 class TestRefusals:
@@ -233,6 +254,23 @@ class TestRefusals:
         before = digest(out)
         refused_in_one_line(coevo("study", f"--{command}", "--out", str(out), "--quiet"), f)
         assert digest(out) == before
+
+    @pytest.mark.parametrize("how", DAMAGES)
+    @pytest.mark.parametrize("name", CEL_FILES)
+    def test_cel_resume_refuses_a_damaged_file_and_changes_nothing(self, cel_run: Path, tmp_path: Path, name: str,
+                                                                   how: str) -> None:
+        from coevo.runs.cel import CelRun
+
+        run = tmp_path / cel_run.name
+        shutil.copytree(cel_run, run)
+        f = run / name
+        DAMAGES[how](f)
+        if how in CEL_FILES[name]:
+            assert CelRun.resumable(run).problems() == []
+            return
+        before = digest(run)
+        refused_in_one_line(coevo("cel", "--resume", str(run), "--quiet"), f)
+        assert digest(run) == before
 
     @pytest.mark.parametrize("how", DAMAGES)
     @pytest.mark.parametrize("name", SEEDS_FILES)

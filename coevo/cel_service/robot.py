@@ -167,7 +167,8 @@ class Execution:
         state = load_checkpoint(p.checkpoint, self._ident(), advice=". Put back an intact checkpoint, or start the "
                                 "run again as a new run")
         if state is None and any(f.exists() and f.stat().st_size for f in (p.dir / n for n in ExecutionPaths.LOGS)):
-            raise RunDirError(f"execution directory {str(p.dir)!r} holds logs but no checkpoint; it cannot be resumed")
+            raise RunDirError(f"execution directory {str(p.dir)!r} holds logs but no checkpoint ({p.checkpoint} is "
+                              "missing); it cannot be resumed")
         return state
 
     def resume_problems(self) -> list[str]:

@@ -27,7 +27,8 @@ from typing import Any
 
 from coevo.bus.messages import CaseUpdate
 from coevo.errors import ConfigError, RunDirError
-from coevo.rundir.layout import ExecutionPaths, RunPaths, read_cases, read_json, read_jsonl, write_csv, write_json
+from coevo.rundir.layout import (ExecutionPaths, RunPaths, not_a_file, read_cases, read_json, read_jsonl, write_csv,
+                                 write_json)
 from coevo.runs.local import LocalRun
 from coevo.tasks.door import DOOR
 
@@ -71,6 +72,10 @@ class CelRun(LocalRun):
 
     def processes_names(self) -> list[str]:
         return [*super().processes_names(), EXECUTION]
+
+    def problems(self) -> list[str]:
+        # and where its end writes what the run did
+        return not_a_file([self.paths.dir / "cel.json", self.paths.dir / "performance.csv"]) + super().problems()
 
     def start(self, *, resume: bool) -> None:
         super().start(resume=resume)
