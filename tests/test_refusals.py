@@ -360,3 +360,22 @@ def test_cluster_says_at_once_where_it_connects_and_gives_up_after_its_timeout(t
     assert "connecting to the Dask scheduler at tcp://127.0.0.1:1" in first and said < 8, (first, said)
     assert p.returncode != 0 and "Traceback" not in rest and len(rest.strip().splitlines()) == 1, rest
     assert "cannot reach the Dask scheduler tcp://127.0.0.1:1 within 8 s" in rest
+
+
+def test_a_learn_stopped_by_sigterm_leaves_no_partial_folder(tmp_path: Path) -> None:
+    """``coevo learn`` writes its folder under a hidden temporary name; SIGTERM (a scheduler's, a backend's stop) now
+    removes it as a Ctrl-C does, where it used to end the process at once and leave ``.NAME.*.partial`` behind."""
+    from coevo.runs.local import wait_until
+
+    p = subprocess.Popen([sys.executable, "-m", "coevo", "learn", "--behaviour", "docking", "--generations", "1000",
+                          "--population", "6", "--episodes", "4", "--out", str(tmp_path / "x"), "--quiet"],
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        wait_until(lambda: list(tmp_path.glob(".x.*.partial/config.json")) or p.poll() is not None, 60,
+                   "coevo learn's staged folder")
+        assert p.poll() is None
+    finally:
+        p.terminate()
+        _, err = p.communicate(timeout=60)
+    assert p.returncode == 130 and "Traceback" not in err, err
+    assert list(tmp_path.iterdir()) == []

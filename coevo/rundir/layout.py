@@ -25,8 +25,10 @@ import glob
 import json
 import os
 import shutil
+import signal
 import socket
 import tempfile
+import threading
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -393,7 +395,8 @@ def staged_dir(final: Path) -> Iterator[Path]:
     except OSError as exc:
         raise RunDirError(f"cannot create output directory {str(final)!r}: {exc.strerror or exc}") from exc
     try:
-        yield tmp
+        with _sigterm_stops():
+            yield tmp
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -403,6 +406,26 @@ def staged_dir(final: Path) -> Iterator[Path]:
     os.replace(tmp, final)
 
 
+
+
+@contextmanager
+def _sigterm_stops() -> Iterator[None]:
+    """SIGTERM as a stop (KeyboardInterrupt) while a staged directory is written, so that it is removed as after a
+    Ctrl-C; by default SIGTERM ends the process at once and leaves it behind (``.NAME.*.partial``) until the next
+    command there.  Only where SIGTERM has its default action (a command's own handler is kept) and in the main
+    thread (the only one that may set a handler)."""
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGTERM) != signal.SIG_DFL:
+        yield
+        return
+
+    def _stop(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    signal.signal(signal.SIGTERM, _stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def ensure_dir(path: Path, *, what: str) -> Path:
