@@ -19,6 +19,7 @@ from scipy import stats
 
 from coevo.experiments.compare.stats import compare_groups, compare_samples, magnitude, mean_interval, mean_intervals
 from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
+from coevo.rundir.settings import RunSettings
 
 TINY = ["--runs", "2", "--generations", "3", "--population", "6", "--episodes", "10", "--ga", "best_episodes=10",
         "--ga", "initial_rules=8", "--measure-epochs", "5", "--jobs", "2", "--quiet"]
@@ -391,7 +392,7 @@ def test_independent_offline_learns_the_executive_on_the_live_histories_at_each_
 def test_a_history_that_is_incomplete_is_refused(tmp_path: Path) -> None:
     run = tmp_path / "half"
     (run / "workers" / "tracking").mkdir(parents=True)
-    (run / "run.json").write_text("{}")
+    RunSettings.make(run="half", regime="independent").save(run / "run.json")
     (run / "workers" / "tracking" / "done.json").write_text(json.dumps({"finished": False, "generations": 12}))
     r = coevo_main("learn", "--behaviour", "executive", "--history", str(run), "--quiet", "--out", str(tmp_path / "x"))
     assert r.returncode == 2 and "is incomplete" in r.stderr and "tracking" in r.stderr and "12 generations" in r.stderr

@@ -38,7 +38,8 @@ from coevo.rundir.layout import WorkerPaths, cut_back, read_json, write_bytes, w
 
 log = logging.getLogger(__name__)
 
-__all__ = ["FORMAT", "save_checkpoint", "load_checkpoint", "resume_state", "truncate_log", "prepare_dir", "cut_logs"]
+__all__ = ["FORMAT", "save_checkpoint", "load_checkpoint", "resume_state", "truncate_log", "prepare_dir", "check_settings",
+           "resume_problems", "cut_logs"]
 
 FORMAT = "coevo-checkpoint/1"
 
@@ -123,17 +124,67 @@ def prepare_dir(directory: Path, *, what: str, meta_file: Path, meta: dict[str, 
             f.touch()
         return
     if meta_file.exists():
-        held = read_json(meta_file, what=f"{what} directory (its {meta_file.name})")
-        if saved is not None:
-            held = saved(held)
-        diff = [f"{k} was {held.get(k)!r}, now {meta[k]!r}" for k in meta if k != "coevo" and held.get(k) != meta[k]]
-        if diff:
-            raise ConfigError(f"--resume of {str(directory)!r} with other settings: {'; '.join(diff)}")
+        check_settings(directory, meta_file, meta, saved=saved, what=what)
+    elif checkpoint.exists():
+        raise RunDirError(f"{str(meta_file)!r} is missing beside the checkpoint {checkpoint.name}: the {what} "
+                          "directory lost its settings; put them back (a backup) before resuming")
     else:  # resumed before its first start made anything (it died on the way): as a fresh start
         write_json(meta_file, meta)
     if not checkpoint.exists():  # it never reached its first checkpoint: its logs start empty, and must be there
         for f in logs:
             f.touch()
+
+
+def check_settings(directory: Path, meta_file: Path, meta: dict[str, Any], *, what: str,
+                   saved: Callable[[dict[str, Any]], dict[str, Any]] | None = None) -> None:
+    """That the settings file ``meta_file`` of a process's directory says ``meta`` (but for the ``coevo`` version):
+    a RunDirError if it cannot be read, a ConfigError naming each difference."""
+    held = read_json(meta_file, what=f"{what} directory (its {meta_file.name})")
+    if saved is not None:
+        try:
+            held = saved(held)
+        except ConfigError as exc:
+            raise RunDirError(f"{str(meta_file)!r}: {exc}") from None
+    diff = [f"{k} was {held.get(k)!r}, now {meta[k]!r}" for k in meta if k != "coevo" and held.get(k) != meta[k]]
+    if diff:
+        raise ConfigError(f"--resume of {str(directory)!r} with other settings: {'; '.join(diff)}")
+
+
+def resume_problems(directory: Path, *, what: str, meta_file: Path, meta: dict[str, Any], logs: Sequence[Path],
+                    checkpoint: Path, load: Callable[[], dict[str, Any] | None], sizes: Callable[[dict[str, Any]], Mapping[str, int]],
+                    writes: Sequence[Path] = (), saved: Callable[[dict[str, Any]], dict[str, Any]] | None = None) -> list[str]:
+    """What would stop a ``--resume`` of the process whose directory this is, found by reading every file it
+    reads as it will (:func:`prepare_dir`, ``load`` for its checkpoint, :func:`cut_logs` with the sizes ``sizes``
+    finds in it) and changing nothing: one line a problem.  ``writes``: the files it replaces or appends to, which
+    must be files if they are there.  Empty: the resume can start."""
+    from coevo.rundir.layout import line_problems, not_a_file
+    from coevo.rundir.records import LOG_SCHEMAS
+
+    if not directory.exists():
+        return []  # a process that never started: it starts afresh
+    if not directory.is_dir():
+        return [f"{what} directory {str(directory)!r} is not a directory"]
+    problems = not_a_file([meta_file, checkpoint, *logs, *writes])
+    if problems:
+        return problems
+    if meta_file.exists():
+        try:
+            check_settings(directory, meta_file, meta, saved=saved, what=what)
+        except (ConfigError, RunDirError) as exc:
+            return [str(exc)]
+    elif checkpoint.exists():
+        return [f"{str(meta_file)!r} is missing beside the checkpoint {checkpoint.name}: the {what} directory lost "
+                "its settings; put them back (a backup) before resuming"]  # as prepare_dir refuses it
+    try:
+        state = load()
+    except RunDirError as exc:
+        return [str(exc)]
+    if state is None:
+        return []  # it never reached its first checkpoint: it starts afresh with empty logs
+    saw = sizes(state)
+    for f in logs:
+        problems += line_problems(f, upto=int(saw.get(f.name, 0)), schema=LOG_SCHEMAS.get(f.name))
+    return problems
 
 
 def cut_logs(logs: Sequence[Path], sizes: Mapping[str, int]) -> None:

@@ -10,13 +10,12 @@ generation ``<= g * rate``.  Deterministic, and needs no network.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 from coevo.bus.messages import PolicyUpdate
 from coevo.errors import ConfigError, RunDirError
-from coevo.rundir.layout import RunPaths, read_store
+from coevo.rundir.layout import RunPaths, read_json, read_jsonl, read_store
 
 __all__ = ["HistoryFeed"]
 
@@ -51,17 +50,30 @@ class HistoryFeed:
 
 
 def _check_finished(run_dir: Path, partners: tuple[str, ...]) -> None:
-    """A history must be a whole run: its run.json, and every partner done with every generation."""
-    if not RunPaths(run_dir).run_json.is_file():
+    """A history must be a whole run of a task with these partners: its run.json, and every partner done with
+    every generation, its logs whole (a damaged line of ``published.jsonl`` or ``adoptions.jsonl`` is a RunDirError
+    naming the file and line, as every reader of a run refuses one)."""
+    from coevo.rundir.records import AdoptionLine
+    from coevo.rundir.settings import RunSettings
+
+    paths = RunPaths(run_dir)
+    if not paths.run_json.is_file():
         raise RunDirError(f"{str(run_dir)!r} is not a run directory (no run.json): --history needs a finished "
                           "coevo run directory")
+    settings = RunSettings.load(paths.run_json)
+    behaviours = tuple(settings.the_task.behaviours)
+    missing = [b for b in partners if b not in behaviours]
+    if missing:
+        raise RunDirError(f"{str(run_dir)!r} is a run of the {settings.the_task.name} task (behaviours "
+                          f"{', '.join(behaviours)}): it holds no {' or '.join(missing)} history to learn on")
     for b in partners:
-        f = RunPaths(run_dir).worker(b).done
-        try:
-            done = json.loads(f.read_text())
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-            done = None  # reported below as "no done.json"
-        if not isinstance(done, dict) or not done.get("finished"):
-            got = f"{done.get('generations')} generations" if isinstance(done, dict) else "no done.json"
-            raise RunDirError(f"{str(run_dir)!r} is incomplete: its {b} worker did not finish ({got}); "
+        w = paths.worker(b)
+        if not (w.done.exists() or w.done.is_symlink()):
+            raise RunDirError(f"{str(run_dir)!r} is incomplete: its {b} worker did not finish (no done.json); "
                               f"continue it with coevo run --resume {run_dir}")
+        done = read_json(w.done, what="worker directory (its done.json)")
+        if not done.get("finished"):
+            raise RunDirError(f"{str(run_dir)!r} is incomplete: its {b} worker did not finish "
+                              f"({done.get('generations')} generations); continue it with coevo run --resume {run_dir}")
+        read_store(w.published)
+        read_jsonl(w.adoptions, schema=AdoptionLine)

@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from coevo import __version__
-from coevo.agents.checkpoint import cut_logs, prepare_dir, resume_state, save_checkpoint
+from coevo.agents.checkpoint import cut_logs, prepare_dir, resume_problems, resume_state, save_checkpoint
 from coevo.agents.inbox import INBOX, Inbox
 from coevo.agents.models import PartnerModels
 from coevo.agents.outbox import BrokerWatch, Outbox
@@ -157,6 +157,15 @@ class Worker:
         state = resume_state(p, self._ident())
         cut_logs(logs, state["worker"]["log_sizes"] if state else {})
         return state
+
+    def resume_problems(self) -> list[str]:
+        """What would stop this worker's ``--resume`` (:meth:`_prepare`), found by reading every file of its directory
+        that it reads, changing nothing: one line a problem (:func:`~coevo.agents.checkpoint.resume_problems`)."""
+        p = self.paths
+        return resume_problems(p.dir, what="worker", meta_file=p.worker_json, meta=self.meta(),
+                               logs=[p.dir / n for n in self.logs], checkpoint=p.checkpoint,
+                               load=lambda: resume_state(p, self._ident()), sizes=lambda s: s["worker"]["log_sizes"],
+                               writes=[p.machines, p.done, p.best_rules], saved=_saved_meta)
 
     def restore(self, ga: GA, state: dict[str, Any] | None) -> float:
         """Continue from the checkpoint ``state``; the seconds it had spent pacing."""

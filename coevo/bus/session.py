@@ -154,6 +154,8 @@ def _endpoints(section: dict[str, Any] | None, mode: str) -> list[str]:
 
 
 _PORTED = ("tcp/", "udp/", "tls/", "quic/", "ws/")
+#: The link protocols zenoh knows (its transport links); any other it takes its 30 s connect timeout to refuse.
+PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws", "unixsock-stream", "unixpipe", "serial", "vsock")
 
 
 def check_endpoint(ep: str, *, listen: bool) -> None:
@@ -164,6 +166,8 @@ def check_endpoint(ep: str, *, listen: bool) -> None:
     proto, slash, rest = ep.partition("/")
     if not slash or not proto or not rest or not proto.replace("-", "").isalnum():
         raise ConfigError(f"endpoint {ep!r} is not PROTOCOL/ADDRESS (e.g. tcp/127.0.0.1:7447)")
+    if proto not in PROTOCOLS:
+        raise ConfigError(f"endpoint {ep!r}: unknown protocol {proto!r} (zenoh knows {', '.join(PROTOCOLS)})")
     if not ep.startswith(_PORTED):
         return  # unixsock-stream/PATH, serial/..., and others zenoh knows: its own checks
     addr = ep.split("/", 1)[1].split("#", 1)[0].split("?", 1)[0]

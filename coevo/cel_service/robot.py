@@ -44,7 +44,7 @@ from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
 from coevo import __version__
-from coevo.agents.checkpoint import cut_logs, load_checkpoint, prepare_dir, save_checkpoint
+from coevo.agents.checkpoint import cut_logs, load_checkpoint, prepare_dir, resume_problems, save_checkpoint
 from coevo.agents.outbox import BrokerWatch
 from coevo.agents.pacing import Pacer
 from coevo.bus import keys
@@ -161,6 +161,24 @@ class Execution:
         return {"coevo": __version__, **self._ident(), "generations": self.generations,
                 "world": self.world.model_dump(mode="json"), "cel": self.cel.model_dump(mode="json")}
 
+    def _load(self) -> dict[str, Any] | None:
+        """The checkpoint to resume from (None: none, and no logs either); a RunDirError if it cannot be resumed."""
+        p = self.paths
+        state = load_checkpoint(p.checkpoint, self._ident(), advice=". Put back an intact checkpoint, or start the "
+                                "run again as a new run")
+        if state is None and any(f.exists() and f.stat().st_size for f in (p.dir / n for n in ExecutionPaths.LOGS)):
+            raise RunDirError(f"execution directory {str(p.dir)!r} holds logs but no checkpoint ({p.checkpoint} is "
+                              "missing); it cannot be resumed")
+        return state
+
+    def resume_problems(self) -> list[str]:
+        """What would stop this module's ``--resume`` (:meth:`_prepare`), found by reading every file of its directory
+        that it reads, changing nothing: one line a problem."""
+        p = self.paths
+        return resume_problems(p.dir, what="execution", meta_file=p.meta_json, meta=self._meta(),
+                               logs=[p.dir / n for n in ExecutionPaths.LOGS], checkpoint=p.checkpoint, load=self._load,
+                               sizes=lambda s: s["log_sizes"], writes=[p.done])
+
     def _prepare(self) -> None:
         """Create the directory, or check it, cut its logs back to the checkpoint and restore the state (``resume``)."""
         p = self.paths
@@ -169,10 +187,7 @@ class Execution:
                     resume=self.resume)
         if not self.resume:
             return
-        state = load_checkpoint(p.checkpoint, self._ident(), advice=". Put back an intact checkpoint, or start the "
-                                "run again as a new run")
-        if state is None and any(f.exists() and f.stat().st_size for f in logs):
-            raise RunDirError(f"execution directory {str(p.dir)!r} holds logs but no checkpoint; it cannot be resumed")
+        state = self._load()
         cut_logs(logs, state["log_sizes"] if state else {})
         if state is None:
             return

@@ -27,7 +27,8 @@ from typing import Any
 
 from coevo.bus.messages import CaseUpdate
 from coevo.errors import ConfigError, RunDirError
-from coevo.rundir.layout import ExecutionPaths, RunPaths, read_cases, read_json, read_jsonl, write_csv, write_json
+from coevo.rundir.layout import (ExecutionPaths, RunPaths, not_a_file, read_cases, read_json, read_jsonl, write_csv,
+                                 write_json)
 from coevo.runs.local import LocalRun
 from coevo.tasks.door import DOOR
 
@@ -62,6 +63,19 @@ class CelRun(LocalRun):
     def progress_log(self, b: str) -> Path:
         # the execution module's line per generation is that generation's trials
         return self.execution_paths.performance if b == EXECUTION else super().progress_log(b)
+
+    def processes(self) -> dict[str, Any]:
+        from coevo.cel_service.robot import Execution
+
+        return {**super().processes(), EXECUTION: Execution(self.settings, out_dir=self.execution_paths.dir,
+                                                            conf=self.client_config(), resume=True, run_key=self.key)}
+
+    def processes_names(self) -> list[str]:
+        return [*super().processes_names(), EXECUTION]
+
+    def problems(self) -> list[str]:
+        # and where its end writes what the run did
+        return not_a_file([self.paths.dir / "cel.json", self.paths.dir / "performance.csv"]) + super().problems()
 
     def start(self, *, resume: bool) -> None:
         super().start(resume=resume)

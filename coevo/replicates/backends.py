@@ -27,7 +27,7 @@ if TYPE_CHECKING:  # Dask is imported only when a cluster is asked for
     from dask_jobqueue.core import JobQueueCluster
     from distributed.deploy.cluster import Cluster
 
-__all__ = ["Handle", "Backend", "LocalBackend", "DaskBackend", "ClusterLost", "open_backend", "parse_cluster"]
+__all__ = ["Handle", "Backend", "LocalBackend", "DaskBackend", "ClusterLost", "DEFAULT_CONNECT_TIMEOUT", "open_backend", "parse_cluster"]
 
 log = logging.getLogger(__name__)
 
@@ -215,9 +215,14 @@ def _jobqueue(kind: str, config: Path | None) -> JobQueueCluster:
     return (SLURMCluster if kind == "slurm" else PBSCluster)()
 
 
+#: Seconds a scheduler's address is tried before ``--cluster ADDRESS`` gives up (``--cluster-timeout``).
+DEFAULT_CONNECT_TIMEOUT = 30.0
+
+
 def open_backend(*, jobs: int, cluster: str | None = None, cluster_config: Path | None = None,
-                 shared_dir: Path | None = None) -> Backend[Any]:
-    """The backend the flags ask for (no ``cluster``: this machine, ``jobs`` at a time)."""
+                 shared_dir: Path | None = None, connect_timeout: float = DEFAULT_CONNECT_TIMEOUT) -> Backend[Any]:
+    """The backend the flags ask for (no ``cluster``: this machine, ``jobs`` at a time); ``connect_timeout``: the
+    seconds to reach a cluster's scheduler."""
     if cluster is None:
         if shared_dir is not None or cluster_config is not None:
             raise ConfigError("--shared-dir and --cluster-config go with --cluster")
@@ -244,7 +249,7 @@ def open_backend(*, jobs: int, cluster: str | None = None, cluster_config: Path 
             address, label = made, f"{kind} ({n or 1} jobs)"
         else:
             address, label = cluster, cluster
-        client = Client(address, timeout="30s")
+        client = Client(address, timeout=f"{connect_timeout}s")
     except ValueError as exc:  # an address Dask cannot parse
         if made is not None:
             made.close()
@@ -252,5 +257,5 @@ def open_backend(*, jobs: int, cluster: str | None = None, cluster_config: Path 
     except (OSError, TimeoutError) as exc:
         if made is not None:
             made.close()
-        raise ClusterLost(f"cannot reach the Dask scheduler {cluster}: {exc}") from exc
+        raise ClusterLost(f"cannot reach the Dask scheduler {cluster} within {connect_timeout:g} s: {exc}") from exc
     return DaskBackend(client, made, shared_dir=shared_dir, label=label)

@@ -25,8 +25,10 @@ import glob
 import json
 import os
 import shutil
+import signal
 import socket
 import tempfile
+import threading
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -41,7 +43,7 @@ if TYPE_CHECKING:
     from coevo.policy.rules import RuleSet
 
 
-__all__ = ["RunPaths", "WorkerPaths", "ExecutionPaths", "LearnPaths", "read_store", "read_cases", "append_durably", "cut_back", "staged_dir", "ensure_dir", "read_jsonl", "json_object", "read_json", "write_bytes",
+__all__ = ["RunPaths", "WorkerPaths", "ExecutionPaths", "LearnPaths", "read_store", "read_cases", "line_problems", "not_a_file", "append_durably", "cut_back", "staged_dir", "ensure_dir", "read_jsonl", "json_object", "read_json", "write_bytes",
            "write_json",
            "write_text", "write_csv"]
 
@@ -332,6 +334,13 @@ def read_cases(path: Path, *, problems: list[str] | None = None, torn_ok: bool =
     return read_store(path, problems=problems, model=CaseUpdate, torn_ok=torn_ok)
 
 
+def not_a_file(paths: Sequence[Path]) -> list[str]:
+    """A problem for each of ``paths`` that something other than a regular file holds (a directory, a socket):
+    what a command is about to write or replace there would fail half-way."""
+    return [f"{p} is not a file (a directory or another kind of file is in its place); move it aside"
+            for p in map(Path, paths) if (p.exists() or p.is_symlink()) and not p.is_file()]
+
+
 def read_json(path: Path, *, what: str) -> dict[str, Any]:
     """A JSON object from ``path``; a missing, unreadable or non-object file is a RunDirError naming it."""
     try:
@@ -386,7 +395,8 @@ def staged_dir(final: Path) -> Iterator[Path]:
     except OSError as exc:
         raise RunDirError(f"cannot create output directory {str(final)!r}: {exc.strerror or exc}") from exc
     try:
-        yield tmp
+        with _sigterm_stops():
+            yield tmp
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -396,6 +406,26 @@ def staged_dir(final: Path) -> Iterator[Path]:
     os.replace(tmp, final)
 
 
+
+
+@contextmanager
+def _sigterm_stops() -> Iterator[None]:
+    """SIGTERM as a stop (KeyboardInterrupt) while a staged directory is written, so that it is removed as after a
+    Ctrl-C; by default SIGTERM ends the process at once and leaves it behind (``.NAME.*.partial``) until the next
+    command there.  Only where SIGTERM has its default action (a command's own handler is kept) and in the main
+    thread (the only one that may set a handler)."""
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGTERM) != signal.SIG_DFL:
+        yield
+        return
+
+    def _stop(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    signal.signal(signal.SIGTERM, _stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def ensure_dir(path: Path, *, what: str) -> Path:
@@ -499,9 +529,22 @@ def read_jsonl(path: Path, *, schema: type[BaseModel] | None = None, missing_ok:
     return _read_lines(Path(path), schema, missing_ok=missing_ok, problems=problems, as_models=False)
 
 
+def line_problems(path: Path, *, upto: int, schema: type[BaseModel] | None) -> list[str]:
+    """What is wrong with the first ``upto`` bytes of the log ``path`` (what a checkpoint saw of it, and what a
+    resume keeps): one line a problem, none when they are whole lines valid under ``schema``.  Missing, not a
+    file, or shorter than ``upto`` is a problem; what follows ``upto`` is not looked at (a resume cuts it aside)."""
+    path = Path(path)
+    if path.exists() and not path.is_file():
+        return [f"{path} is not a file (a directory or another kind of file is in its place)"]
+    problems: list[str] = []
+    _read_lines(path, schema, missing_ok=False, problems=problems, as_models=False, upto=upto)
+    return problems
+
+
 def _read_lines(path: Path, schema: type[BaseModel] | None, *, missing_ok: bool, problems: list[str] | None,
-                as_models: bool, torn_ok: bool = False) -> list[Any]:
-    """:func:`read_jsonl`'s rows, or with ``as_models`` the ``schema`` objects made of them."""
+                as_models: bool, torn_ok: bool = False, upto: int | None = None) -> list[Any]:
+    """:func:`read_jsonl`'s rows, or with ``as_models`` the ``schema`` objects made of them; ``upto``: of the
+    file's first ``upto`` bytes only (a file shorter than that is damaged)."""
 
     def damaged(msg: str) -> None:
         if problems is None:
@@ -517,6 +560,12 @@ def _read_lines(path: Path, schema: type[BaseModel] | None, *, missing_ok: bool,
     except OSError as exc:
         damaged(f"{path} cannot be read: {exc.strerror or exc}")
         return []
+    if upto is not None:
+        if len(data) < upto:
+            damaged(f"{path} holds {len(data)} bytes but its checkpoint saw {upto}: it was cut short behind its "
+                    "writer's back")
+            return []
+        data = data[:upto]
     lines = data.split(b"\n")
     torn = lines.pop()  # b"" when the file ends with its last line's newline
     out = []

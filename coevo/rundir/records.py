@@ -16,9 +16,9 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field, StrictInt, StrictStr
 
-from coevo.bus.messages import BehaviourName, Fitness, Rules
+from coevo.bus.messages import BehaviourName, CaseUpdate, Fitness, PolicyUpdate, Rules
 
-__all__ = ["CurveLine", "AdoptionLine"]
+__all__ = ["CurveLine", "AdoptionLine", "LOG_SCHEMAS"]
 
 
 class _Line(BaseModel):
@@ -42,3 +42,9 @@ class AdoptionLine(_Line):
     received_at: float
     rules: Rules | None = None  # the rules adopted, so a replay needs nothing but this log
     rules_digest: StrictStr | None = None
+
+
+#: The schema of each append-only log a process's checkpoint keeps in step, by its file name (a log not named here:
+#: any JSON object a line).  What a resume checks the logs against before it starts anything.
+LOG_SCHEMAS: dict[str, type[BaseModel]] = {"curve.jsonl": CurveLine, "adoptions.jsonl": AdoptionLine,
+                                           "published.jsonl": PolicyUpdate, "cases.jsonl": CaseUpdate}

@@ -16,6 +16,8 @@ What it checks, per worker directory:
   recorded and the one of the rules it holds);
 * with a roster in ``run.json``, each worker is its behaviour's roster member and the
   store holds no policy of any other worker id;
+* a resume would start: ``run.json``, the key, each process's settings, checkpoint and logs up to what the
+  checkpoint saw read as ``coevo run --resume`` reads them (:meth:`coevo.runs.local.LocalRun.problems`);
 * ``coevo replay`` reproduces the learning curve exactly from the logs (skipped
   with ``replay=False``).
 
@@ -34,7 +36,7 @@ from coevo.errors import CoevoError
 from coevo.bus.messages import PolicyUpdate
 from coevo.rundir.layout import RunPaths, read_json, read_jsonl, read_store, span_text
 from coevo.rundir.records import AdoptionLine, CurveLine
-from coevo.runs.kinds import run_kinds
+from coevo.runs.kinds import kind_of_settings, run_kinds
 
 __all__ = ["RunCheck", "check_run"]
 
@@ -68,7 +70,11 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
     published_all: dict[tuple[str, int], tuple[str, str]] = {}
     adoptions: list[tuple[str, str, list[dict[str, Any]]]] = []  # (behaviour, partner model, adoptions)
     for w in wdirs:
-        meta = w.meta()
+        try:
+            meta = w.meta()
+        except CoevoError as exc:
+            check.problems.append(str(exc))
+            continue
         beh, worker, gens = meta["behaviour"], meta["worker"], int(meta["ga"].get("generations", 0))
         if roster is not None and roster.get(beh) != worker:
             check.problems.append(f"{beh}: worker {worker!r} is not the roster's {roster.get(beh)!r}")
@@ -76,7 +82,11 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
         got = [r["generation"] for r in curve]
         if got != list(range(1, gens + 1)):
             check.problems.append(f"{beh}: curve.jsonl has generations {span_text(got)}, expected 1..{gens}")
-        done = read_json(w.done, what="worker directory (its done.json)") if w.done.exists() else {}
+        try:
+            done = read_json(w.done, what="worker directory (its done.json)") if w.done.exists() else {}
+        except CoevoError as exc:
+            check.problems.append(str(exc))
+            done = {}
         if not done.get("finished"):
             check.problems.append(f"{beh}: done.json missing or not finished")
         published = read_store(w.published, problems=check.problems)
@@ -102,6 +112,7 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
     for beh, model, adopted in adoptions:
         for a in adopted:
             _check_adoption(check, beh, model, a, published_all)
+    check.problems += [p for p in _resume_problems(run) if p not in check.problems]
     for kind in run_kinds(run):
         if kind.check_run is None:
             continue
@@ -116,6 +127,20 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
                 check.problems.append(f"{r.behaviour}: replay differs at generation {r.first_mismatch}: {r.detail}")
         check.facts["replayed"] = True
     return check
+
+
+def _resume_problems(run: RunPaths) -> list[str]:
+    """What would stop ``coevo run --resume`` (or its kind's command) of the run: its run.json, key, each process's
+    settings, checkpoint and logs up to what the checkpoint saw (:meth:`coevo.runs.local.LocalRun.problems`).  A
+    directory without run.json (workers started by hand) is not resumed by a run command: nothing to say."""
+    from coevo.rundir.settings import RunSettings
+
+    if not (run.run_json.exists() or run.run_json.is_symlink()):
+        return []
+    try:
+        return kind_of_settings(RunSettings.load(run.run_json)).run().resumable(run.dir).problems()
+    except CoevoError as exc:
+        return [str(exc)]
 
 
 def _check_latest(check: RunCheck, run: RunPaths, beh: str, worker: str, versions: list[int],

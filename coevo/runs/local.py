@@ -52,16 +52,15 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from coevo.agents.checkpoint import resume_state
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.messages import Control, PolicyUpdate
 from coevo.bus.session import fetch_latest, make_config, open_session, put_control, Session, sigterm_as_exit
 from coevo.bus.status import StatusBoard
 from coevo.bus.trust import Gate
-from coevo.errors import ConfigError, RunDirError, ServiceError
-from coevo.rundir.layout import (RunPaths, cut_back, read_cases, read_json, read_jsonl, read_store, write_csv,
-                                 write_json)
+from coevo.errors import CoevoError, ConfigError, RunDirError, ServiceError
+from coevo.rundir.layout import (RunPaths, cut_back, not_a_file, read_cases, read_json, read_jsonl, read_store,
+                                 write_csv, write_json)
 from coevo.rundir.settings import RunSettings
 
 __all__ = ["MAX_RESTARTS", "STOP_EXITS", "default_run_id", "free_port", "loopback_endpoint", "check_listen", "wait_until",
@@ -163,8 +162,22 @@ class LocalRun:
     def resume(cls, run_dir: Path, *, log_level: str = "WARNING", worker_env: dict[str, str] | None = None,
                listen: str | None = None) -> LocalRun:
         """The run in ``run_dir``, from its run.json, with a new broker endpoint (``listen``, default a free loopback
-        port; recorded in run.json)."""
+        port; recorded in run.json).  Every file the resume reads is read first (:meth:`verify`): a RunDirError
+        naming the first problem leaves the directory byte for byte as it was."""
+        lr = cls.resumable(run_dir, log_level=log_level, worker_env=worker_env, listen=listen)
+        lr.verify()  # before anything is written or started
+        lr.settings.save(lr.paths.run_json)  # where its broker listens now: a stale endpoint would mislead status
+        lr.paths.summary.unlink(missing_ok=True)  # written again at the end
+        return lr
+
+    @classmethod
+    def resumable(cls, run_dir: Path, *, log_level: str = "WARNING", worker_env: dict[str, str] | None = None,
+                  listen: str | None = None) -> LocalRun:
+        """The run in ``run_dir`` as :meth:`resume` continues it (its run.json and key read), nothing changed or
+        verified yet: :meth:`problems` says what would stop it."""
         paths = RunPaths(Path(run_dir))
+        if paths.dir.exists() and not paths.dir.is_dir():
+            raise RunDirError(f"{str(paths.dir)!r} is a file, not a run directory (nothing to resume)")
         if not paths.run_json.exists():
             raise RunDirError(f"{str(paths.dir)!r} holds no run.json: not a coevo run directory (nothing to resume)")
         settings = RunSettings.load(paths.run_json)
@@ -182,9 +195,6 @@ class LocalRun:
                 raise RunDirError(f"cannot resume {str(paths.dir)!r}: {exc}") from None
         else:
             log.warning("run %s is OPEN (its run.json names no key): its messages are not authenticated", settings.run)
-        lr.verify()  # before anything is written or started
-        lr.settings.save(paths.run_json)  # where its broker listens now: a stale endpoint would mislead status
-        paths.summary.unlink(missing_ok=True)  # written again at the end
         return lr
 
     def create(self) -> None:
@@ -274,27 +284,60 @@ class LocalRun:
                     self.restarts[who], MAX_RESTARTS)
 
     def verify(self) -> None:
-        """Read every worker's checkpoint and every store file of the run as the worker and the broker will, before
-        a resume starts anything.  A damaged, foreign or missing checkpoint or case file is a RunDirError naming it,
-        and nothing is changed.  A damaged policy store file is a replica of what the workers published (their
-        ``published.jsonl``): it is set aside whole (``NAME.cut-N``, said in one line) and the workers publish its
-        versions again.  A store file's torn last line (a crash mid-write, cut by the broker) is not damage."""
-        for b in self.task.behaviours:
-            try:
-                resume_state(self.paths.worker(b), self.settings.worker_ident(b))
-            except RunDirError as exc:
-                raise RunDirError(f"cannot resume {self.dir}: {exc}") from None
-        damaged_stores = []
-        for f, reader in [*((f, read_store) for f in self.paths.store_files()),
-                          *((f, read_cases) for f in self.paths.case_files())]:
-            problems = _damage(f, reader)
-            if problems and reader is read_store:
-                damaged_stores.append((f, problems[0]))
-            elif problems:
-                raise RunDirError(f"cannot resume {self.dir}: {problems[0]}; nothing was started or changed")
-        for f, why in damaged_stores:
-            kept = cut_back(f, 0)
-            log.warning("%s; kept as %s, its versions are published again from the workers' published.jsonl", why, kept)
+        """Read every file of the run that its resume reads, as its processes will (:meth:`problems`), before a
+        resume starts anything: a problem is a RunDirError naming the first (and how many more), and nothing is
+        changed.  Then the one repair a resume makes: a damaged policy store file is a replica of what the workers
+        published (their ``published.jsonl``), so it is set aside whole (``NAME.cut-N``, said in one line) and the
+        workers publish its versions again.  A store file's torn last line (a crash mid-write, cut by the broker) is
+        not damage."""
+        problems = self.problems()
+        if problems:
+            more = f" ({len(problems) - 1} more problems: coevo check {self.dir} lists them)" if len(problems) > 1 else ""
+            raise RunDirError(f"cannot resume {self.dir}: {problems[0]}; nothing was started or changed{more}")
+        for f in self.paths.store_files():
+            damaged = _damage(f, read_store)
+            if damaged:
+                kept = cut_back(f, 0)
+                log.warning("%s; kept as %s, its versions are published again from the workers' published.jsonl",
+                            damaged[0], kept)
+
+    def processes(self) -> dict[str, Any]:
+        """The run's processes that keep a directory of their own, as they would be made to resume (by the name
+        :meth:`start_worker` takes): each has ``resume_problems()``.  Nothing is started or changed."""
+        from coevo.runs.kinds import kind_of_settings
+
+        worker = kind_of_settings(self.settings).worker()
+        return {b: worker(self.settings, behaviour=b, out_dir=self.worker_dir(b), conf=self.client_config(),
+                          resume=True, run_key=self.key) for b in self.task.behaviours}
+
+    def problems(self) -> list[str]:
+        """What would stop a resume of this run, one line a problem, found by reading every file it reads as its
+        processes will and changing nothing: each process's directory (settings, checkpoint, the logs up to what the
+        checkpoint saw: :meth:`Worker.resume_problems <coevo.agents.worker.Worker.resume_problems>`), the store's
+        case files (the learners read them), and the places its processes and its end write to (logs/, summary.json,
+        measures.json, curves.csv, the store's files), which must not be taken by something that is no file."""
+        paths = self.paths
+        problems = not_a_file([paths.summary, paths.measures, paths.curves_csv, *paths.store_files(),
+                               *paths.case_files()])
+        problems += [f"{d} is not a directory" for d in (paths.logs_dir, paths.store_dir, paths.workers_dir)
+                     if (d.exists() or d.is_symlink()) and not d.is_dir()]
+        if paths.logs_dir.is_dir():
+            problems += not_a_file([paths.log(self.log_name(b)) for b in ["broker", *self.processes_names()]])
+        if problems:
+            return problems
+        try:
+            procs = self.processes()
+        except CoevoError as exc:  # a roster or key that does not fit the run's workers
+            return [str(exc)]
+        for proc in procs.values():
+            problems += proc.resume_problems()
+        for f in paths.case_files():
+            problems += _damage(f, read_cases)
+        return problems
+
+    def processes_names(self) -> list[str]:
+        """The names of the run's processes beside its broker (:meth:`start_worker` takes them)."""
+        return list(self.task.behaviours)
 
     def worker_dir(self, b: str) -> Path:
         return self.paths.worker(b).dir

@@ -9,9 +9,11 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from coevo.console import (
     ProgressBar,
+    given_settings,
     add_max_lead,
     max_lead_of,
     add_settings,
@@ -27,26 +29,35 @@ from coevo.replicates.flags import add_backend_flags, backend_of, check_backend_
 
 __all__ = ["configure_compare", "cmd_compare"]
 
+DEFAULT_REGIMES = ("mutual", "independent")
+
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from coevo.experiments.compare.experiment import CompareSpec, prepare, run_all
+    from coevo.experiments.compare.experiment import CompareSpec, held_spec, prepare, run_all
     from coevo.experiments.compare.report import tail_text, write_report
     from coevo.experiments.compare.stats import MeanInterval
     from coevo.experiments.compare.experiment import default_jobs, replicates
     from coevo.replicates.backends import ClusterLost
     from coevo.tasks.fuel import FuelTask  # Table 1 compares the fuel task's regimes
 
-    rates = {} if args.rates is None else {"rates": tuple(args.rates)}
-    spec = CompareSpec.make(regimes=tuple(args.regimes), **rates, runs=args.runs, seed=args.seed, model=args.model,
-                            max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD), measure_epochs=args.measure_epochs,
-                            world=world_settings(args, FuelTask.name), ga=ga_settings(args, FuelTask.name))
-    check_backend_flags(args)  # before anything is written into --out
+    if (args.resume or args.report_only) and args.out is None:
+        raise ConfigError("--resume and --report-only need --out: the comparison's folder")
     out = Path(args.out) if args.out else Path("runs") / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"
+    held = held_spec(out) if (args.resume or args.report_only) and out.is_dir() else None
+    if held is not None:  # its own settings, as it ran, but for those given: a resume need not repeat them
+        world, ga = given_settings(args, FuelTask.name)
+        spec = CompareSpec.make(**{**held.model_dump(mode="json"), **_given(args),
+                                   "world": {**held.world.model_dump(mode="json"), **world},
+                                   "ga": {**held.ga.model_dump(mode="json"), **ga}})
+    else:
+        spec = CompareSpec.make(**{"regimes": DEFAULT_REGIMES, "max_lead": DEFAULT_MAX_LEAD, **_given(args),
+                                   "world": world_settings(args, FuelTask.name), "ga": ga_settings(args, FuelTask.name)})
+    check_backend_flags(args)  # before anything is written into --out
     t0 = time.time()
     if args.report_only:
-        if not (out / "compare.json").exists():
+        if held is None:
             raise ConfigError(f"--report-only: {out} holds no comparison (no compare.json)")
-        todo = prepare(out, spec, resume=True)
+        todo = prepare(out, spec, resume=True, report_only=True)
         print(f"{len(todo)} runs unfinished; reporting on the rest")
     else:
         todo = prepare(out, spec, resume=args.resume)
@@ -81,26 +92,42 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 1 if results["runs_finished"] < results["runs_expected"] and not args.report_only else 0
 
 
+def _given(args: argparse.Namespace) -> dict[str, Any]:
+    """The comparison's settings the command line gives (beside the world and GA ones), by their names in it."""
+    given: dict[str, Any] = {f: getattr(args, f) for f in ("runs", "seed", "model", "measure_epochs")
+                             if getattr(args, f) is not None}
+    if args.regimes is not None:
+        given["regimes"] = tuple(args.regimes)
+    if args.rates is not None:
+        given["rates"] = tuple(args.rates)
+    if args.max_lead is not None:
+        given["max_lead"] = max_lead_of(args.max_lead, DEFAULT_MAX_LEAD)
+    return given
+
+
 def configure_compare(p: argparse.ArgumentParser) -> None:
     """``coevo compare``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
-    p.add_argument("--regimes", nargs="+", default=["mutual", "independent"], metavar="REGIME",
+    p.add_argument("--regimes", nargs="+", metavar="REGIME",
                    help="regimes to compare (default: mutual independent); independent-offline: the Executive "
                         "learns on the independent runs' recorded Tracking/Docking histories, at each --rates")
     p.add_argument("--rates", nargs="+", type=positive_float_arg(maximum=1e6), metavar="R",
                    help="independent-offline: rates of asynchrony, partner generations per Executive generation "
                         "(default 0.25 0.5 1 2 4)")
-    p.add_argument("--runs", type=count_arg(1, 1000), default=10, help="runs per regime (default 10, as in the report)")
+    p.add_argument("--runs", type=count_arg(1, 1000), help="runs per regime (default 10, as in the report)")
     p.add_argument("--out", help="comparison directory (default runs/compare-TIME)")
-    p.add_argument("--resume", action="store_true", help="continue the comparison in --out, keeping its finished runs")
-    p.add_argument("--report-only", action="store_true", help="only (re)write the report from the finished runs in --out")
+    p.add_argument("--resume", action="store_true", help="continue the comparison in --out, keeping its finished runs "
+                   "(given none of its settings, with its own)")
+    p.add_argument("--report-only", action="store_true", help="only (re)write the report from the finished runs in --out "
+                   "(given none of its settings, with its own)")
     add_backend_flags(p, jobs_help="runs at once on this machine (default: one per two cores; an offline Executive "
                                    "counts half)")
-    p.add_argument("--seed", type=seed_arg, default=0, help="base seed; run i of every regime uses seed + 1000 i")
-    p.add_argument("--model", default="best", choices=MODELS,
+    p.add_argument("--seed", type=seed_arg, help="base seed; run i of every regime uses seed + 1000 i (default 0)")
+    p.add_argument("--model", choices=MODELS,
                    help="how a worker models its partners: best, their newest published best so far (the report's "
                         "choice, default); current, the best individual of their latest generation; recent, each "
                         "generation one of their last 5 bests so far at random")
-    p.add_argument("--measure-epochs", type=count_arg(1, 100_000), default=100, help="fresh epochs measuring each final robot")
+    p.add_argument("--measure-epochs", type=count_arg(1, 100_000), help="fresh epochs measuring each final robot "
+                   "(default 100)")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     add_max_lead(p)
     add_settings(p)

@@ -43,11 +43,11 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig, build
-from coevo.errors import ConfigError, RunDirError
+from coevo.errors import CoevoError, ConfigError, RunDirError
 from coevo.replicates.backends import Backend
 from coevo.replicates.replicate import Replicate as Job
 from coevo.replicates.runner import Progress, run_replicates
-from coevo.rundir.layout import LearnPaths, RunPaths, ensure_dir, write_json
+from coevo.rundir.layout import LearnPaths, RunPaths, ensure_dir, read_json, read_jsonl, write_json
 from coevo.rundir.settings import RunSettings
 from coevo.tasks import get_task, saved_settings, split_settings
 from coevo.tasks.base import check_ga
@@ -57,7 +57,7 @@ from coevo.tasks.fuel.settings import WorldConfig
 
 REGIMES = FuelTask.regimes
 
-__all__ = ["CompareSpec", "Replicate", "prepare", "replicates", "groups", "run_all", "jobs_of", "default_jobs", "OFFLINE",
+__all__ = ["CompareSpec", "Replicate", "held_spec", "prepare", "problems", "replicates", "groups", "run_all", "jobs_of", "default_jobs", "OFFLINE",
            "DEFAULT_RATES"]
 
 log = logging.getLogger(__name__)
@@ -220,8 +220,8 @@ def is_finished(out: Path, rep: Replicate) -> bool:
     if not f.exists():
         return False
     try:
-        return "measures" in json.loads(f.read_text())
-    except (OSError, json.JSONDecodeError):
+        return "measures" in json.loads(f.read_text(encoding="utf-8"))
+    except (OSError, ValueError, TypeError):  # unreadable, not UTF-8, not JSON, not an object
         return False
 
 
@@ -229,32 +229,50 @@ def _spec_json(spec: CompareSpec) -> dict[str, Any]:
     return json.loads(spec.model_dump_json())
 
 
-def prepare(out: Path, spec: CompareSpec, *, resume: bool) -> list[Replicate]:
+def held_spec(out: Path) -> CompareSpec | None:
+    """The settings of the comparison in ``out`` (its compare.json; None: it holds none), read as it ran; a
+    RunDirError naming compare.json when it cannot be read (not UTF-8, not JSON, a directory, not a comparison's)."""
+    marker = Path(out) / "compare.json"
+    if not (marker.exists() or marker.is_symlink()):
+        return None
+    try:
+        return CompareSpec.saved(read_json(marker, what="comparison (its compare.json)")["spec"])
+    except (KeyError, ConfigError) as exc:
+        why = "it names no spec" if isinstance(exc, KeyError) else str(exc)
+        raise RunDirError(f"{str(marker)!r} cannot be read: {why}; choose another --out") from None
+    except RunDirError as exc:
+        raise RunDirError(f"{exc}; choose another --out") from None
+
+
+def prepare(out: Path, spec: CompareSpec, *, resume: bool, report_only: bool = False) -> list[Replicate]:
     """Check OUT before anything starts; returns the replicates still to run.
 
     A fresh comparison needs an empty or missing OUT.  ``resume`` needs OUT to
     hold this very comparison (same settings); anything else is refused with a
-    message naming what differs.
+    message naming what differs.  Every file of OUT that the comparison (``report_only``: its report) will read
+    is read first (:func:`problems`): a problem is a RunDirError naming it, and OUT is left as it was.
     """
     out = Path(out)
     marker = out / "compare.json"
     if out.exists() and not out.is_dir():
         raise RunDirError(f"--out {str(out)!r} is a file, not a directory")
     if out.exists() and any(out.iterdir()):
-        if not marker.exists():
+        held_spec_ = held_spec(out)
+        if held_spec_ is None:
             raise RunDirError(f"--out {str(out)!r} is not empty and holds no comparison (no compare.json); choose another --out")
-        try:
-            held = _spec_json(CompareSpec.saved(json.loads(marker.read_text())["spec"]))
-        except (OSError, json.JSONDecodeError, KeyError, TypeError, ConfigError) as exc:
-            raise RunDirError(f"{marker} cannot be read ({exc}); choose another --out") from exc
-        mine = _spec_json(spec)
+        held, mine = _spec_json(held_spec_), _spec_json(spec)
         if held != mine:
             diff = sorted(k for k in set(held) | set(mine) if held.get(k) != mine.get(k))
             raise RunDirError(
                 f"--out {str(out)!r} holds a different comparison (differs in: {', '.join(diff)}); "
-                "choose another --out or repeat the original settings with --resume")
+                "choose another --out, or leave its settings out: --resume and --report-only take its own")
         if not resume:
             raise RunDirError(f"--out {str(out)!r} already holds this comparison; add --resume to continue it")
+        found = problems(out, spec, report_only=report_only)
+        if found:
+            more = f" ({len(found) - 1} more problems)" if len(found) > 1 else ""
+            raise RunDirError(f"cannot {'report on' if report_only else 'resume'} the comparison in {out}: {found[0]}; "
+                              f"nothing was started or changed{more}")
     else:
         ensure_dir(out, what="--out")
         write_json(marker, {"spec": _spec_json(spec), "created": time.time()})
@@ -263,11 +281,89 @@ def prepare(out: Path, spec: CompareSpec, *, resume: bool) -> list[Replicate]:
         if is_finished(out, rep):
             continue
         d = run_dir(out, rep)
-        if not rep.offline and d.exists() and not RunPaths(d).run_json.exists():
+        if not report_only and not rep.offline and d.exists() and not RunPaths(d).run_json.exists():
             log.info("removing the run %s, which stopped before it began, to run it again", d)
             shutil.rmtree(d)
         todo.append(rep)
     return todo
+
+
+#: What a live run writes before its run.json (:meth:`coevo.runs.local.LocalRun.create`): a folder holding only
+#: these stopped before it began, and is started again.
+_BEFORE_RUN_JSON = {RunPaths.KEY_FILE}
+
+
+def problems(out: Path, spec: CompareSpec, *, report_only: bool = False) -> list[str]:
+    """What would stop the comparison in ``out`` from going on (``report_only``: from being reported), one line a
+    problem, found by reading every file of its replicates that it will read and changing nothing: a finished
+    run's summary.json, curves and final Docking rules, a finished offline Executive's measures, curve and timing
+    (the report's), and each half-done run's files as ``coevo run --resume`` reads them."""
+    from coevo.runs.local import LocalRun
+
+    found: list[str] = []
+    for rep in replicates(spec):
+        d = run_dir(Path(out), rep)
+        if not (d.exists() or d.is_symlink()):
+            continue
+        if not d.is_dir():
+            found.append(f"{d} is not a directory")
+            continue
+        if rep.offline:
+            paths = LearnPaths(d)
+            if paths.measures.exists() or paths.measures.is_symlink():
+                found += _json_problems([paths.measures, paths.curve_json, paths.timing])
+            continue
+        run = RunPaths(d)
+        if run.summary.exists() or run.summary.is_symlink():
+            try:
+                summary = read_json(run.summary, what="run directory (its summary.json)")
+            except RunDirError as exc:
+                found.append(str(exc))
+                continue
+            if "measures" in summary:  # finished: what the report reads of it
+                found += _finished_problems(run)
+                continue
+        if report_only:
+            continue  # an unfinished run is not reported on
+        if not (run.run_json.exists() or run.run_json.is_symlink()):
+            extra = sorted(p.name for p in d.iterdir() if p.name not in _BEFORE_RUN_JSON)
+            if extra:
+                found.append(f"{str(run.run_json)!r} is missing, but {d} holds {', '.join(extra)}: not a run that "
+                             "stopped before it began; move it aside to run it again")
+            continue
+        try:
+            found += LocalRun.resumable(d).problems()
+        except CoevoError as exc:
+            found.append(str(exc))
+    return found
+
+
+def _finished_problems(run: RunPaths) -> list[str]:
+    """What is wrong with the files the report reads of a finished live run: its curves and final Docking rules."""
+    from coevo.policy.text import read_rule_file
+    from coevo.rundir.records import CurveLine
+
+    found: list[str] = []
+    for b in Behaviour:
+        read_jsonl(run.worker(b).curve, schema=CurveLine, problems=found)
+    try:  # a finished worker wrote its best after its first generation
+        read_rule_file(run.worker(Behaviour.DOCKING).best_rules, Behaviour.DOCKING)
+    except CoevoError as exc:
+        found.append(str(exc))
+    return found
+
+
+def _json_problems(files: list[Path]) -> list[str]:
+    """What is wrong with JSON files a report reads (missing, unreadable, not JSON)."""
+    found = []
+    for f in files:
+        try:
+            json.loads(f.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            found.append(f"{str(f)!r} is missing")
+        except (OSError, ValueError, RecursionError) as exc:
+            found.append(f"{str(f)!r} cannot be read: {exc}")
+    return found
 
 
 def default_jobs() -> int:

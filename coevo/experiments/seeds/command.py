@@ -40,7 +40,7 @@ def cmd_seeds(args: argparse.Namespace) -> int:
         _refuse(args, FUEL_FLAGS, "door")
         return _cmd_door(args)
     _refuse(args, DOOR_FLAGS, args.task)
-    from coevo.experiments.seeds.experiment import replicates, write_report
+    from coevo.experiments.seeds.experiment import problems, replicates, write_report
     from coevo.replicates.backends import ClusterLost
     from coevo.replicates.runner import run_replicates
 
@@ -49,11 +49,15 @@ def cmd_seeds(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("runs") / f"seeds-{time.strftime('%Y%m%d-%H%M%S')}"
     from coevo.rundir.layout import ensure_dir
 
-    if out.is_dir() and any(out.iterdir()) and not args.resume:
-        raise RunDirError(f"--out {str(out)!r} is not empty; add --resume to continue the runs there")
-    ensure_dir(out, what="--out")
     behaviours = args.behaviours or ["docking", "tracking"]
     seeds = list(range(args.first_seed, args.first_seed + (args.seeds or DEFAULT_SEEDS[args.task])))
+    if out.is_dir() and any(out.iterdir()):
+        if not args.resume:
+            raise RunDirError(f"--out {str(out)!r} is not empty; add --resume to continue the runs there")
+        found = problems(out, behaviours, seeds)  # before anything is changed
+        if found:
+            raise RunDirError(f"cannot resume the runs in {out}: {found[0]}; nothing was started or changed")
+    ensure_dir(out, what="--out")
     reps = replicates(behaviours, seeds, extra, weight=2)  # --jobs counts learners here: one core each
     backend = backend_of(args, default_jobs=1)
     print(f"learning over seeds in {out}: {len(reps)} runs, {backend.description}", flush=True)

@@ -21,9 +21,11 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+from coevo.errors import RunDirError
 from coevo.replicates.replicate import Replicate
+from coevo.rundir.layout import not_a_file, read_json
 
-__all__ = ["TARGETS", "replicates", "write_report"]
+__all__ = ["TARGETS", "REPORT_FILES", "problems", "replicates", "write_report"]
 
 TARGETS = {"docking": ("docking_from_random_starts", 75.0), "tracking": ("quality_tracking", 60.0)}
 
@@ -54,6 +56,31 @@ def replicates(behaviours: list[str], seeds: list[int], extra: list[str], *, wei
     return [Replicate(name=_name(b, s), output=f"runs/{_name(b, s)}", finished=partial(_finished, b, s),
                       command=partial(_argv, b, s, tuple(extra)), weight=weight)
             for b in behaviours for s in seeds]
+
+
+#: What the report writes in ``--out``.
+REPORT_FILES = ("report.md", "summary.json", "seeds.csv", "seeds.png")
+
+
+def problems(out: Path, behaviours: list[str], seeds: list[int]) -> list[str]:
+    """What would stop ``coevo seeds --resume`` in ``out``, one line a problem, found by reading what it reads and
+    changing nothing: each finished run's measures.json and timing.json (JSON objects, the report's), and that only
+    files stand where the report is written."""
+    found = not_a_file([Path(out) / f for f in REPORT_FILES])
+    for b in behaviours:
+        for s in seeds:
+            d = Path(out) / "runs" / _name(b, s)
+            if not (d.exists() or d.is_symlink()):
+                continue
+            if not d.is_dir():
+                found.append(f"{d} is not a directory")
+            elif _finished(b, s, out):
+                for f in (d / "measures.json", d / "timing.json"):
+                    try:
+                        read_json(f, what="coevo learn directory")
+                    except RunDirError as exc:
+                        found.append(str(exc))
+    return found
 
 
 def _rows(out: Path, behaviours: list[str], seeds: list[int]) -> list[dict[str, Any]]:

@@ -63,7 +63,8 @@ def _declaration(args: argparse.Namespace, out: Path | None) -> StudySpec:
 
 def cmd_study(args: argparse.Namespace) -> int:
     from coevo.experiments.compare.experiment import default_jobs
-    from coevo.experiments.study.experiment import SEP, held_declaration, mark_complete, prepare_study, run_study
+    from coevo.experiments.study.declaration import study_cells
+    from coevo.experiments.study.experiment import SEP, check_cells, held_declaration, mark_complete, prepare_study, run_study
     from coevo.experiments.study.learn_report import write_learn_report
     from coevo.experiments.study.report import write_report
     from coevo.replicates.backends import ClusterLost
@@ -81,6 +82,7 @@ def cmd_study(args: argparse.Namespace) -> int:
             raise RunDirError(f"--report-only: {str(out)!r} holds no study (no study.json)")
         if held != spec:
             raise RunDirError(f"--report-only: {str(out)!r} holds a different study; give its declaration, or none")
+        check_cells(out, study_cells(spec), report_only=True)  # before anything is changed
         (out / "complete.json").unlink(missing_ok=True)
     else:
         backend = backend_of(args, default_jobs=default_jobs())

@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from coevo.errors import RunDirError
-from coevo.experiments.compare.experiment import is_finished, jobs_of, prepare, replicates
+from coevo.experiments.compare.experiment import held_spec, is_finished, jobs_of, prepare, problems, replicates
 from coevo.experiments.seeds.experiment import replicates as learn_replicates
 from coevo.experiments.study.declaration import Cell, LearnCell, StudySpec, study_cells
 from coevo.replicates.backends import Backend
@@ -70,16 +70,56 @@ def _prepare_learn_cell(folder: Path, cell: LearnCell) -> None:
     mine = {"spec": json.loads(cell.spec.model_dump_json()), "args": list(cell.args)}
     f = folder / LEARN_MARKER
     if f.exists():
-        try:
-            held = json.loads(f.read_text())
-            same = {k: held[k] for k in mine} == mine
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise RunDirError(f"{f} cannot be read ({exc}); choose another --out") from exc
-        if not same:
-            raise RunDirError(f"{f} holds another cell's settings; choose another --out")
+        _held_learn(f, cell)
         return
     ensure_dir(folder, what="a cell's folder")
     write_json(f, {**mine, "created": time.time()})
+
+
+def check_cells(out: Path, the_cells: Sequence[Cell | LearnCell], *, report_only: bool = False) -> None:
+    """Read every file of the study's cells that its resume (``report_only``: its report) reads, changing nothing:
+    each comparison cell's compare.json and replicates (:func:`coevo.experiments.compare.experiment.problems`), each
+    learning cell's learn.json.  A problem is a RunDirError naming the first, and the folder is left as it was."""
+    found: list[str] = []
+    for c in the_cells:
+        folder = cell_dir(out, c)
+        if not (folder.exists() or folder.is_symlink()):
+            continue
+        if not folder.is_dir():
+            found.append(f"{folder} is not a directory")
+            continue
+        try:
+            if isinstance(c, LearnCell):
+                if (folder / LEARN_MARKER).exists() or (folder / LEARN_MARKER).is_symlink():
+                    _held_learn(folder / LEARN_MARKER, c)
+                continue
+            held = held_spec(folder)
+        except RunDirError as exc:
+            found.append(str(exc))
+            continue
+        if held is None:
+            if any(folder.iterdir()):
+                found.append(f"{folder / 'compare.json'} is missing, but {folder} holds files: not a cell of this study")
+        elif held != c.spec:
+            found.append(f"{folder / 'compare.json'} holds another cell's settings")
+        else:
+            found += problems(folder, c.spec, report_only=report_only)
+    if found:
+        more = f" ({len(found) - 1} more problems)" if len(found) > 1 else ""
+        raise RunDirError(f"cannot {'report on' if report_only else 'resume'} the study in {out}: {found[0]}; nothing "
+                          f"was started or changed{more}")
+
+
+def _held_learn(f: Path, cell: LearnCell) -> None:
+    """That the learn.json ``f`` is ``cell``'s; a RunDirError naming it if it cannot be read or is another's."""
+    mine = {"spec": json.loads(cell.spec.model_dump_json()), "args": list(cell.args)}
+    try:
+        held = json.loads(f.read_text(encoding="utf-8"))
+        same = {k: held[k] for k in mine} == mine
+    except (OSError, ValueError, KeyError, TypeError, RecursionError) as exc:
+        raise RunDirError(f"{f} cannot be read ({exc}); choose another --out") from None
+    if not same:
+        raise RunDirError(f"{f} holds another cell's settings; choose another --out")
 
 
 def _digest(spec: StudySpec) -> str:
@@ -92,8 +132,8 @@ def held_declaration(out: Path) -> StudySpec | None:
     if not f.exists():
         return None
     try:
-        return StudySpec.from_dict(json.loads(f.read_text())["spec"])
-    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        return StudySpec.from_dict(json.loads(f.read_text(encoding="utf-8"))["spec"])
+    except (OSError, ValueError, KeyError, TypeError, AttributeError, RecursionError) as exc:
         raise RunDirError(f"--out {str(out)!r}: {MARKER} cannot be read ({exc}); choose another --out") from exc
 
 
@@ -124,6 +164,8 @@ def prepare_study(out: Path, spec: StudySpec, *, resume: bool) -> list[Cell] | l
         more = "add --resume to continue it" if held is not None else "choose another --out"
         raise RunDirError(f"--out {str(out)!r} is not empty; {more}")
     the_cells = study_cells(spec)
+    if resume:
+        check_cells(out, the_cells)  # before anything is changed
     ensure_dir(out, what="--out")
     (out / COMPLETE).unlink(missing_ok=True)  # from here on the folder is a study in progress
     if held is None:
