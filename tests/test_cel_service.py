@@ -249,7 +249,7 @@ def test_prepare_then_three_processes_started_by_hand_make_a_complete_run(tmp_pa
     assert r.returncode == 0, r.stderr
     run = tmp_path / "p1"
     settings = RunSettings.load(run / "run.json")
-    assert settings.cel is not None and settings.roster == {"door": "door-0"} and (run / "secret.key").exists()
+    assert settings.block("cel") is not None and settings.roster == {"door": "door-0"} and (run / "secret.key").exists()
     assert "coevo execution --settings" in r.stdout and "coevo worker --behaviour door --settings" in r.stdout
     assert not (run / "logs").exists()  # nothing started
     endpoint = f"tcp/127.0.0.1:{free_port()}"

@@ -259,7 +259,7 @@ class TestRefusals:
     @pytest.mark.parametrize("name", CEL_FILES)
     def test_cel_resume_refuses_a_damaged_file_and_changes_nothing(self, cel_run: Path, tmp_path: Path, name: str,
                                                                    how: str) -> None:
-        from coevo.runs.cel import CelRun
+        from coevo.cel_service.run import CelRun
 
         run = tmp_path / cel_run.name
         shutil.copytree(cel_run, run)

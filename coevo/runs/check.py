@@ -132,13 +132,17 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
 def _resume_problems(run: RunPaths) -> list[str]:
     """What would stop ``coevo run --resume`` (or its kind's command) of the run: its run.json, key, each process's
     settings, checkpoint and logs up to what the checkpoint saw (:meth:`coevo.runs.local.LocalRun.problems`).  A
-    directory without run.json (workers started by hand) is not resumed by a run command: nothing to say."""
+    directory without run.json, or whose run.json has no roster (workers started by hand, the first of which wrote
+    it), is not resumed by a run command: nothing to say."""
     from coevo.rundir.settings import RunSettings
 
     if not (run.run_json.exists() or run.run_json.is_symlink()):
         return []
     try:
-        return kind_of_settings(RunSettings.load(run.run_json)).run().resumable(run.dir).problems()
+        settings = RunSettings.load(run.run_json)
+        if settings.roster is None:  # workers started by hand (run.json written by the first): resumed by hand too
+            return []
+        return kind_of_settings(settings).run().resumable(run.dir).problems()
     except CoevoError as exc:
         return [str(exc)]
 
