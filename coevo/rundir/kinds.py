@@ -1,11 +1,9 @@
 """What a kind of learner is, and the kinds installed: plugins found by name (the entry-point group ``coevo.kinds``).
 
-A run's workers are of one kind.  Two come with coevo: the co-evolution worker (``coevolution``: a GA fed its
-partners' policies, :mod:`coevo.runs.kinds`) and the CEL learner of ``coevo cel`` (``cel``,
-:mod:`coevo.cel_service.kind`: a GA whose model follows a robot's capabilities, beside an execution module that is
-no worker).  A :class:`LearnerKind` says which worker class ``coevo worker`` starts, which run class starts,
-supervises and resumes its processes (and so which command continues it), its own settings (a block of
-``run.json`` under the kind's name, e.g. ``"cel": {...}``, which checks itself against the run), how ``coevo
+A run's workers are of one kind.  coevo's own kinds are declared as entry points in its pyproject.toml, like any
+other package's (``coevo plugins`` lists them).  A :class:`LearnerKind` says which worker class ``coevo worker``
+starts, which run class starts, supervises and resumes its processes (and so which command continues it), its own
+settings (a block of ``run.json`` under the kind's name, which checks itself against the run), how ``coevo
 replay`` plays a worker's curve again, and what ``coevo check`` and ``coevo replay`` read that only that kind
 writes.  Everything it names is imported when first used, so a kind's code loads only where one of its runs is met.
 
@@ -38,7 +36,7 @@ Published = dict[tuple[str, int], tuple[str, str]]
 @dataclass(frozen=True)
 class LearnerKind:
     name: str
-    label: str  # in messages: "a CEL run"
+    label: str  # in messages, e.g. "a co-evolution run"
     worker: Callable[[], type[Any]]  # the Worker class (imported only when a worker of this kind starts)
     run: Callable[[], type[Any]]  # the LocalRun class that starts, supervises and resumes a run's processes
     #: the model of the kind's own settings, kept in run.json (and worker.json) under the kind's name; None: none

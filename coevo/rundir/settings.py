@@ -47,8 +47,7 @@ class RunSettings(Settings):
     key_file: str | None = Field(None, description="the run's secret key file, relative to run.json's directory "
                                  "(None: an open run, its messages unauthenticated)")
     blocks: dict[str, Any] = Field(default_factory=dict, description="a kind of learner's own settings, by the kind's "
-                                   "name (coevo.rundir.kinds); run.json keeps each at its top level, e.g. a CEL run's "
-                                   "\"cel\": its execution module, failure schedule and learner's restart")
+                                   "name (coevo.rundir.kinds); run.json keeps each at its top level, under that name")
     endpoint: str | None = Field(None, description="where the run's broker listens (its latest start)")
     incarnation: int = Field(0, ge=0, description="the run's incarnation: 1 when coevo run makes it, +1 with every "
                              "coevo run --resume; sealed into every message, so a message of an earlier one (a "
@@ -69,7 +68,7 @@ class RunSettings(Settings):
         named = {k: v for k, v in data.items() if k not in cls.model_fields and k in KINDS}
         if not named:
             return data
-        blocks = {k: v for k, v in named.items() if v is not None}  # runs saved before kinds were plugins: "cel": null
+        blocks = {k: v for k, v in named.items() if v is not None}  # runs saved before kinds were plugins: a kind's key, null
         return {k: v for k, v in data.items() if k not in named} | {"blocks": {**(data.get("blocks") or {}), **blocks}}
 
     @model_serializer(mode="wrap")
@@ -155,7 +154,7 @@ class RunSettings(Settings):
 
     def gate(self, key: RunKey | None, *, reject: Callable[[MessageError, str], None] | None = None) -> Gate:
         """What the run's receivers accept: its key (None: open), its roster, the generations a policy can reach
-        (when there is a roster) and, in a run whose kind's settings name a robot (a CEL run), that robot."""
+        (when there is a roster) and, in a run whose kind's settings name a robot, that robot."""
         roster = self.roster
         robot = next((b.robot for b in self.blocks.values() if getattr(b, "robot", None) is not None), None)
         return Gate(key=key, roster=roster, generations=self.ga.generations if roster is not None else None,
