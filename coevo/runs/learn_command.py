@@ -73,9 +73,8 @@ def cmd_learn(args: argparse.Namespace) -> int:
     if args.task is not None and args.task != task.name:
         raise ConfigError(f"--behaviour {args.behaviour} belongs to task {task.name!r}, not {args.task!r}")
     partner_files, world_flags = task_flags(args, task)
-    foreign = sorted(set(partner_files) - set(task.behaviours) | ({args.behaviour} & set(partner_files)))
-    if foreign:
-        raise ConfigError(f"--{foreign[0]}: {args.behaviour} learns with partners of its own task's other behaviours "
+    if args.behaviour in partner_files:  # task_flags takes only the task's behaviours: the learner's own is the one left
+        raise ConfigError(f"--{args.behaviour}: {args.behaviour} learns with partners of its own task's other behaviours "
                           f"({', '.join(b for b in task.behaviours if b != args.behaviour) or 'none'})")
     if args.settings:  # a run's settings (coevo compare's offline Executive): world, GA and seed from there
         from coevo.rundir.settings import RunSettings
