@@ -247,7 +247,7 @@ def test_a_comparison_shows_replicates_by_state_and_table_1_so_far(tmp_path: Pat
     html = render.table1_html(view) + render.comparison_html(view)
     assert "Table 1" in html and "mutual so far" in html and "No Docking / Med" in html and "failed" in html
     # The Executive curve of the finished runs (each curve 0.1, 0.2, 0.3): its end and the mean of its last 10.
-    ec = c["executive_curve"]
+    ec = c["headline_curve"]
     assert set(ec) == {"mutual", "independent"} and ec["mutual"]["end"]["n"] == 1
     assert ec["mutual"]["end"]["mean"] == pytest.approx(0.3) and ec["mutual"]["last_generations"]["mean"] == pytest.approx(0.2)
     assert "Executive curve (finished runs)" in html and "0.30 (n = 1: too few runs for an interval)" in html

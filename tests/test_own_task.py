@@ -80,7 +80,7 @@ def test_the_installed_example_is_listed_with_its_package_and_passes_the_checker
     assert r.returncode == 0 and r.stdout.strip() == "the checker finds nothing wrong", r.stdout + r.stderr
 
 
-def _check_output(command: str, r: subprocess.CompletedProcess[str], cwd: Path) -> None:
+def _check_output(command: str, r: subprocess.CompletedProcess[str], cwd: Path, site: Path) -> None:
     """What each of the tutorial's commands must have done, beyond ending with status 0."""
     if command.startswith("coevo learn"):
         out = Path(shlex.split(command)[shlex.split(command).index("--out") + 1])
@@ -100,6 +100,8 @@ def _check_output(command: str, r: subprocess.CompletedProcess[str], cwd: Path) 
         assert (cwd / "duel.png").stat().st_size > 1000
     elif command.startswith("coevo dynamics"):
         _dynamics_written(cwd / "runs" / "duel" / "dynamics", r.stdout)
+    elif command.startswith("coevo compare"):
+        _comparison_written(cwd / shlex.split(command)[shlex.split(command).index("--out") + 1], r.stdout, site)
 
 
 @pytest.mark.service
@@ -111,8 +113,68 @@ def test_every_command_of_the_tutorial_runs_as_written_on_the_outside_task(pursu
     for command in commands:
         r = _run(shlex.split(command), pursuit_site, tmp_path)
         assert r.returncode == 0 and "Traceback" not in r.stderr, f"{command}: status {r.returncode}\n{r.stderr}"
-        _check_output(command, r, tmp_path)
+        _check_output(command, r, tmp_path, pursuit_site)
     _dashboard_shows(pursuit_site, tmp_path)
+
+
+@pytest.mark.service
+def test_the_outside_task_runs_with_a_broker_and_workers_started_by_hand(pursuit_site: Path, tmp_path: Path) -> None:
+    """docs/running.md's run by hand on the outside task: ``coevo broker`` and a ``coevo worker`` per behaviour, each
+    its own process started by hand, the two sides learning against each other over the bus; then ``coevo status``
+    and ``coevo check`` read the run as they read one ``coevo run`` made."""
+    from coevo.runs.local import end_processes, free_port, wait_until
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    small = ["--generations", "3", "--population", "6", "--episodes", "10", "--ga", "best_episodes=10",
+             "--final-sync", "5"]
+    procs: list[subprocess.Popen] = []
+    logs = {name: tmp_path / f"{name}.log" for name in ("broker", "pursuer", "evader")}
+    try:
+        argvs = {"broker": ["broker", "--listen", endpoint, "--data-dir", "runs", "--open"]}
+        for seed, b in enumerate(("pursuer", "evader")):
+            argvs[b] = ["worker", "--task", "pursuit", "--run", "hand", "--regime", "mutual", "--behaviour", b,
+                        "--seed", str(seed), "--connect", endpoint, "--out", f"runs/hand/workers/{b}", *small]
+        for name, argv in argvs.items():
+            with open(logs[name], "wb") as f:
+                procs.append(subprocess.Popen([str(BIN / "coevo"), *argv], cwd=tmp_path, env=_env(pursuit_site),
+                                              stdout=f, stderr=subprocess.STDOUT))
+        for p, b in zip(procs[1:], ("pursuer", "evader"), strict=True):
+            assert p.wait(timeout=240) == 0, logs[b].read_text()
+        wait_until(lambda: (tmp_path / "runs" / "hand" / "run.json").exists(), 30, "the workers' run.json")
+        status = _run(["coevo", "status", "--run", "hand"], pursuit_site, tmp_path)
+        assert status.returncode == 0 and "evader 3/3" in status.stdout and "pursuer 3/3" in status.stdout, status.stdout
+    finally:
+        end_processes(procs)
+    check = _run(["coevo", "check", "runs/hand"], pursuit_site, tmp_path)
+    assert check.returncode == 0 and "complete" in check.stdout, check.stdout + check.stderr
+    for b in ("pursuer", "evader"):  # each adopted the other's published bests: they learned against each other
+        assert (tmp_path / "runs" / "hand" / "workers" / b / "adoptions.jsonl").read_text().strip(), b
+    assert "Traceback" not in "".join(f.read_text() for f in logs.values())
+
+
+def _comparison_written(out: Path, stdout: str, site: Path) -> None:
+    """The generic reading of a comparison of the outside task: its measures per regime, the rank tests, a verdict,
+    the figures; and the dashboard's model of it (the task's behaviours on its panels, no Table 1)."""
+    results = json.loads((out / "results.json").read_text())
+    assert results["runs_finished"] == results["runs_expected"] == 4, results
+    assert set(results["measures"]) == {"mutual", "independent"}
+    assert {"captured", "escaped", "final_pursuer_fitness", "final_evader_fitness"} <= set(results["measures"]["mutual"])
+    assert {t["measure"] for t in results["tests"]} >= {"captured", "final_evader_fitness"}
+    assert "smoke test" in results["verdict"] and "mutual: captured" in stdout, stdout
+    report = (out / "report.md").read_text()
+    assert "# Regime comparison: the pursuit task" in report and "| captured |" in report
+    for f in ("figure-mutual.png", "figure-independent.png", "regimes.png"):
+        assert (out / f).stat().st_size > 1000, f
+    probe = ("import json, sys\nfrom pathlib import Path\nfrom coevo.dashboard.compare import ComparisonFiles\n"
+             "c = ComparisonFiles(Path(sys.argv[1]), stale=60).read()\n"
+             "print(json.dumps({'behaviours': sorted({p['behaviour'] for p in c['panels']}), 'counts': c['counts'], "
+             "'classes': c['classes'], 'lines': sum(len(g['lines']) for p in c['panels'] for g in p['groups'].values())}))")
+    r = subprocess.run([sys.executable, "-c", probe, str(out)], env=_env(site),
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    seen = json.loads(r.stdout)
+    assert seen["behaviours"] == ["evader", "pursuer"] and seen["classes"] == [], seen
+    assert seen["counts"]["done"] == 4 and seen["lines"] == 4 * 4, seen  # 4 runs on 4 panels (2 behaviours x 2 curves)
 
 
 def _dynamics_written(out: Path, stdout: str) -> None:

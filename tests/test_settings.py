@@ -156,7 +156,7 @@ def test_a_comparison_saved_before_a_world_setting_existed_resumes_as_it_ran(tmp
     assert prepare(out, CompareSpec.make(runs=1, world={"docking_target_sensors": True}), resume=True)
 
     # what is not a comparison's settings is refused in one line naming the bad value itself
-    for spec_json, needle in (({**held, "world": {"arena": "big"}}, "world.arena='big'"), ([1, 2], "got list")):
+    for spec_json, needle in (({**held, "world": {"arena": "big"}}, "world settings of the fuel task: arena='big'"), ([1, 2], "got list")):
         (out / "compare.json").write_text(json.dumps({"spec": spec_json, "created": 0.0}))
         with pytest.raises(RunDirError, match=re.escape(needle)) as said:
             prepare(out, spec, resume=True)

@@ -362,8 +362,6 @@ def test_a_tiny_study_killed_with_a_signal_resumes_and_reports(tmp_path: Path) -
     tests = {(t["factor"], t["measure"]): t for t in res["tests"]}
     assert ("max_lead", "executive_end") in tests
     t = tests[("max_lead", "executive_end")]
-    xs = {lv: [x["executive_end"] for x in res["runs"] if x["levels"]["max_lead"] == v]
-          for lv, v in (("1", 1), ("off", None))}
     assert t["min_p"] == pytest.approx(1 / 3)  # two runs a level: no exact p below 1/3, and none given
     assert t["min_p"] <= t["p"] <= t["p_holm"]
     assert "No detectable effect" not in res["verdict"]  # 2 runs a level: "too few runs to test" or "not established"

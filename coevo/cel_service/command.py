@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from coevo.console import add_max_lead, add_settings, count_arg, ga_settings, max_lead_of, seed_arg, world_settings
+from coevo.console import add_max_lead, add_settings, count_arg, given_settings, max_lead_of, seed_arg
 from coevo.errors import ConfigError
 
 __all__ = ["configure_cel", "configure_execution", "cmd_cel", "cmd_execution", "SCHEDULES"]
@@ -59,11 +59,10 @@ def _settings(args: argparse.Namespace) -> Any:
              if getattr(args, k) is not None}
     given.setdefault("chunk", given.get("trials_per_generation", CelSettings().trials_per_generation))  # a generation's trials at once
     cel = build(CelSettings, {"schedule": schedule, "case_base": args.case_base or bool(args.cases_from), **given})
-    ga = ga_settings(args, "door")
-    if args.generations is None:
-        ga = ga.model_copy(update={"generations": CEL_GENERATIONS})
+    world, ga = given_settings(args, "door")
+    ga.setdefault("generations", CEL_GENERATIONS)  # checked once, with the rest, by RunSettings
     return RunSettings.make(run=args.run or default_run_id("cel"), task="door", regime="independent", seed=args.seed or 0,
-                            max_lead=max_lead_of(args.max_lead, CEL_MAX_LEAD), world=world_settings(args, "door"), ga=ga, cel=cel)
+                            max_lead=max_lead_of(args.max_lead, CEL_MAX_LEAD), world=world, ga=ga, cel=cel)
 
 
 def _given_settings(args: argparse.Namespace) -> Any:

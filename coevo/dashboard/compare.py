@@ -75,10 +75,13 @@ class ComparisonFiles:
             except (KeyError, TypeError, ConfigError) as exc:
                 raise RunDirError(f"{self.out / 'compare.json'} is not a comparison's settings: "
                                   f"{str(exc).splitlines()[0]}") from None
+        from coevo.experiments.compare.reading import reading_of
+
         self.spec = spec
+        self.reading = reading_of(spec.the_task)  # its panels, its classes of runs (the fuel task's Table 1)
         self.replicates = replicates(self.spec)
         self._classes: dict[str, str] = {}  # a finished replicate's Table 1 class: it no longer changes
-        self._curves: dict[str, list[float]] = {}  # ... and its Executive curve (best per generation)
+        self._curves: dict[str, list[float]] = {}  # ... and its headline curve (best per generation)
         self._tails: dict[tuple[str, str], Any] = {}  # (run, behaviour) -> the Tail of its curve.jsonl
         self._rows: dict[tuple[str, str], list[dict[str, Any]]] = {}  # ... and the rows read so far
         self._bands: dict[tuple[int, str], tuple[tuple[str, ...], dict[str, list[float]] | None]] = {}
@@ -118,10 +121,13 @@ class ComparisonFiles:
         return "failed", f"no progress for {now - latest:.0f} s; see {log}"
 
     def _class(self, rep: Replicate) -> str | None:
+        """A finished replicate's class (None: its task's reading classes no runs, or its files cannot be read)."""
         from coevo.experiments.compare.experiment import run_dir
-        from coevo.experiments.compare.table1 import classify
         from coevo.rundir.layout import LearnPaths, RunPaths
 
+        classify = self.reading.classify
+        if classify is None:
+            return None
         if rep.run_id not in self._classes:
             d = run_dir(self.out, rep)
             f = LearnPaths(d).measures if rep.offline else RunPaths(d).summary
@@ -132,14 +138,14 @@ class ComparisonFiles:
                 return None
         return self._classes[rep.run_id]
 
-    def _executive_curve(self, rep: Replicate) -> list[float]:
-        """A finished live replicate's Executive curve, the best of each generation (damaged lines left out)."""
+    def _headline_curve(self, rep: Replicate, behaviour: str) -> list[float]:
+        """A finished live replicate's curve of the behaviour its reading quotes (the fuel task's Executive), the
+        best of each generation (damaged lines left out)."""
         from coevo.experiments.compare.experiment import run_dir
-        from coevo.experiments.compare.table1 import CURVE
         from coevo.rundir.layout import RunPaths, read_jsonl
 
         if rep.run_id not in self._curves:
-            rows = read_jsonl(RunPaths(run_dir(self.out, rep)).worker(CURVE).curve, missing_ok=True, problems=[])
+            rows = read_jsonl(RunPaths(run_dir(self.out, rep)).worker(behaviour).curve, missing_ok=True, problems=[])
             self._curves[rep.run_id] = [float(r["best_fitness"]) for r in rows
                                         if isinstance(r.get("best_fitness"), (int, float))]
         return self._curves[rep.run_id]
@@ -148,11 +154,10 @@ class ComparisonFiles:
         """A live replicate's curve rows per behaviour, read on from where the last call stopped."""
         from coevo.dashboard.files import Tail
         from coevo.experiments.compare.experiment import run_dir
-        from coevo.experiments.compare.table1 import BEHAVIOURS
         from coevo.rundir.layout import RunPaths
 
         out = {}
-        for b in BEHAVIOURS:
+        for b in self.spec.the_task.behaviours:
             key = (rep.run_id, b)
             tail = self._tails.get(key)
             if tail is None:
@@ -169,8 +174,6 @@ class ComparisonFiles:
         """The report's panels with, per live regime, its runs' lines and its finished runs' mean and band."""
         import numpy as np
 
-        from coevo.experiments.compare.plots import PANELS
-
         state = {r["run"]: r["state"] for r in rows}
         by_group: dict[str, list[Replicate]] = {}
         for rep in self.replicates:
@@ -178,7 +181,7 @@ class ComparisonFiles:
                 by_group.setdefault(rep.group, []).append(rep)
         curves = {rep.run_id: self._curve_rows(rep) for reps in by_group.values() for rep in reps}
         panels = []
-        for i, (title, behaviour, column, ylabel, top) in enumerate(PANELS):
+        for i, (title, behaviour, column, ylabel, top) in enumerate(self.reading.panels):
             groups: dict[str, dict[str, Any]] = {}
             for group, reps in by_group.items():
                 lines = []
@@ -228,37 +231,43 @@ class ComparisonFiles:
             state, why = self._state(rep, now)
             cls = self._class(rep) if state == "done" else None
             total = generations_of(self.spec, rep)
-            done = total if state == "done" else min(total, generations_done(self.out, rep))
+            done = total if state == "done" else min(total, generations_done(self.out, rep,
+                                                                              self.spec.the_task.behaviours))
             rows.append({"run": rep.run_id, "group": rep.group, "state": state, "why": why, "class": cls or "",
                          "generations": done, "of": total})
         return rows
 
     def read(self, states: list[dict[str, Any]] | None = None) -> dict[str, Any]:
-        """Replicates by state, the Table 1 so far beside the report's, the Executive curve of the finished live runs,
+        """Replicates by state, the Table 1 so far beside the report's, the headline curve (its reading's: the fuel task's Executive) of the finished live runs,
         the verdict and the regimes' panels: ``{"dir", "replicates": [...], "counts", "table1", "table1_report",
-        "executive_curve", "verdict", "caveat", "panels", "regimes", "lengths"}`` (``lengths``: rows read per curve, what tells
+        "curve", "headline_curve", "verdict", "caveat", "panels", "regimes", "lengths"}`` (``lengths``: rows read per curve, what tells
         the page its panels changed); ``states``: :meth:`states` when just read."""
         from coevo.experiments.common import below_report
         from coevo.experiments.compare.experiment import OFFLINE, groups
-        from coevo.experiments.compare.report import executive_curve
-        from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS, count
+        from collections import Counter
 
+        from coevo.experiments.compare.report import executive_curve
+
+        reading = self.reading
         rows = self.states() if states is None else states
         classes: dict[str, list[str]] = {g: [] for g in groups(self.spec)}
         curves: dict[str, list[list[float]]] = {g: [] for g in groups(self.spec)}
         for rep, row in zip(self.replicates, rows, strict=True):
             if row["class"]:
                 classes.setdefault(rep.group, []).append(row["class"])
-                if not rep.offline:
-                    curves.setdefault(rep.group, []).append(self._executive_curve(rep))
+            if row["state"] == "done" and not rep.offline and reading.curve is not None:
+                curves.setdefault(rep.group, []).append(self._headline_curve(rep, reading.curve))
         counts = {s: sum(1 for r in rows if r["state"] == s) for s in ("done", "running", "failed", "waiting")}
         ga = self.spec.ga
         caveat = below_report({"generations": ga.generations, "population": ga.population, "episodes": ga.episodes,
                                "runs a regime": self.spec.runs})
-        return {"dir": str(self.out), "replicates": rows, "counts": counts, "classes": list(CLASSES),
-                "table1": {g: count(c) for g, c in classes.items()},
-                "table1_report": {g: REPORT_COUNTS[g] for g in classes if g in REPORT_COUNTS},
-                "executive_curve": {g: executive_curve(c) for g, c in curves.items() if c},
+        return {"dir": str(self.out), "replicates": rows, "counts": counts, "classes": list(reading.classes),
+                "table1": {g: {k: Counter(c).get(k, 0) for k in reading.classes} for g, c in classes.items()},
+                "table1_report": {g: dict(reading.report_counts[g]) for g in classes if g in reading.report_counts},
+                "finished": {g: sum(1 for rep, row in zip(self.replicates, rows, strict=True)
+                                    if rep.group == g and row["state"] == "done") for g in groups(self.spec)},
+                "curve": reading.curve,
+                "headline_curve": {g: executive_curve(c) for g, c in curves.items() if c},
                 "verdict": self._verdict.read(), "caveat": caveat, "panels": self._panels(rows),
                 "regimes": [r for r in self.spec.regimes if r != OFFLINE],  # the live ones: those with curves
                 "lengths": {f"{run}/{b}": len(r) for (run, b), r in sorted(self._rows.items())}}

@@ -119,14 +119,14 @@ def workers_html(view: View) -> str:
 
 
 def comparison_html(view: View) -> str:
-    """A comparison's long tables, for the fold below its headline: the Executive curve of the finished runs and the
+    """A comparison's long tables, for the fold below its headline: the headline curve of the finished runs and the
     replicates by state."""
     c = view.comparison
     if not c:
         return ""
     reps = [[_e(r["run"]), _e(r["group"]), _state(r["state"]), f"{r['generations']}/{r['of']}", _e(r["class"] or "-"),
              _e(r["why"])] for r in c["replicates"]]
-    return (_executive_curve_html(c.get("executive_curve", {}))
+    return (_headline_curve_html(c.get("headline_curve", {}), c.get("curve") or "")
             + _table("replicates", ["replicate", "group", "state", "worker generations", "class", "why"], reps,
                      numeric={3}))
 
@@ -140,7 +140,7 @@ def table1_html(view: View) -> str:
     counts = ", ".join(f"{n} {s}" for s, n in c["counts"].items())
     groups = list(c["table1"])
     report = c.get("table1_report", {})
-    heads, cols = ["Table 1"], []
+    heads, cols = ["Table 1" if c["classes"] else "regime"], []
     for g in groups:
         heads.append(f"{g} so far")
         cols.append(lambda cls, g=g: str(c["table1"][g].get(cls, 0)))
@@ -148,7 +148,7 @@ def table1_html(view: View) -> str:
             heads.append("report")
             cols.append(lambda cls, g=g: f'<span class="report">{report[g].get(cls, 0)}</span>')
     rows = [[_e(cls)] + [f(cls) for f in cols] for cls in c["classes"]]
-    done = {g: sum(c["table1"][g].values()) for g in groups}
+    done = c.get("finished") or {g: sum(c["table1"][g].values()) for g in groups}
     rows.append(["<i>runs finished</i>"] + [x for g in groups for x in (
         [str(done[g])] + ([f'<span class="report">{sum(report[g].values())}</span>'] if g in report else []))])
     style = ("<style>table.table1 td,table.table1 th{white-space:nowrap;padding:1px 8px}"
@@ -221,8 +221,8 @@ def regime_columns(panel: dict[str, Any], group: str, picked: set[str] | frozens
     return band, lines
 
 
-def _executive_curve_html(curves: dict[str, dict]) -> str:
-    """The Executive curve of each regime's finished runs: its last generation's best and the mean over the last
+def _headline_curve_html(curves: dict[str, dict], behaviour: str) -> str:
+    """The curve its reading quotes (the fuel task's Executive's) of each regime's finished runs: its last generation's best and the mean over the last
     generations, means over the runs with 95 % intervals (coevo compare's report)."""
     from coevo.experiments.compare.report import tail_text
     from coevo.experiments.compare.stats import MeanInterval
@@ -232,7 +232,7 @@ def _executive_curve_html(curves: dict[str, dict]) -> str:
     tail = next(iter(curves.values()))["tail_generations"]
     rows = [[_e(g), _e(MeanInterval(**c["end"]).text()), _e(MeanInterval(**c["last_generations"]).text())]
             for g, c in curves.items()]
-    return _table("executive-curve", ["Executive curve (finished runs)", "generation's best at the last generation",
+    return _table("headline-curve", [f"{behaviour.capitalize()} curve (finished runs)", "generation's best at the last generation",
                                       f"generation's best, mean of its last {tail_text(tail)}"], rows)
 
 

@@ -74,13 +74,13 @@ class _Page:
             else:
                 layout = column(self.title, self.banner, self.study.headline, self.study.controls,
                                 self.study.regimes.headline, self.study.regimes.controls, *self.study.regimes.rows,
-                                *_folded("the cell's replicates and its Executive curve's table", self.comparison),
+                                *_folded("the cell's replicates and its curve's table", self.comparison),
                                 *_folded("every cell's Table 1", self.study.tables), self.robot,
                                 sizing_mode="stretch_width")
         elif dash.kind == "comparison":
             self.regimes = _Regimes(dash)
             layout = column(self.title, self.banner, self.regimes.headline, self.regimes.controls, *self.regimes.rows,
-                            *_folded("replicates and the Executive curve's table", self.comparison),
+                            *_folded("replicates and the curve's table", self.comparison),
                             *_folded("runs and workers", column(self.runs, self.workers, sizing_mode="stretch_width")),
                             self.robot, sizing_mode="stretch_width")
         else:
@@ -192,6 +192,18 @@ def _folded(label: str, body: LayoutDOM) -> list[LayoutDOM]:
     return [button, body]
 
 
+def _panels_of(view: View) -> list[tuple[str, str, str, str, float | None]]:
+    """The panels of the view's comparison (its task's reading), or, before it is read (a study's cell), the default
+    task's: a study's cells compare its regimes."""
+    from coevo.experiments.compare.reading import reading_of
+    from coevo.tasks import DEFAULT_TASK, get_task
+
+    panels = (view.comparison or {}).get("panels")
+    if panels:
+        return [(p["title"], p["behaviour"], p["column"], p["ylabel"], p["top"]) for p in panels]
+    return [tuple(p) for p in reading_of(get_task(DEFAULT_TASK)).panels]  # type: ignore[misc]
+
+
 class _Regimes:
     """A comparison's page: its headline (Table 1 so far beside the report's counts, the verdict), a run selector,
     and the report's panels with a band, a mean and the runs' lines per regime; a legend in each panel hides a regime
@@ -201,8 +213,6 @@ class _Regimes:
         """``first``: the view whose comparison the page opens on (default: the dashboard's)."""
         from bokeh.layouts import row
         from bokeh.models.widgets import Div, MultiChoice
-
-        from coevo.experiments.compare.plots import PANELS
 
         self.dash = dash
         self.table1 = Div(text="", name="table1", width=600)
@@ -217,7 +227,8 @@ class _Regimes:
                         "(<b>dotted</b>: not finished). Hover for values.</p>"),
                   sizing_mode="stretch_width")
         self.controls = row(self.picker, key, sizing_mode="stretch_width")
-        self.panels = list(PANELS)
+        view = first if first is not None else dash.current()[1]
+        self.panels = _panels_of(view)
         self.figures: list[figure] = []
         self.sources: dict[tuple[int, str], tuple[ColumnDataSource, ColumnDataSource]] = {}  # (panel, group) -> (band, lines)
         self.renderers: dict[str, list[GlyphRenderer[Any]]] = {}  # group -> its renderers in every panel
@@ -229,7 +240,6 @@ class _Regimes:
                 for title, beh, col, ylabel, _ in self.panels]
         self.figures = figs
         self.rows = [row(*figs[i:i + 3], sizing_mode="stretch_width") for i in range(0, len(figs), 3)]
-        view = first if first is not None else dash.current()[1]
         self._add_groups(view)
 
     def _add_groups(self, view: View) -> None:

@@ -19,12 +19,11 @@ from coevo.console import (
     add_max_lead,
     add_settings,
     count_arg,
-    ga_settings,
+    given_settings,
     max_lead_of,
     positive_float_arg,
     seed_arg,
     task_arg,
-    world_settings,
 )
 from coevo.config import DEFAULT_MAX_LEAD, MODELS
 from coevo.errors import ConfigError, RunDirError
@@ -35,6 +34,13 @@ __all__ = ["configure_run", "configure_worker", "configure_chaos", "configure_st
 GA_FLAGS = ("generations", "population", "episodes", "world", "ga")  # the settings flags of console.add_settings
 RUN_FLAGS = ("task", "regime", "seed", "model", "max_lead", *GA_FLAGS)  # and a run's
 
+
+
+def _given(args: argparse.Namespace, task: str) -> dict[str, dict[str, Any]]:
+    """The world and GA settings the flags give, unchecked: :class:`RunSettings` checks them, once, against the
+    task's world model and the GA's."""
+    world, ga = given_settings(args, task)
+    return {"world": world, "ga": ga}
 
 def refuse(args: argparse.Namespace, names: tuple[str, ...], why: str) -> None:
     """A ConfigError naming each of the flags ``names`` that was given, when ``why`` says they cannot be."""
@@ -104,7 +110,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             settings = RunSettings.make(run=args.run or default_run_id(regime), task=task, regime=regime,
                                         seed=args.seed or 0, model=args.model or "best",
                                         max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
-                                        world=world_settings(args, task), ga=ga_settings(args, task))
+                                        **_given(args, task))
         if (kind := kind_of_settings(settings)) is not COEVOLUTION:
             raise ConfigError(f"{args.settings} holds the settings of {kind.label}: start it with {kind.run().COMMAND}")
         lr = LocalRun(settings, root=Path(args.root), log_level=args.log_level, open_run=args.open, listen=listen)
@@ -175,7 +181,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
         task = args.task or DEFAULT_TASK
         settings = RunSettings.make(run=args.run, task=task, regime=args.regime, seed=args.seed or 0,
                                     model=args.model or "best", max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
-                                    world=world_settings(args, task), ga=ga_settings(args, task))
+                                    **_given(args, task))
     check_behaviour(settings.the_task, args.behaviour)
     kind = kind_of_settings(settings).worker()  # another kind's learner (coevo.rundir.kinds) plugs into the worker's seam
     out = Path(args.out) if args.out else (RunPaths(base).worker(args.behaviour).dir if base else None)
@@ -249,11 +255,10 @@ def cmd_chaos(args: argparse.Namespace) -> int:
     kind = COEVOLUTION if args.learner is None else KINDS.get(args.learner)
     task = args.task or kind.default_task or DEFAULT_TASK
     regime = args.regime or ("mutual" if "mutual" in get_task(task).regimes else "independent")
-    ga = ga_settings(args, task)
-    own = kind.chaos_settings(ga) if kind.chaos_settings is not None else {}  # the kind's own block, its pacing
     settings = RunSettings.make(run=args.run or default_run_id(f"chaos-{kind.block or regime}"), task=task,
-                                regime=regime, seed=args.seed, model=args.model, world=world_settings(args, task), ga=ga,
-                                **own)
+                                regime=regime, seed=args.seed, model=args.model, **_given(args, task))
+    if kind.chaos_settings is not None:  # the kind's own block and pacing, from the GA settings as checked
+        settings = RunSettings.make(**{**settings.model_dump(mode="json"), **kind.chaos_settings(settings.ga)})
 
     def say(text: str) -> None:
         if not args.quiet:

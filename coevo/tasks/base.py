@@ -79,6 +79,13 @@ class Task(ABC, Generic[W]):
     #: The world is its own mirror image, so a rule's mirror image (Sensor.mirrored, Action.mirrored) is as
     #: right on the other side as the rule on its own (GAConfig.symmetric_rules needs this).
     mirror_symmetric: ClassVar[bool] = False
+    #: The behaviour that can learn offline on the partner histories an Independent run recorded (``coevo learn
+    #: --history``; a comparison's pseudo-regime ``independent-offline``), or None.
+    offline_learner: ClassVar[str | None] = None
+    #: How a comparison of it is read (``coevo compare``): "module:NAME" of a
+    #: :class:`~coevo.experiments.compare.reading.Reading`, imported when a comparison is read; None: the generic
+    #: reading (every measure of its ``run_measures`` and each behaviour's curve, compared between the regimes).
+    comparison: ClassVar[str | None] = None
 
     def initial_rules(self, behaviour: str, world: W) -> RuleSet | None:
         """The rules a GA of ``behaviour`` in ``world`` starts from (its shipped default rules, which a world

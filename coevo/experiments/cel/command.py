@@ -24,7 +24,7 @@ def _base_settings(args: argparse.Namespace) -> RunSettings:
     ``coevo cel`` with its defaults (100 generations, Figure 3's failure at 50, lockstep)."""
     from coevo.cel.settings import CelSettings
     from coevo.config import build
-    from coevo.console import ga_settings, world_settings
+    from coevo.console import given_settings
     from coevo.rundir.settings import RunSettings
     from coevo.cel_service.command import CEL_GENERATIONS, CEL_MAX_LEAD, SCHEDULES
 
@@ -33,11 +33,10 @@ def _base_settings(args: argparse.Namespace) -> RunSettings:
     schedule = tuple(args.fail) if args.fail else SCHEDULES[args.schedule or "figure3"]
     k = args.trials_per_generation or CelSettings().trials_per_generation
     cel = build(CelSettings, {"schedule": schedule, "case_base": args.case_base, "trials_per_generation": k, "chunk": k})
-    ga = ga_settings(args, "door")
-    if args.generations is None:
-        ga = ga.model_copy(update={"generations": CEL_GENERATIONS})
+    world, ga = given_settings(args, "door")
+    ga.setdefault("generations", CEL_GENERATIONS)  # checked once, with the rest, by RunSettings
     return RunSettings.make(run="live", task="door", regime="independent", seed=0, max_lead=CEL_MAX_LEAD,
-                            world=world_settings(args, "door"), ga=ga, cel=cel)
+                            world=world, ga=ga, cel=cel)
 
 
 def cmd_cel_experiment(args: argparse.Namespace) -> int:

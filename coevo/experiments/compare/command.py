@@ -18,10 +18,9 @@ from coevo.console import (
     max_lead_of,
     add_settings,
     count_arg,
-    ga_settings,
     positive_float_arg,
     seed_arg,
-    world_settings,
+    task_arg,
 )
 from coevo.config import DEFAULT_MAX_LEAD, MODELS
 from coevo.errors import ConfigError
@@ -29,29 +28,28 @@ from coevo.replicates.flags import add_backend_flags, backend_of, check_backend_
 
 __all__ = ["configure_compare", "cmd_compare"]
 
-DEFAULT_REGIMES = ("mutual", "independent")
-
-
 def cmd_compare(args: argparse.Namespace) -> int:
     from coevo.experiments.compare.experiment import CompareSpec, held_spec, prepare, run_all
-    from coevo.experiments.compare.report import tail_text, write_report
-    from coevo.experiments.compare.stats import MeanInterval
+    from coevo.experiments.compare.reading import write_report
     from coevo.experiments.compare.experiment import default_jobs, replicates
     from coevo.replicates.backends import ClusterLost
-    from coevo.tasks.fuel import FuelTask  # Table 1 compares the fuel task's regimes
+    from coevo.tasks import DEFAULT_TASK, get_task
 
     if (args.resume or args.report_only) and args.out is None:
         raise ConfigError("--resume and --report-only need --out: the comparison's folder")
     out = Path(args.out) if args.out else Path("runs") / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"
     held = held_spec(out) if (args.resume or args.report_only) and out.is_dir() else None
+    # the settings as given, checked once, by the comparison's own model (its task's world and GA rules)
     if held is not None:  # its own settings, as it ran, but for those given: a resume need not repeat them
-        world, ga = given_settings(args, FuelTask.name)
+        world, ga = given_settings(args, held.task)
         spec = CompareSpec.make(**{**held.model_dump(mode="json"), **_given(args),
                                    "world": {**held.world.model_dump(mode="json"), **world},
                                    "ga": {**held.ga.model_dump(mode="json"), **ga}})
     else:
-        spec = CompareSpec.make(**{"regimes": DEFAULT_REGIMES, "max_lead": DEFAULT_MAX_LEAD, **_given(args),
-                                   "world": world_settings(args, FuelTask.name), "ga": ga_settings(args, FuelTask.name)})
+        task = get_task(args.task or DEFAULT_TASK)
+        world, ga = given_settings(args, task.name)
+        spec = CompareSpec.make(**{"task": task.name, "regimes": task.regimes, "max_lead": DEFAULT_MAX_LEAD,
+                                   **_given(args), "world": world, "ga": ga})
     check_backend_flags(args)  # before anything is written into --out
     t0 = time.time()
     if args.report_only:
@@ -83,18 +81,33 @@ def cmd_compare(args: argparse.Namespace) -> int:
                 print(f"  {name}: {why}", file=sys.stderr)
     results = write_report(out, spec, elapsed=None if args.report_only else time.time() - t0)
     print(f"report: {out / 'report.md'}")
-    for r, counts in results["table1"].items():
-        print(f"  {r}: " + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
-    for r, c in results["executive_curve"].items():
-        print(f"  {r}: Executive's generation's best at the last generation {MeanInterval(**c['end']).text()}, "
-              f"mean of its last {tail_text(c['tail_generations'])} {MeanInterval(**c['last_generations']).text()}")
+    for line in _summary(results):
+        print(line)
     print(results["verdict"])
     return 1 if results["runs_finished"] < results["runs_expected"] and not args.report_only else 0
 
 
+def _summary(results: dict[str, Any]) -> list[str]:
+    """The report's lines for the terminal: Table 1 and the Executive's curve (the fuel task's reading), or each
+    regime's means (any other task's)."""
+    from coevo.experiments.compare.stats import MeanInterval
+
+    if "table1" not in results:
+        from coevo.experiments.compare.any_task import summary_lines
+
+        return summary_lines(results)
+    from coevo.experiments.compare.report import tail_text
+
+    lines = [f"  {r}: " + ", ".join(f"{k} {v}" for k, v in counts.items() if v) for r, counts in results["table1"].items()]
+    for r, c in results["executive_curve"].items():
+        lines.append(f"  {r}: Executive's generation's best at the last generation {MeanInterval(**c['end']).text()}, "
+                     f"mean of its last {tail_text(c['tail_generations'])} {MeanInterval(**c['last_generations']).text()}")
+    return lines
+
+
 def _given(args: argparse.Namespace) -> dict[str, Any]:
     """The comparison's settings the command line gives (beside the world and GA ones), by their names in it."""
-    given: dict[str, Any] = {f: getattr(args, f) for f in ("runs", "seed", "model", "measure_epochs")
+    given: dict[str, Any] = {f: getattr(args, f) for f in ("task", "runs", "seed", "model", "measure_epochs")
                              if getattr(args, f) is not None}
     if args.regimes is not None:
         given["regimes"] = tuple(args.regimes)
@@ -107,9 +120,12 @@ def _given(args: argparse.Namespace) -> dict[str, Any]:
 
 def configure_compare(p: argparse.ArgumentParser) -> None:
     """``coevo compare``'s arguments (the command line gathers it: :mod:`coevo.cli`)."""
+    p.add_argument("--task", type=task_arg, help="the task whose regimes are compared (default fuel, the report's; "
+                   "coevo plugins lists those installed); a resume takes its comparison's")
     p.add_argument("--regimes", nargs="+", metavar="REGIME",
-                   help="regimes to compare (default: mutual independent); independent-offline: the Executive "
-                        "learns on the independent runs' recorded Tracking/Docking histories, at each --rates")
+                   help="regimes to compare (default: every regime of the task; the fuel task's mutual independent); "
+                        "independent-offline: a task's offline learner (the fuel task's Executive) learns on the "
+                        "independent runs' recorded partner histories, at each --rates")
     p.add_argument("--rates", nargs="+", type=positive_float_arg(maximum=1e6), metavar="R",
                    help="independent-offline: rates of asynchrony, partner generations per Executive generation "
                         "(default 0.25 0.5 1 2 4)")

@@ -40,7 +40,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, SerializeAsAny, ValidationInfo, field_validator, model_validator
 
 from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig, build
 from coevo.errors import CoevoError, ConfigError, RunDirError
@@ -49,15 +49,10 @@ from coevo.replicates.replicate import Replicate as Job
 from coevo.replicates.runner import Progress, run_replicates
 from coevo.rundir.layout import LearnPaths, RunPaths, ensure_dir, read_json, read_jsonl, write_json
 from coevo.rundir.settings import RunSettings
-from coevo.tasks import get_task, saved_settings, split_settings
-from coevo.tasks.base import check_ga
-from coevo.tasks.fuel import FuelTask
-from coevo.tasks.fuel.behaviours import Behaviour
-from coevo.tasks.fuel.settings import WorldConfig
+from coevo.tasks import DEFAULT_TASK, get_task, saved_settings, split_settings
+from coevo.tasks.base import Task, check_ga
 
-REGIMES = FuelTask.regimes
-
-__all__ = ["CompareSpec", "Replicate", "held_spec", "prepare", "problems", "replicates", "groups", "run_all", "jobs_of", "default_jobs", "OFFLINE",
+__all__ = ["CompareSpec", "offline_learner", "Replicate", "held_spec", "prepare", "problems", "replicates", "groups", "run_all", "jobs_of", "default_jobs", "OFFLINE",
            "DEFAULT_RATES"]
 
 log = logging.getLogger(__name__)
@@ -69,12 +64,27 @@ DEFAULT_RATES = (0.25, 0.5, 1.0, 2.0, 4.0)  # (ours) partner generations per Exe
 
 def _settings_now(spec: Any) -> Any:
     """A comparison's settings (compare.json's spec, or values given) with GA values that are now world settings
-    moved to the world (:func:`coevo.tasks.split_settings`: the fuel task's Docking settings, GA settings in comparisons saved before November 2026)."""
-    if not isinstance(spec, dict) or not isinstance(spec.get("world"), dict) or not isinstance(spec.get("ga"), dict):
+    moved to the world (:func:`coevo.tasks.split_settings`: GA settings of comparisons saved before a task moved
+    them), and the world read as its task's settings (checked there, once, naming a bad value: ``world settings of
+    the fuel task: arena='big': ...``)."""
+    if not isinstance(spec, dict) or not isinstance(spec.get("task", DEFAULT_TASK), str):
         return spec
-    world, ga = spec["world"], spec["ga"]
-    world, ga = split_settings(get_task(FuelTask.name), world, ga)
-    return {**spec, "world": world, "ga": ga}
+    task = get_task(spec.get("task", DEFAULT_TASK))
+    world, ga = spec.get("world", {}), spec.get("ga", {})
+    if isinstance(world, BaseModel):
+        world = world.model_dump(mode="json")
+    if isinstance(world, dict) and isinstance(ga, dict):
+        world, ga = split_settings(task, world, ga)
+        spec = {**spec, "ga": ga}
+    if isinstance(world, dict):
+        world = build(task.world_settings, world, what=f"world settings of the {task.name} task")
+    return {**spec, "world": world}
+
+
+def offline_learner(task: Task[Any]) -> str | None:
+    """The behaviour of ``task`` that learns offline on an independent run's recorded partner histories (``coevo
+    learn --history``, the pseudo-regime :data:`OFFLINE`), or None: the task has none."""
+    return task.offline_learner
 
 
 class CompareSpec(BaseModel):
@@ -82,44 +92,65 @@ class CompareSpec(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    regimes: tuple[str, ...] = REGIMES
+    task: str = DEFAULT_TASK
+    regimes: tuple[str, ...] = ("mutual", "independent")
     rates: tuple[float, ...] = Field(DEFAULT_RATES, description="rates of asynchrony for independent-offline")
     runs: int = Field(10, ge=1, le=1000, description="replicates per regime")
     seed: int = 0
     model: str = "best"
     max_lead: int | None = DEFAULT_MAX_LEAD
     measure_epochs: int = Field(100, ge=1, le=100_000)
-    world: WorldConfig = WorldConfig()
+    world: SerializeAsAny[BaseModel] = Field(default=None, validate_default=False)  # type: ignore[assignment]
     ga: GAConfig = GAConfig()
+
+    @field_validator("task")
+    @classmethod
+    def _task(cls, v: str) -> str:
+        try:
+            return get_task(v).name
+        except ConfigError as exc:
+            raise ValueError(str(exc)) from None
 
     @field_validator("regimes")
     @classmethod
-    def _regimes(cls, v: tuple[str, ...]) -> tuple[str, ...]:
+    def _regimes(cls, v: tuple[str, ...], info: ValidationInfo) -> tuple[str, ...]:
+        if "task" not in info.data:
+            return v  # the task itself is refused
+        task = get_task(info.data["task"])
+        # an offline learner's report is its task's own reading (the generic one reads the live regimes)
+        known = (*task.regimes, OFFLINE) if offline_learner(task) and task.comparison else task.regimes
         if not v:
             raise ValueError("name at least one regime")
         for r in v:
-            if r not in (*REGIMES, OFFLINE):
-                raise ValueError(f"unknown regime {r!r} (use {', '.join((*REGIMES, OFFLINE))})")
+            if r not in known:
+                raise ValueError(f"unknown regime {r!r} of the {task.name} task (use {', '.join(known)})")
         if len(set(v)) != len(v):
             raise ValueError(f"regimes repeat: {list(v)}")
         if OFFLINE in v and "independent" not in v:
-            raise ValueError(f"{OFFLINE} learns on the Tracking and Docking histories of the independent runs: "
+            raise ValueError(f"{OFFLINE} learns on the partner histories of the independent runs: "
                              "add independent to the regimes")
         return v
 
     @model_validator(mode="before")
     @classmethod
     def _moved(cls, data: Any) -> Any:
-        """A comparison saved before the fuel task's Docking settings moved from its GA to its world reads as it ran."""
+        """The world read as the task's settings; a comparison saved before a task moved GA settings to its world
+        reads as it ran."""
         return _settings_now(data)
 
     @field_validator("ga")
     @classmethod
-    def _ga(cls, v: GAConfig) -> GAConfig:
+    def _ga(cls, v: GAConfig, info: ValidationInfo) -> GAConfig:
+        if "task" not in info.data:
+            return v
         try:
-            return check_ga(get_task(FuelTask.name), v)  # before OUT is written to
+            return check_ga(get_task(info.data["task"]), v)  # before OUT is written to
         except ConfigError as exc:
             raise ValueError(str(exc)) from None
+
+    @property
+    def the_task(self) -> Task[Any]:
+        return get_task(self.task)
 
     @field_validator("rates")
     @classmethod
@@ -321,7 +352,7 @@ def problems(out: Path, spec: CompareSpec, *, report_only: bool = False) -> list
                 found.append(str(exc))
                 continue
             if "measures" in summary:  # finished: what the report reads of it
-                found += _finished_problems(run)
+                found += _finished_problems(run, spec)
                 continue
         if report_only:
             continue  # an unfinished run is not reported on
@@ -338,18 +369,21 @@ def problems(out: Path, spec: CompareSpec, *, report_only: bool = False) -> list
     return found
 
 
-def _finished_problems(run: RunPaths) -> list[str]:
-    """What is wrong with the files the report reads of a finished live run: its curves and final Docking rules."""
+def _finished_problems(run: RunPaths, spec: CompareSpec) -> list[str]:
+    """What is wrong with the files the report reads of a finished live run: its curves and the final rules its
+    task's reading reads (the fuel task's: Docking's)."""
+    from coevo.experiments.compare.reading import reading_of
     from coevo.policy.text import read_rule_file
     from coevo.rundir.records import CurveLine
 
     found: list[str] = []
-    for b in Behaviour:
+    for b in spec.the_task.behaviours:
         read_jsonl(run.worker(b).curve, schema=CurveLine, problems=found)
-    try:  # a finished worker wrote its best after its first generation
-        read_rule_file(run.worker(Behaviour.DOCKING).best_rules, Behaviour.DOCKING)
-    except CoevoError as exc:
-        found.append(str(exc))
+    for b in reading_of(spec.the_task).rules_read:
+        try:  # a finished worker wrote its best after its first generation
+            read_rule_file(run.worker(b).best_rules, b)
+        except CoevoError as exc:
+            found.append(str(exc))
     return found
 
 
@@ -380,8 +414,8 @@ def weight(rep: Replicate) -> int:
 def _settings_file(out: Path, spec: CompareSpec, rep: Replicate) -> Path:
     """The replicate's settings, written once for the process that runs it (its run.json-to-be)."""
     regime = "independent" if rep.offline else rep.regime
-    settings = RunSettings.make(run=rep.run_id, regime=regime, seed=rep.seed, model=spec.model, max_lead=spec.max_lead,
-                                world=spec.world.model_dump(mode="json"), ga=spec.ga)
+    settings = RunSettings.make(task=spec.task, run=rep.run_id, regime=regime, seed=rep.seed, model=spec.model,
+                                max_lead=spec.max_lead, world=spec.world.model_dump(mode="json"), ga=spec.ga)
     f = Path(out) / "settings" / f"{rep.run_id}.json"
     f.parent.mkdir(parents=True, exist_ok=True)
     settings.save(f)
@@ -400,7 +434,7 @@ def _run_command(spec_json: dict[str, Any], rep: Replicate, root: Path) -> list[
     if rep.offline:  # the Executive learns with the seed it has in a live run (seed + its index)
         if rep.depends_on is None:
             raise TypeError(f"offline replicate {rep.run_id} names no live run to learn on the history of")
-        return [sys.executable, "-m", "coevo", "learn", "--quiet", "--behaviour", "executive",
+        return [sys.executable, "-m", "coevo", "learn", "--quiet", "--behaviour", str(spec_json["offline_learner"]),
                 "--settings", str(settings), "--history", str(run_dir(root, rep.depends_on)),
                 "--rate", repr(rep.rate), "--out", str(d), "--measure-epochs", epochs]
     if RunPaths(d).run_json.exists():  # interrupted: continue it from the workers' checkpoints
@@ -413,16 +447,16 @@ def _run_command(spec_json: dict[str, Any], rep: Replicate, root: Path) -> list[
 
 def generations_of(spec: CompareSpec, rep: Replicate) -> int:
     """Worker generations a replicate runs: three workers, or one Executive learning offline."""
-    return spec.ga.generations * (1 if rep.offline else len(Behaviour))
+    return spec.ga.generations * (1 if rep.offline else len(spec.the_task.behaviours))
 
 
-def generations_done(out: Path, rep: Replicate) -> int:
+def generations_done(out: Path, rep: Replicate, behaviours: tuple[str, ...]) -> int:
     """Worker generations finished so far in a replicate (for progress), read from the curve logs
     (an offline Executive shows its generations only when it is done)."""
     if rep.offline:
         return 0
     n = 0
-    for b in Behaviour:
+    for b in behaviours:
         f = RunPaths(run_dir(out, rep)).worker(b).curve
         try:
             with open(f, "rb") as fh:
@@ -436,15 +470,15 @@ def _finished_under(rep: Replicate, root: Path) -> bool:
     return is_finished(Path(root), rep)
 
 
-def _done_under(rep: Replicate, root: Path) -> int:
-    return generations_done(Path(root), rep)
+def _done_under(rep: Replicate, behaviours: tuple[str, ...], root: Path) -> int:
+    return generations_done(Path(root), rep, behaviours)
 
 
 def jobs_of(out: Path, spec: CompareSpec) -> list[Job]:
     """The comparison as replicates for :mod:`coevo.replicates`: each a ``coevo run`` (or, for
     independent-offline, a ``coevo learn`` after the live run it learns on), its settings written here first
     so that they are the same whichever backend runs it."""
-    spec_json = _spec_json(spec)
+    spec_json = {**_spec_json(spec), "offline_learner": offline_learner(spec.the_task)}
     jobs = []
     for rep in replicates(spec):
         settings = f"settings/{rep.run_id}.json"
@@ -453,7 +487,7 @@ def jobs_of(out: Path, spec: CompareSpec) -> list[Job]:
         dep = rep.depends_on
         jobs.append(Job(
             name=rep.run_id, output=f"runs/{rep.run_id}", finished=partial(_finished_under, rep),
-            command=partial(_run_command, spec_json, rep), progress=partial(_done_under, rep),
+            command=partial(_run_command, spec_json, rep), progress=partial(_done_under, rep, spec.the_task.behaviours),
             inputs=(settings,) + ((f"runs/{dep.run_id}",) if dep is not None else ()),
             after=(dep.run_id,) if dep is not None else (), weight=weight(rep), cost=generations_of(spec, rep)))
     return jobs

@@ -14,19 +14,10 @@ from pathlib import Path
 import numpy as np
 
 from coevo.experiments.common import plural
+from coevo.experiments.compare.reading import Panel
 from coevo.experiments.compare.stats import MIN_RUNS, mean_intervals
 
-__all__ = ["PANELS", "figure_for_regime", "figure_regimes", "figure_rates"]
-
-# (title, behaviour, curve column, y label, y scale)
-PANELS = (
-    ("Executive learning curve", "executive", "best_fitness", "generation's best fitness", 1.0),
-    ("Docking learning curve", "docking", "best_fitness", "generation's best fitness", 1.0),
-    ("Tracking learning curve", "tracking", "best_fitness", "generation's best fitness", 1.0),
-    ("Quality Tracking (Executive's generation's best)", "executive", "quality_tracking", "% of episodes", 100.0),
-    ("Docking alone (Docking's generation's best)", "docking", "docking_from_random", "% of fresh starts", 100.0),
-    ("Docking picked (Executive's generation's best)", "executive", "dock_choice", "% of episodes", 100.0),
-)
+__all__ = ["figure_for_regime", "figure_regimes", "figure_rates"]
 
 Curves = Mapping[str, Mapping[str, Mapping[str, Sequence[float]]]]  # run -> behaviour -> column -> per generation
 
@@ -52,23 +43,34 @@ def _pyplot():
     return plt
 
 
-def _axis(ax, title: str, ylabel: str, top: float, *, xlabel: str = "generation") -> None:
+def _axis(ax, title: str, ylabel: str, top: float | None, *, xlabel: str = "generation") -> None:
     from matplotlib.ticker import MaxNLocator
 
     ax.set_title(title)
     ax.set_xlabel(xlabel)
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # generations are whole: no 1.5 on a 3-generation run
     ax.set_ylabel(ylabel)
-    ax.set_ylim(0, top)
+    if top is not None:
+        ax.set_ylim(0, top)
     ax.grid(alpha=0.3)
 
 
-def figure_for_regime(curves: Curves, regime: str, path: Path) -> None:
-    """One regime's panels: the report's four (its Figure 5 for Mutual, 6 for Independent), then Docking's own
-    measure and how often the Executive picked Docking."""
+def _grid(plt, panels: Sequence[Panel]):
+    """A figure with a subplot per panel, three to a row, and its axes in the panels' order (spare ones hidden)."""
+    cols = min(3, len(panels))
+    rows = -(-len(panels) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(14 * cols / 3, 3.5 * rows), constrained_layout=True, squeeze=False)
+    for ax in list(axes.flat)[len(panels):]:
+        ax.set_visible(False)
+    return fig, list(axes.flat)[: len(panels)]
+
+
+def figure_for_regime(curves: Curves, regime: str, path: Path, panels: Sequence[Panel]) -> None:
+    """One regime's panels (the fuel task's: the report's four, its Figure 5 for Mutual, 6 for Independent, then
+    Docking's own measure and how often the Executive picked Docking)."""
     plt = _pyplot()
-    fig, axes = plt.subplots(2, 3, figsize=(14, 7), constrained_layout=True)
-    for ax, (title, beh, col, ylabel, top) in zip(axes.flat, PANELS, strict=True):
+    fig, axes = _grid(plt, panels)
+    for ax, (title, beh, col, ylabel, top) in zip(axes, panels, strict=True):
         m = _matrix(curves, beh, col)
         if m.size and not np.isnan(m).all():
             g = np.arange(1, m.shape[1] + 1)
@@ -84,12 +86,12 @@ def figure_for_regime(curves: Curves, regime: str, path: Path) -> None:
     plt.close(fig)
 
 
-def figure_regimes(by_regime: Mapping[str, Curves], path: Path) -> None:
+def figure_regimes(by_regime: Mapping[str, Curves], path: Path, panels: Sequence[Panel]) -> None:
     """The regimes' mean curves side by side on the same panels."""
     plt = _pyplot()
-    fig, axes = plt.subplots(2, 3, figsize=(14, 7), constrained_layout=True)
+    fig, axes = _grid(plt, panels)
     colours = ("tab:red", "tab:green", "tab:blue", "tab:orange")
-    for ax, (title, beh, col, ylabel, top) in zip(axes.flat, PANELS, strict=True):
+    for ax, (title, beh, col, ylabel, top) in zip(axes, panels, strict=True):
         for colour, (regime, curves) in zip(colours, by_regime.items(), strict=False):
             m = _matrix(curves, beh, col)
             if not m.size or np.isnan(m).all():

@@ -24,6 +24,7 @@ from typing import Any
 from coevo.errors import CoevoError, RuleSetError, RunDirError
 from coevo.experiments.common import below_report, plural
 from coevo.experiments.compare import plots
+from coevo.experiments.compare.any_task import test_sentence, undecided, winner
 from coevo.experiments.compare.experiment import (
     OFFLINE,
     CompareSpec,
@@ -44,7 +45,7 @@ from coevo.experiments.compare.stats import (
     MeanInterval,
     mean_interval,
 )
-from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
+from coevo.experiments.compare.table1 import CLASSES, PANELS, REPORT_COUNTS, classify, count
 from coevo.experiments.glossary import TERMS, label
 from coevo.policy.text import parse_ruleset
 from coevo.rundir.layout import (
@@ -57,6 +58,7 @@ from coevo.rundir.layout import (
 )
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.robot import docking_from_random_starts
+from coevo.tasks.fuel.settings import WorldConfig
 
 __all__ = ["collect", "write_report", "MEASURES", "executive_curve", "tail_text"]
 
@@ -98,6 +100,8 @@ def _docking_alone(d: Path, spec: CompareSpec, rep: Replicate) -> float:
         rules = parse_ruleset(f.read_text(), Behaviour.DOCKING)
     except (OSError, RuleSetError):
         return float("nan")
+    if not isinstance(spec.world, WorldConfig):
+        raise TypeError(f"a Table 1 report reads the fuel task's comparisons, not the {spec.task} task's")
     return docking_from_random_starts(spec.world, rules, episodes=DOCKING_PROBE_EPISODES, seed=rep.seed + 7)
 
 
@@ -146,11 +150,6 @@ def _record(out: Path, spec: CompareSpec, rep: Replicate) -> dict[str, Any]:
 def _number(v: Any) -> float:
     """A curve value; NaN where a behaviour has no such measure (or an older run did not record it)."""
     return float("nan") if v is None else float(v)
-
-
-def _winner(t: RankComparison) -> tuple[str, str]:
-    """(higher, lower) regime by the effect size: medians tie when most runs score 0, ranks do not."""
-    return (t.b, t.a) if t.a12 > 0.5 else (t.a, t.b)
 
 
 def _live(spec: CompareSpec) -> list[str]:
@@ -210,11 +209,6 @@ def _rate_tests(offline: dict[str, list[dict[str, Any]]]) -> tuple[list[GroupCom
     return every, (tests(paced) if len(paced) < len(offline) else [])
 
 
-def _undecided(magnitude: str, significant: bool) -> bool:
-    """A large effect the test could not establish: neither "differs" nor "does not differ" is true of it."""
-    return not significant and magnitude == "large"
-
-
 def _rates_sentence(tests: list[GroupComparison], which: str) -> str:
     parts = []
     for t in tests:
@@ -222,14 +216,14 @@ def _rates_sentence(tests: list[GroupComparison], which: str) -> str:
         meds = ", ".join(f"{_rate_of(g):g}: {m:.3g}" for g, m in zip(t.groups, t.medians, strict=True))
         floor = design_floor(t.min_p, f"{t.n} runs in {len(t.groups)} groups")
         said = ("differs appreciably" if t.appreciable else
-                "may differ: its effect is large, but not established" if _undecided(t.magnitude, t.p_value < 0.05)
+                "may differ: its effect is large, but not established" if undecided(t.magnitude, t.p_value < 0.05)
                 else "does not differ appreciably")
         parts.append(f"{name} {said} "
                      f"(medians by rate {meds}; Kruskal–Wallis H = {t.h:.2f}, p = {format_p(t.p_value)}, "
                      f"ε² = {t.epsilon2:.2f}, {t.magnitude}{'; ' + floor if floor else ''})")
     if any(t.appreciable for t in tests):
         held = "does not hold"
-    elif any(_undecided(t.magnitude, t.p_value < 0.05) for t in tests):
+    elif any(undecided(t.magnitude, t.p_value < 0.05) for t in tests):
         held = "can be neither confirmed nor refuted with these runs"
     else:
         held = "holds"
@@ -251,22 +245,7 @@ def _rates_verdict(every: list[GroupComparison], paced: list[GroupComparison]) -
 
 def _verdict(spec: CompareSpec, records: list[dict[str, Any]], tests: list[RankComparison]) -> str:
     by = {r: [x for x in records if x["group"] == r] for r in _live(spec)}
-    parts = []
-    for t in tests:
-        med = {t.a: t.median_a, t.b: t.median_b}
-        mean = {t.a: t.mean_a, t.b: t.mean_b}
-        name = label(t.measure)
-        if t.p_value < 0.05 and t.a12 != 0.5:
-            hi, lo = _winner(t)
-            parts.append(f"{hi} beats {lo} on {name} (medians {med[hi]:.3g} vs {med[lo]:.3g}, "
-                         f"means {mean[hi]:.3g} vs {mean[lo]:.3g}, "
-                         f"Mann–Whitney p = {format_p(t.p_value)}, A = {t.a12:.2f}, {t.magnitude})")
-        else:
-            floor = design_floor(t.min_p, f"{t.n_a} and {t.n_b} runs")
-            said = (f"a {t.magnitude} difference on {name} is not established" if _undecided(t.magnitude, False)
-                    else f"the regimes do not differ significantly on {name}")
-            parts.append(f"{said} ({t.b} median {t.median_b:.3g}, {t.a} median {t.median_a:.3g}, "
-                         f"p = {format_p(t.p_value)}, A = {t.a12:.2f}, {t.magnitude}{'; ' + floor if floor else ''})")
+    parts = [test_sentence(t, label(t.measure)) for t in tests]
     text = "; ".join(parts) + "."
     text = text[0].upper() + text[1:]
     for r, runs in by.items():
@@ -285,7 +264,7 @@ def _verdict(spec: CompareSpec, records: list[dict[str, Any]], tests: list[RankC
         mutual_starved = sum(x["class"].startswith("No Docking") for x in by["mutual"])
 
         def independent_wins(t: RankComparison | None) -> bool:
-            return t is not None and t.p_value < 0.05 and t.a12 != 0.5 and _winner(t)[0] == "independent"
+            return t is not None and t.p_value < 0.05 and t.a12 != 0.5 and winner(t)[0] == "independent"
 
         checks = [
             (f"Independent beats Mutual on {label('final_executive_fitness')}", independent_wins(exec_t)),
@@ -337,9 +316,9 @@ def write_report(out: Path, spec: CompareSpec, *, elapsed: float | None = None) 
     figures = []
     for r in live:
         if curves_by_group[r]:
-            plots.figure_for_regime(curves_by_group[r], r, out / f"figure-{r}.png")
+            plots.figure_for_regime(curves_by_group[r], r, out / f"figure-{r}.png", PANELS)
             figures.append(f"figure-{r}.png")
-    plots.figure_regimes({r: curves_by_group[r] for r in live}, out / "regimes.png")
+    plots.figure_regimes({r: curves_by_group[r] for r in live}, out / "regimes.png", PANELS)
     figures.append("regimes.png")
     if offline:
         plots.figure_rates(curves_by_group, out / f"figure-{OFFLINE}.png")

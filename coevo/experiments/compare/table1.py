@@ -26,7 +26,10 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Iterable, Mapping
 
-__all__ = ["BEHAVIOURS", "CURVE", "DOCKING", "TRACKING", "CLASSES", "REPORT_COUNTS", "classify", "count"]
+from coevo.experiments.compare.reading import Panel, Reading
+
+__all__ = ["BEHAVIOURS", "CURVE", "DOCKING", "TRACKING", "CLASSES", "REPORT_COUNTS", "PANELS", "READING", "classify",
+           "count"]
 
 #: The behaviours of the runs Table 1 classes (the fuel task's), and the one whose learning curve a comparison draws.
 BEHAVIOURS = ("tracking", "docking", "executive")
@@ -73,3 +76,19 @@ def count(classes: Iterable[str]) -> dict[str, int]:
     if unknown:
         raise ValueError(f"not Table 1 classes: {sorted(unknown)}")
     return {k: c.get(k, 0) for k in CLASSES}
+
+
+#: The report's panels (its Figures 5 and 6: each behaviour's learning curve), then Docking's own measure and how often
+#: the Executive picked Docking.
+PANELS = (
+    Panel("Executive learning curve", "executive", "best_fitness", "generation's best fitness", 1.0),
+    Panel("Docking learning curve", "docking", "best_fitness", "generation's best fitness", 1.0),
+    Panel("Tracking learning curve", "tracking", "best_fitness", "generation's best fitness", 1.0),
+    Panel("Quality Tracking (Executive's generation's best)", "executive", "quality_tracking", "% of episodes", 100.0),
+    Panel("Docking alone (Docking's generation's best)", "docking", "docking_from_random", "% of fresh starts", 100.0),
+    Panel("Docking picked (Executive's generation's best)", "executive", "dock_choice", "% of episodes", 100.0),
+)
+
+#: How the fuel task's comparisons are read (its ``comparison``): Table 1, the Executive's curve, the Docking probe.
+READING = Reading(panels=PANELS, report="coevo.experiments.compare.report:write_report", classify=classify,
+                  classes=CLASSES, report_counts=REPORT_COUNTS, curve=CURVE, rules_read=("docking",))

@@ -56,11 +56,14 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from coevo.config import MODELS, DEFAULT_MAX_LEAD, GAConfig, build, did_you_mean
 from coevo.console import Lead, count_arg, max_lead_arg, positive_float_arg, seed_arg
 from coevo.errors import ConfigError
-from coevo.experiments.compare.experiment import OFFLINE, REGIMES, SEED_STRIDE, CompareSpec
+from coevo.experiments.compare.experiment import OFFLINE, SEED_STRIDE, CompareSpec
 from coevo.tasks import get_task
 from coevo.tasks.base import check_ga
 from coevo.tasks.fuel import FuelTask
 from coevo.tasks.fuel.settings import WorldConfig
+
+#: A study's cells are the fuel task's comparisons (its reports read Table 1 in every cell).
+REGIMES = FuelTask.regimes
 
 __all__ = ["WITHIN_CELL", "NAMES", "COMPARE_ONLY", "LEARNABLE", "StudySpec", "Cell", "LearnSpec", "LearnCell",
            "declare", "parse_factor", "read_toml", "cells", "learn_cells", "study_cells", "cell_seed", "level_text"]

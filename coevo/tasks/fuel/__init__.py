@@ -78,6 +78,8 @@ class FuelTask(Task[WorldConfig]):
     # The dock is at the middle of the south wall (docs/spec.md's choice) of a square arena, and the Target's walk and the
     # random placements know no left or right: the world is its own mirror image about the dock's axis.
     mirror_symmetric = True
+    offline_learner = "executive"  # the report's second protocol of Regime Independent
+    comparison = "coevo.experiments.compare.table1:READING"  # the report's Table 1, Executive curve, Docking probe
     measure_labels = {"quality_tracking": "QT", "docking_from_random": "docks", "dock_choice": "picks-D",
                       "docking_success_rate": "docked"}
 
