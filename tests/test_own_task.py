@@ -100,6 +100,11 @@ def _check_output(command: str, r: subprocess.CompletedProcess[str], cwd: Path, 
         assert (cwd / "duel.png").stat().st_size > 1000
     elif command.startswith("coevo dynamics"):
         _dynamics_written(cwd / "runs" / "duel" / "dynamics", r.stdout)
+    elif command.startswith("coevo study"):
+        results = json.loads((cwd / "runs" / "study-pursuer" / "results.json").read_text())
+        assert results["runs_finished"] == results["runs_expected"] == 4 and results["behaviour"] == "pursuer"
+        assert results["measures"] == ["captured", "escaped", "best_fitness"], results["measures"]
+        assert {t["factor"] for t in results["tests"]} == {"ga.mutation_rate"} and "captured" in r.stdout, r.stdout
     elif command.startswith("coevo compare"):
         _comparison_written(cwd / shlex.split(command)[shlex.split(command).index("--out") + 1], r.stdout, site)
 

@@ -123,9 +123,9 @@ class StudyFiles:
 
     @staticmethod
     def _learn_measures(behaviour: str) -> tuple[tuple[str, str], ...]:
-        from coevo.experiments.study.learn_report import LEARN_MEASURES
+        from coevo.experiments.study.learn_report import learn_measures
 
-        return LEARN_MEASURES[behaviour]
+        return learn_measures(behaviour)
 
     def _learn_states(self, cell: Any, quiet: float) -> list[dict[str, Any]]:
         """A learning-run cell's runs: ``{"run", "state", "why"}`` each (module docstring)."""

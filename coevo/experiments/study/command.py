@@ -26,8 +26,8 @@ __all__ = ["configure_study", "cmd_study"]
 
 def _settings_given(args: argparse.Namespace) -> dict[str, Any]:
     """The settings flags given on the command line, by their study names (not given: left out)."""
-    from coevo.tasks import get_task, split_settings
-    from coevo.tasks.fuel import FuelTask  # a study's cells compare the fuel task's regimes
+    from coevo.tasks import DEFAULT_TASK, get_task, split_settings
+    from coevo.experiments.study.declaration import task_learning
 
     given: dict[str, Any] = {}
     for flag, name in (("runs", "runs"), ("model", "model"), ("measure_epochs", "measure_epochs"), ("learn", "learn")):
@@ -38,7 +38,8 @@ def _settings_given(args: argparse.Namespace) -> dict[str, Any]:
     for flag in ("generations", "population", "episodes"):
         if getattr(args, flag) is not None:
             given[f"ga.{flag}"] = getattr(args, flag)
-    world, ga = split_settings(get_task(FuelTask.name), pairs(args.world, "world"), pairs(args.ga, "ga"))
+    task = task_learning(args.learn) if args.learn is not None else get_task(DEFAULT_TASK)  # comparisons: fuel's
+    world, ga = split_settings(task, pairs(args.world, "world"), pairs(args.ga, "ga"))
     given |= {f"ga.{k}": v for k, v in ga.items()}  # --ga docking_sensors=... is the world setting it is now
     given |= {f"world.{k}": v for k, v in world.items()}
     return given
@@ -160,9 +161,10 @@ def configure_study(p: argparse.ArgumentParser) -> None:
                    help="a factor and its levels (repeatable): regime, rate, max_lead, model, runs, measure_epochs, "
                         "ga.NAME, world.NAME; replaces the file's factor or setting of that name")
     p.add_argument("--learn", metavar="BEHAVIOUR",
-                   help="every cell a set of 'coevo learn --behaviour BEHAVIOUR' runs (docking or tracking), one per "
-                        "seed, instead of a regime comparison (the file's learn = ...); regime, rate, max_lead and "
-                        "model are then refused")
+                   help="every cell a set of 'coevo learn --behaviour BEHAVIOUR' runs (the fuel task's docking or "
+                        "tracking, or a behaviour of another installed task that learns with no partner given, e.g. "
+                        "pursuer), one per seed, instead of a regime comparison (the file's learn = ...); --world "
+                        "names are then its task's; regime, rate, max_lead and model are refused")
     p.add_argument("--runs", type=count_arg(1, 1000), help="runs per regime in every cell (default 10; with --learn: "
                    "seeds per cell)")
     p.add_argument("--model", choices=["best", "current", "recent"], help="partner model of every cell (default best)")

@@ -51,21 +51,22 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, SerializeAsAny, ValidationInfo, field_validator, model_validator
 
 from coevo.config import MODELS, DEFAULT_MAX_LEAD, GAConfig, build, did_you_mean
 from coevo.console import Lead, count_arg, max_lead_arg, positive_float_arg, seed_arg
 from coevo.errors import ConfigError
 from coevo.experiments.compare.experiment import OFFLINE, SEED_STRIDE, CompareSpec
-from coevo.tasks import get_task
-from coevo.tasks.base import check_ga
+from coevo.tasks import DEFAULT_TASK, get_task, task_of
+from coevo.tasks.base import Task, check_ga
 from coevo.tasks.fuel import FuelTask
 from coevo.tasks.fuel.settings import WorldConfig
 
-#: A study's cells are the fuel task's comparisons (its reports read Table 1 in every cell).
+#: A comparison study's cells are the fuel task's comparisons (its reports read Table 1 in every cell); a study of
+#: learning runs learns a behaviour of any task (its world settings are that task's).
 REGIMES = FuelTask.regimes
 
-__all__ = ["WITHIN_CELL", "NAMES", "COMPARE_ONLY", "LEARNABLE", "StudySpec", "Cell", "LearnSpec", "LearnCell",
+__all__ = ["WITHIN_CELL", "NAMES", "COMPARE_ONLY", "LEARNABLE", "learnable", "task_learning", "StudySpec", "Cell", "LearnSpec", "LearnCell",
            "declare", "parse_factor", "read_toml", "cells", "learn_cells", "study_cells", "cell_seed", "level_text"]
 
 #: Factors that vary inside a cell (one comparison): its regimes, and its offline Executive's rates.
@@ -74,9 +75,26 @@ WITHIN_CELL = ("regime", "rate")
 NAMES = ("regime", "rate", "max_lead", "model", "runs", "measure_epochs", "learn")
 #: The names only a regime comparison has: a study of learning runs (``learn``) refuses them.
 COMPARE_ONLY = ("regime", "rate", "max_lead", "model")
-#: The behaviours a learning-run cell may learn: the fuel task's that learn offline with no partner rule set given
-#: (the Executive learns against fixed Tracking and Docking rule sets, which a study does not give).
-LEARNABLE = tuple(b for b in FuelTask.behaviours if not get_task(FuelTask.name).partners_needed(b, "independent"))
+def learnable(task: Task[Any]) -> tuple[str, ...]:
+    """The behaviours of ``task`` a learning-run cell may learn: those that learn with no partner rule set given in
+    its Independent regime (the fuel task's Executive learns against fixed Tracking and Docking rule sets, which a
+    study does not give)."""
+    regime = "independent" if "independent" in task.regimes else task.regimes[0]
+    return tuple(b for b in task.behaviours if not task.partners_needed(b, regime))
+
+
+#: The fuel task's behaviours a learning-run cell may learn.
+LEARNABLE = learnable(get_task(FuelTask.name))
+
+
+def task_learning(behaviour: Any) -> Task[Any]:
+    """The task of the behaviour a study learns (the fuel task when it names none, or none there is)."""
+    if not isinstance(behaviour, str):
+        return get_task(DEFAULT_TASK)
+    try:
+        return task_of(behaviour)
+    except ConfigError:
+        return get_task(DEFAULT_TASK)  # refused by name when its level is read
 #: What each name is when nothing declares it: ``coevo compare``'s defaults (rate: its default rates, left to it).
 DEFAULTS: dict[str, tuple[Any, ...]] = {"regime": ("mutual", "independent"), "runs": (10,),
                                         "max_lead": (DEFAULT_MAX_LEAD,), "model": ("best",), "measure_epochs": (100,)}
@@ -93,24 +111,25 @@ def _names_help() -> str:
     return ", ".join(NAMES) + ", ga.NAME or world.NAME"
 
 
-def _check_name(name: str, where: str) -> None:
-    """A known factor or setting name, else one line with the names (and the nearest, for a typo)."""
+def _check_name(name: str, where: str, task: Task[Any]) -> None:
+    """A known factor or setting name (a world setting of ``task``), else one line with the names (and the nearest,
+    for a typo)."""
     if name in NAMES:
         return
     head, _, sub = name.partition(".")
-    models: dict[str, type[BaseModel]] = {"ga": GAConfig, "world": WorldConfig}
+    models: dict[str, type[BaseModel]] = {"ga": GAConfig, "world": task.world_settings}
     if head in models and sub:
         fields = list(models[head].model_fields)
         if sub in fields:
             return
-        if head == "ga" and sub in WorldConfig.model_fields:  # the fuel task's Docking settings (GA settings before November 2026)
-            raise ConfigError(f"{where}: {name!r} is a world setting of the fuel task now: use world.{sub}")
+        if head == "ga" and sub in task.world_settings.model_fields:  # the fuel task's Docking settings (GA settings before November 2026)
+            raise ConfigError(f"{where}: {name!r} is a world setting of the {task.name} task now: use world.{sub}")
         hint = did_you_mean(sub, fields, prefix=f"{head}.") or f" (see coevo compare --{head} and docs/spec.md)"
         raise ConfigError(f"{where}: unknown {'GA' if head == 'ga' else 'world'} setting {name!r}{hint}")
     raise ConfigError(f"{where}: unknown factor {name!r}: use {_names_help()}{did_you_mean(name, NAMES)}")
 
 
-def _level(name: str, raw: Any, where: str) -> Any:
+def _level(name: str, raw: Any, where: str, task: Task[Any]) -> Any:
     """One level of ``name`` as its flag would read it (``raw``: the command line's text or a TOML value); JSON."""
     if isinstance(raw, (dict, list)) or raw is None:
         raise ConfigError(f"{where}: {name} = {raw!r}: give a single value")
@@ -131,10 +150,11 @@ def _level(name: str, raw: Any, where: str) -> Any:
             raise ConfigError(f"{where}: unknown partner model {raw!r} (use {', '.join(MODELS)})")
         return raw
     if name == "learn":
-        if raw not in LEARNABLE:
-            why = ("the Executive learns against fixed Tracking and Docking rule sets, which a study's cells do not "
-                   "give" if raw == "executive" else "a study's cells learn the fuel task's behaviours")
-            raise ConfigError(f"{where}: learn = {raw!r}: {why}: learn {' or '.join(LEARNABLE)}")
+        if raw not in learnable(task):
+            why = ("it learns against partner rule sets, which a study's cells do not give" if raw in task.behaviours
+                   else "not a behaviour of an installed task (coevo plugins lists them)")
+            raise ConfigError(f"{where}: learn = {raw!r}: {why}: learn {' or '.join(learnable(task))} (the {task.name} "
+                              "task's), or a behaviour of another task")
         return raw
     if isinstance(raw, str):  # ga.NAME / world.NAME from the command line: JSON when it parses, as --ga does
         try:
@@ -144,11 +164,11 @@ def _level(name: str, raw: Any, where: str) -> Any:
     return raw
 
 
-def _levels(name: str, raws: Sequence[Any], where: str) -> tuple[Any, ...]:
-    _check_name(name, where)
+def _levels(name: str, raws: Sequence[Any], where: str, task: Task[Any]) -> tuple[Any, ...]:
+    _check_name(name, where, task)
     if not raws:
         raise ConfigError(f"{where}: factor {name} has no levels: give at least one")
-    levels = tuple(_level(name, r, where) for r in raws)
+    levels = tuple(_level(name, r, where, task) for r in raws)
     seen = [json.dumps(v, sort_keys=True) for v in levels]
     if len(set(seen)) != len(seen):
         raise ConfigError(f"{where}: factor {name} repeats a level: {', '.join(level_text(name, v) for v in levels)}")
@@ -244,6 +264,25 @@ class StudySpec:
         learn = self.fixed.get("learn")
         return None if learn is None else str(learn)
 
+    @property
+    def task(self) -> Task[Any]:
+        """The task its cells run: the learned behaviour's, or the fuel task's (a comparison study)."""
+        return task_learning(self.learn)
+
+
+def _learned(file_settings: Mapping[str, Any], file_factors: Mapping[str, Any], settings: Mapping[str, Any],
+             factors: Sequence[str]) -> Any:
+    """The behaviour a study learns, as last given (a ``--factor learn=...``, the command line's setting, the file's
+    setting or factor), before anything is checked: its task decides which world names there are."""
+    for text in reversed(factors):
+        name, raws = parse_factor(text)
+        if name == "learn" and raws:
+            return raws[0]
+    for v in (settings.get("learn"), file_settings.get("learn"), file_factors.get("learn")):
+        if v is not None:
+            return v[0] if isinstance(v, list) and v else v
+    return None
+
 
 def declare(*, toml: Mapping[str, Any] | None = None, source: str = "the study file", factors: Sequence[str] = (),
             settings: Mapping[str, Any] | None = None, seed: int | None = None) -> StudySpec:
@@ -255,21 +294,22 @@ def declare(*, toml: Mapping[str, Any] | None = None, source: str = "the study f
     declared: dict[str, str] = {}  # name -> where its levels were last given (a learning-run study's refusals)
     file_settings = _flatten(toml.get("settings", {}))
     file_factors = _flatten(toml.get("factors", {}))
+    task = task_learning(_learned(file_settings, file_factors, settings or {}, factors))  # whose world names are read
     for name, v in file_settings.items():
         where = f"{source}, [settings]"
         if isinstance(v, list):
             raise ConfigError(f"{where}: {name} = {v!r} is a list: put it under [factors]")
-        levels[name], declared[name] = _levels(name, [v], where), where
+        levels[name], declared[name] = _levels(name, [v], where, task), where
     for name, v in file_factors.items():
         where = f"{source}, [factors]"
         if name in file_settings:
             raise ConfigError(f"{where}: {name} is both a setting and a factor: keep one")
-        levels[name], declared[name] = _levels(name, v if isinstance(v, list) else [v], where), where
+        levels[name], declared[name] = _levels(name, v if isinstance(v, list) else [v], where, task), where
     for name, v in (settings or {}).items():
         if name in file_factors and len(levels[name]) > 1:
             raise ConfigError(f"{name} is a factor in {source} and a setting on the command line: use --factor "
                               f"{name}=... to replace its levels")
-        levels[name] = _levels(name, [v], "command line")
+        levels[name] = _levels(name, [v], "command line", task)
         declared[name] = f"--{name.replace('_', '-')}" if name in NAMES else "the command line"
     given: set[str] = set()
     for text in factors:
@@ -277,7 +317,7 @@ def declare(*, toml: Mapping[str, Any] | None = None, source: str = "the study f
         if name in given:
             raise ConfigError(f"--factor {name} is given twice: give all its levels in one --factor {name}=A,B")
         given.add(name)
-        levels[name], declared[name] = _levels(name, raws, f"--factor {text}"), f"--factor {text}"
+        levels[name], declared[name] = _levels(name, raws, f"--factor {text}", task), f"--factor {text}"
     if "learn" in levels:
         _learning_runs(levels, declared)
     if "seed" in toml and seed is None:
@@ -343,23 +383,41 @@ class LearnSpec(BaseModel):
     runs: int = Field(10, ge=1, le=1000, description="runs (seeds) in the cell")
     seed: int = 0
     measure_epochs: int = Field(100, ge=1, le=100_000)
-    world: WorldConfig = WorldConfig()
+    world: SerializeAsAny[BaseModel] = Field(default=None, validate_default=False)  # type: ignore[assignment]
     ga: GAConfig = GAConfig()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _world(cls, data: Any) -> Any:
+        """The world read as the learned behaviour's task's settings (checked there, naming a bad value)."""
+        if not isinstance(data, dict):
+            return data
+        task = task_learning(data.get("behaviour"))
+        world = data.get("world", {})
+        if isinstance(world, dict):
+            world = build(task.world_settings, world, what=f"world settings of the {task.name} task")
+        return {**data, "world": world}
 
     @field_validator("behaviour")
     @classmethod
     def _behaviour(cls, v: str) -> str:
-        if v not in LEARNABLE:
-            raise ValueError(f"a study's cells learn {' or '.join(LEARNABLE)}, not {v!r}")
+        task = task_learning(v)
+        if v not in learnable(task):
+            raise ValueError(f"a study's cells learn {' or '.join(learnable(task))} (the {task.name} task's) or a "
+                             f"behaviour of another task, not {v!r}")
         return v
 
     @field_validator("ga")
     @classmethod
-    def _ga(cls, v: GAConfig) -> GAConfig:
+    def _ga(cls, v: GAConfig, info: ValidationInfo) -> GAConfig:
         try:
-            return check_ga(get_task(FuelTask.name), v)
+            return check_ga(task_learning(info.data.get("behaviour")), v)
         except ConfigError as exc:
             raise ValueError(str(exc)) from None
+
+    @property
+    def the_task(self) -> Task[Any]:
+        return task_learning(self.behaviour)
 
     @property
     def seeds(self) -> list[int]:
@@ -397,7 +455,7 @@ def _cell_id(index: int, levels: Mapping[str, Any]) -> str:
     return f"{index:02d}-{text}"
 
 
-def _products(spec: StudySpec) -> Iterator[tuple[str, dict[str, Any], dict[str, Any], str, WorldConfig, GAConfig]]:
+def _products(spec: StudySpec) -> Iterator[tuple[str, dict[str, Any], dict[str, Any], str, BaseModel, GAConfig]]:
     """Per cell, the cartesian product of the between-cell factors' levels in declared order: its id, its levels,
     every name's one level in it, how messages name it, and its world and GA settings (checked)."""
     between = spec.between
@@ -412,7 +470,7 @@ def _products(spec: StudySpec) -> Iterator[tuple[str, dict[str, Any], dict[str, 
         cid = _cell_id(i, levels)
         where = f"cell {cid}" if levels else "study settings"
         try:
-            world = build(WorldConfig, _prefixed(one, "world."))
+            world = build(spec.task.world_settings, _prefixed(one, "world."))
             ga = build(GAConfig, _prefixed(one, "ga."))
         except ConfigError as exc:
             raise ConfigError(f"{where}: {exc}") from None

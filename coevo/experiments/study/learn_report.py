@@ -36,7 +36,7 @@ from coevo.experiments.study.report import (adjust, difference_unit, factor_test
                                           verdict_lines)
 from coevo.rundir.layout import write_json, write_text
 
-__all__ = ["LEARN_MEASURES", "collect_learn_cell", "learn_cell_rows", "analyse_learning", "write_learn_report"]
+__all__ = ["LEARN_MEASURES", "learn_measures", "collect_learn_cell", "learn_cell_rows", "analyse_learning", "write_learn_report"]
 
 #: Each behaviour's measures in its report, as (name in measures.json, title): the learning target's first.
 LEARN_MEASURES: dict[str, tuple[tuple[str, str], ...]] = {
@@ -45,6 +45,17 @@ LEARN_MEASURES: dict[str, tuple[tuple[str, str], ...]] = {
     "tracking": ((TARGETS["tracking"][0], "Quality Tracking (%)"),
                  ("collision_rate", "collision rate (%)"), ("best_fitness", "best fitness")),
 }
+
+
+def learn_measures(behaviour: str) -> tuple[tuple[str, str], ...]:
+    """The measures a study reports of ``behaviour``'s runs: the fuel task's (:data:`LEARN_MEASURES`), else its task's
+    declared measures (``Task.measure_labels``' names, as the glossary names them) and the GA's best fitness."""
+    if behaviour in LEARN_MEASURES:
+        return LEARN_MEASURES[behaviour]
+    from coevo.experiments.glossary import label
+    from coevo.tasks import task_of
+
+    return (*((k, label(k)) for k in task_of(behaviour).measure_labels), ("best_fitness", "best fitness"))
 
 
 def _value(record: dict[str, Any], key: str) -> float:
@@ -87,7 +98,7 @@ def learn_cell_rows(the_cells: list[LearnCell], records: list[dict[str, Any]]) -
         rows.append({"cell": c.id, "levels": dict(c.levels), "label": c.label, "seed": c.spec.seed,
                      "seeds": c.spec.seeds, "runs_expected": c.spec.runs, "n": len(xs),
                      "measures": {k: _summary([_value(x, k) for x in xs])
-                                  for k, _ in LEARN_MEASURES[c.spec.behaviour]}})
+                                  for k, _ in learn_measures(c.spec.behaviour)}})
     return rows
 
 
@@ -98,7 +109,7 @@ def analyse_learning(spec: StudySpec, records: list[dict[str, Any]]) -> list[dic
     tests: list[dict[str, Any]] = []
     for factor, levels in spec.between.items():
         by_level = {level_text(factor, lv): [x for x in records if x["levels"].get(factor) == lv] for lv in levels}
-        for measure, _ in LEARN_MEASURES[behaviour]:
+        for measure, _ in learn_measures(behaviour):
             samples = {k: [v for v in (_value(x, measure) for x in rs) if not math.isnan(v)]
                        for k, rs in by_level.items()}
             t = factor_test(factor, behaviour, measure, samples, share=False)
@@ -111,7 +122,7 @@ def analyse_learning(spec: StudySpec, records: list[dict[str, Any]]) -> list[dic
 
 
 def _verdict(behaviour: str, tests: list[dict[str, Any]], finished: int, expected: int) -> str:
-    titles = dict(LEARN_MEASURES[behaviour])
+    titles = dict(learn_measures(behaviour))
     parts = verdict_lines(tests, lambda t: (f"{behaviour}'s {titles[t['measure']]}", ""), finished, expected)
     return "\n".join(p if p.startswith("- ") else f"\n{p}\n" for p in parts).strip()
 
@@ -133,7 +144,7 @@ def write_learn_report(out: Path, spec: StudySpec, *, elapsed: float | None = No
     caveat = below_report({"generations": ga.generations, "population": ga.population, "episodes": ga.episodes})
     figures = _figures(out, behaviour, tests, rows, records)
     results = {
-        "kind": "learn", "behaviour": behaviour, "measures": [k for k, _ in LEARN_MEASURES[behaviour]],
+        "kind": "learn", "behaviour": behaviour, "measures": [k for k, _ in learn_measures(behaviour)],
         "spec": spec.as_dict(),
         "cells": [{"id": c.id, "levels": dict(c.levels), "seed": c.spec.seed, "seeds": c.spec.seeds,
                    "settings": json.loads(c.spec.model_dump_json()), "learn_args": list(c.args)} for c in the_cells],
@@ -148,7 +159,7 @@ def write_learn_report(out: Path, spec: StudySpec, *, elapsed: float | None = No
 
 def _figures(out: Path, behaviour: str, tests: list[dict[str, Any]], rows: list[dict[str, Any]],
              records: list[dict[str, Any]]) -> list[str]:
-    titles = dict(LEARN_MEASURES[behaviour])
+    titles = dict(learn_measures(behaviour))
     files = []
     for factor in dict.fromkeys(t["factor"] for t in tests):
         mine = [t for t in tests if t["factor"] == factor]
@@ -156,7 +167,7 @@ def _figures(out: Path, behaviour: str, tests: list[dict[str, Any]], rows: list[
         name = f"effect-{factor}.png"
         plots.effect_figure(factor, [r["level"] for r in mine[0]["levels"]], panels, titles, out / name)
         files.append(name)
-    key, title = LEARN_MEASURES[behaviour][0]
+    key, title = learn_measures(behaviour)[0]
     shown = [r for r in rows if r["n"]]
     if shown:
         values = {r["cell"]: [_value(x, key) for x in records if x["cell"] == r["cell"]] for r in shown}
@@ -170,7 +181,7 @@ def _markdown(spec: StudySpec, the_cells: list[LearnCell], rows: list[dict[str, 
               verdict: str, caveat: str, figures: list[str], finished: int, expected: int,
               elapsed: float | None) -> str:
     behaviour = str(spec.learn)
-    measures = LEARN_MEASURES[behaviour]
+    measures = learn_measures(behaviour)
     titles = dict(measures)
     c0 = the_cells[0].spec
     runs = sorted({c.spec.runs for c in the_cells})  # (runs may be a factor)
