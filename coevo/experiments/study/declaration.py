@@ -60,7 +60,6 @@ from coevo.experiments.compare.experiment import OFFLINE, SEED_STRIDE, CompareSp
 from coevo.tasks import DEFAULT_TASK, get_task, task_of
 from coevo.tasks.base import Task, check_ga
 from coevo.tasks.fuel import FuelTask
-from coevo.tasks.fuel.settings import WorldConfig
 
 #: A comparison study's cells are the fuel task's comparisons (its reports read Table 1 in every cell); a study of
 #: learning runs learns a behaviour of any task (its world settings are that task's).
