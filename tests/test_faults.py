@@ -5,7 +5,8 @@ loopback, bounded in time; one runs ``coevo chaos``.  Kills and bad
 messages tried (the README's fault table counts these): worker SIGKILL 2 (one
 directly, one as part of a whole ``coevo run`` group), worker SIGKILL inside
 ``coevo run`` 8 (one restarted, in the run whose broker is killed twice; one whose
-checkpoint was zeroed first; six in a row for the restart bound), a Ctrl-C to a whole ``coevo run`` group, broker SIGKILL 2 (one
+checkpoint was zeroed first; six in a row for the restart bound), a Ctrl-C and a SIGTERM to a whole ``coevo run``
+group, a SIGTERM to one worker of a run (restarted), broker SIGKILL 2 (one
 directly, one with the group), a hung worker 1, and one message of each of 12
 malformed kinds plus a flood of 3,000 on the worker's keys and a 40 MB flood on
 a broker with a 1 MB inbox.
@@ -21,6 +22,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import msgpack
 import numpy as np
@@ -587,18 +589,53 @@ def test_ctrl_c_to_the_whole_process_group_stops_in_order_and_the_run_resumes_ex
     """A terminal's Ctrl-C reaches coevo run and every child: only coevo run takes it, so the workers stop at a
     generation's end and write their done.json, the broker stays up for the final measures, and the stop message
     quotes this run's generations; --resume then completes the run exactly."""
-    out = tmp_path / "run.out"
-    with open(out, "wb") as f:
-        p = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--run", "ci", "--root", str(tmp_path), *SMALL,
-                              "--generations", "12", "--measure-epochs", "2", "--quiet"], stdout=f, stderr=subprocess.STDOUT,
-                             start_new_session=True, preexec_fn=ctrl_c_heard)
-    run_dir = tmp_path / "ci"
+    p, out, run_dir = _run_of_12(tmp_path, ctrl_c_heard)
     try:
         poll(lambda: _lines(run_dir / "workers" / "tracking" / "curve.jsonl") >= 3, 120, "three tracking generations")
         os.killpg(p.pid, signal.SIGINT)
         assert p.wait(timeout=60) == 130, out.read_text()[-3000:]
     finally:
         stop(p)
+    _stopped_in_order_and_resumes_exact(run_dir, out)
+
+
+def test_sigterm_to_a_worker_restarts_it_and_to_the_whole_group_stops_in_order(tmp_path: Path) -> None:
+    """A SIGTERM to one worker alone (not the run's own stop) is a death: the supervisor starts it again.  A SIGTERM
+    to the whole process group (a scheduler's or a shutdown's) is a stop like Ctrl-C: coevo run's children are in a
+    group of their own, so only coevo run hears it and stops them in order (done.json, the final measures);
+    --resume then completes the run exactly."""
+    p, out, run_dir = _run_of_12(tmp_path, None)
+    try:
+        poll(lambda: _lines(run_dir / "workers" / "executive" / "curve.jsonl") >= 1, 120, "an executive generation")
+        kids = {int(k) for k in Path(f"/proc/{p.pid}/task/{p.pid}/children").read_text().split()}
+        assert all(os.getpgid(k) == k for k in kids)  # each child leads a group of its own
+        executive = next(k for k in kids if b"executive" in Path(f"/proc/{k}/cmdline").read_bytes())
+        os.kill(executive, signal.SIGTERM)
+        log = run_dir / "logs" / "worker-executive.log"
+        poll(lambda: "--- start 2" in log.read_text(), 60, "the executive worker started again")
+        assert "executive worker exited with status 130; starting it again (restart 1 of at most 5)" in out.read_text()
+        poll(lambda: _lines(run_dir / "workers" / "tracking" / "curve.jsonl") >= 3, 120, "three tracking generations")
+        os.killpg(p.pid, signal.SIGTERM)
+        assert p.wait(timeout=60) == 130, out.read_text()[-3000:]
+        assert not [k for k in kids if Path(f"/proc/{k}").exists()]  # nothing is left running
+    finally:
+        stop(p)
+    _stopped_in_order_and_resumes_exact(run_dir, out)
+
+
+def _run_of_12(tmp_path: Path, preexec: Any) -> tuple[subprocess.Popen, Path, Path]:
+    """A 12-generation coevo run in a session of its own (its group id is its pid), its output in run.out."""
+    out = tmp_path / "run.out"
+    with open(out, "wb") as f:
+        p = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--run", "ci", "--root", str(tmp_path), *SMALL,
+                              "--generations", "12", "--measure-epochs", "2", "--quiet"], stdout=f, stderr=subprocess.STDOUT,
+                             start_new_session=True, preexec_fn=preexec)
+    return p, out, tmp_path / "ci"
+
+
+def _stopped_in_order_and_resumes_exact(run_dir: Path, out: Path) -> None:
+    """Every worker wrote its done.json, the summary has the final measures and says who stopped early (the output
+    too), and --resume completes the run, replay exact."""
     summary = json.loads((run_dir / "summary.json").read_text())
     assert summary["interrupted"] and summary["stopped_here"] and "measures" in summary, summary
     counts = {b: _lines(run_dir / "workers" / b / "curve.jsonl") for b in ("tracking", "docking", "executive")}
