@@ -32,18 +32,20 @@ from procs import SMALL, coevo_main, coevo_proc, copy_of, ctrl_c_heard, poll, st
 
 from coevo.agents.checkpoint import load_checkpoint, save_checkpoint
 from coevo.agents.models import PartnerModels
+from coevo.bus.auth import RunKey
 from coevo.bus import keys
 from coevo.bus.messages import MAX_BYTES, PolicyUpdate, Status, encode
 from coevo.bus.session import make_config, open_session
 from coevo.bus.status import StatusBoard
+from coevo.bus.trust import Gate
 from coevo.config import GAConfig
 from coevo.errors import RunDirError
 from coevo.ga import GA
 from coevo.policy import random_ruleset
-from coevo.rundir.layout import WorkerPaths
+from coevo.rundir.layout import RunPaths, WorkerPaths
 from coevo.rundir.settings import RunSettings
 from coevo.runs.check import check_run
-from coevo.runs.local import LocalRun
+from coevo.runs.local import LocalRun, free_port
 from coevo.tasks import get_task
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.settings import WorldConfig
@@ -241,6 +243,59 @@ def test_a_killed_broker_loses_nothing_once_restarted(tmp_path: Path) -> None:
     for b in Behaviour:
         newest = max(json.loads(x)["version"] for x in (lr.worker_dir(b) / "published.jsonl").read_text().splitlines())
         assert store.latest(lr.run, b, worker=roster[b]).version == newest, b
+
+
+def test_genuine_messages_replayed_after_the_broker_restarted_are_refused_and_counted(tmp_path: Path) -> None:
+    """The broker's memory of the messages it took is kept beside the run's store (store/seen.log): genuine policies
+    captured and put again after the broker was killed and started again are each refused as replayed and counted,
+    none stored twice, while a new genuine one is stored."""
+    run, data = "again", tmp_path / "data"
+    key = RunKey.create(run)
+    RunPaths.of(data, run).dir.mkdir(parents=True)
+    key.save(RunPaths.of(data, run).key_file)
+    gate = Gate(key=key)  # a genuine member: its messages carry the run's MAC and fresh headers
+    kt = keys.policy(run, "tracking")
+    sealed = [gate.seal(_update(run, v), kt) for v in (1, 2, 3)]
+    store = RunPaths.of(data, run).store_file("tracking")
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+
+    def start_broker() -> subprocess.Popen:
+        p = coevo_proc("broker", "--listen", endpoint, "--data-dir", str(data), log=tmp_path / "broker.log")
+        with open_session(make_config(mode="client", connect=[endpoint], connect_timeout=20)) as s:
+            poll(lambda: any(r.ok is not None for r in s.liveliness().get(keys.BROKER, timeout=1.0)), 20, "the broker")
+        return p
+
+    p = start_broker()
+    try:
+        with open_session(make_config(mode="client", connect=[endpoint])) as s:
+            for payload in sealed:
+                s.put(kt, payload)
+            poll(lambda: _lines(store) == 3, 20, "three stored policies")
+        p.kill()
+        p.wait()
+        p = start_broker()
+        counts: dict[str, int] = {}
+
+        def on_status(sample: Any) -> None:
+            counts.update(Gate(key=key).decode(str(sample.key_expr), sample.payload.to_bytes()).rejected)
+
+        with open_session(make_config(mode="client", connect=[endpoint])) as s:
+            sub = s.declare_subscriber(keys.broker_status(run), on_status)
+            for payload in sealed:  # captured before the restart, put again after it
+                s.put(kt, payload)
+            s.put(kt, gate.seal(_update(run, 4), kt))  # a new genuine one
+            poll(lambda: _lines(store) == 4 and counts.get("replayed") == 3, 30, "the replays counted, v4 stored")
+            sub.undeclare()
+    finally:
+        stop(p)
+    assert [json.loads(x)["version"] for x in store.read_text().splitlines()] == [1, 2, 3, 4]
+    assert counts == {"replayed": 3}, counts
+
+
+def _update(run: str, version: int) -> PolicyUpdate:
+    rules = random_ruleset("tracking", 6, np.random.default_rng(version)).to_dict()
+    return PolicyUpdate(run=run, behaviour="tracking", worker="tracking-0", version=version, generation=version,
+                        fitness=0.5, episodes=10, rules=rules, sent_at=time.time())
 
 
 @pytest.mark.slow

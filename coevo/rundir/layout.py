@@ -249,6 +249,12 @@ class RunPaths:
         """The store's policy files (one per behaviour)."""
         return sorted(self.store_dir.glob("*.jsonl"))
 
+    @property
+    def seen_file(self) -> Path:
+        """The broker's memory of the messages of this run it took (one line each: key, sender, sequence number),
+        kept so that a broker started again still refuses a replay of them (:class:`coevo.bus.freshness.KeptSeen`)."""
+        return self.store_dir / "seen.log"
+
     def case_file(self, behaviour: str) -> Path:
         return self.store_dir / "cases" / f"{behaviour}.jsonl"
 
