@@ -15,6 +15,7 @@ and one finished comparison are made per module and copied for every case, so th
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import random
 import shutil
@@ -69,6 +70,7 @@ RUN_FILES: dict[str, set[str]] = {
     "workers/tracking/done.json": REPLACED,
     "summary.json": REPLACED,
     "logs/worker-tracking.log": REPLACED,  # appended to
+    "code.json": {"deleted"},  # a run made before code.json: resumed as always, and given one
 }
 
 #: The files of a finished comparison that ``coevo compare --resume`` and ``--report-only`` read, and the damages
@@ -288,6 +290,31 @@ class TestRefusals:
         before = digest(out)
         refused_in_one_line(coevo(*SEEDS, "--resume", "--out", str(out)), f)
         assert digest(out) == before
+
+    def test_a_resume_on_other_code_is_refused_unless_forced_and_an_old_run_resumes(self, finished: Path,
+                                                                                     tmp_path: Path) -> None:
+        from coevo.rundir.code import code_version
+        from coevo.runs.check import check_run
+
+        run = tmp_path / finished.name
+        shutil.copytree(finished, run)
+        code = run / "code.json"
+        assert json.loads(code.read_text()) == {**code_version(), "earlier": []}
+        code.unlink()  # a run made before code.json existed
+        res = coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet")
+        assert res.returncode == 0, res.stdout + res.stderr
+        assert json.loads(code.read_text()) == {**code_version(), "earlier": []}
+        other = {"package": "0.0.9", "source": "0123456789abcdef"}
+        code.write_text(json.dumps({**other, "earlier": []}))
+        before = digest(run)
+        err = refused_in_one_line(coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet"), run)
+        assert "coevo 0.0.9 (source 0123456789abcdef)" in err and code_version()["source"] in err and "--force" in err
+        assert digest(run) == before
+        res = coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet", "--force")
+        assert res.returncode == 0, res.stdout + res.stderr
+        assert json.loads(code.read_text()) == {**code_version(), "earlier": [other]}
+        check = check_run(run)
+        assert check.ok, check.problems
 
     def test_check_is_not_complete_for_a_run_whose_checkpoint_a_resume_refuses(self, finished: Path,
                                                                                 tmp_path: Path) -> None:

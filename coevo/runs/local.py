@@ -63,6 +63,7 @@ from coevo.bus.trust import Gate
 from coevo.errors import CoevoError, ConfigError, RunDirError, ServiceError
 from coevo.rundir.layout import (RunPaths, cut_back, not_a_file, read_cases, read_json, read_jsonl, read_store,
                                  sigterm_stops, write_csv, write_json)
+from coevo.rundir.code import record_code, refuse_other_code
 from coevo.rundir.settings import RunSettings
 
 __all__ = ["MAX_RESTARTS", "STOP_EXITS", "default_run_id", "free_port", "loopback_endpoint", "check_listen", "wait_until",
@@ -163,12 +164,15 @@ class LocalRun:
 
     @classmethod
     def resume(cls, run_dir: Path, *, log_level: str = "WARNING", worker_env: dict[str, str] | None = None,
-               listen: str | None = None) -> LocalRun:
+               listen: str | None = None, force: bool = False) -> LocalRun:
         """The run in ``run_dir``, from its run.json, with a new broker endpoint (``listen``, default a free loopback
-        port; recorded in run.json).  Every file the resume reads is read first (:meth:`verify`): a RunDirError
-        naming the first problem leaves the directory byte for byte as it was."""
+        port; recorded in run.json).  Every file the resume reads is read first (:meth:`verify`), and the code that
+        ran it last (``code.json``) must be this code unless ``force``: a RunDirError naming the first problem leaves
+        the directory byte for byte as it was."""
         lr = cls.resumable(run_dir, log_level=log_level, worker_env=worker_env, listen=listen)
+        refuse_other_code(lr.dir, force=force, what="curves")
         lr.verify()  # before anything is written or started
+        record_code(lr.dir)
         lr.settings.save(lr.paths.run_json)  # where its broker listens now: a stale endpoint would mislead status
         lr.paths.summary.unlink(missing_ok=True)  # written again at the end
         return lr
@@ -221,6 +225,7 @@ class LocalRun:
             self.key.save(self.paths.key_file)  # mode 0600; run.json names it, the workers read it from there
             self.settings = self.settings.model_copy(update={"key_file": RunPaths.KEY_FILE})
         self.settings.save(self.paths.run_json)
+        record_code(self.dir)
 
     def _spawn(self, name: str, args: list[str], env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
         self.paths.logs_dir.mkdir(parents=True, exist_ok=True)
