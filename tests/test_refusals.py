@@ -81,6 +81,7 @@ COMPARE_FILES: dict[str, dict[str, set[str]]] = {
     f"{RUN}/summary.json": {"resume": {"deleted"}, "report-only": {"deleted"}},
     f"{RUN}/workers/executive/curve.jsonl": {"resume": set(), "report-only": set()},
     f"{RUN}/workers/docking/best.rules": {"resume": set(), "report-only": set()},
+    "code.json": {"resume": {"deleted"}, "report-only": set(DAMAGES)},  # a report reads no code.json
 }
 
 
@@ -315,6 +316,24 @@ class TestRefusals:
         assert json.loads(code.read_text()) == {**code_version(), "earlier": [other]}
         check = check_run(run)
         assert check.ok, check.problems
+
+    @pytest.mark.parametrize("command", ["compare", "study"])
+    def test_a_comparison_or_study_on_other_code_is_refused_unless_forced(self, comparison: Path, study: Path,
+                                                                           tmp_path: Path, command: str) -> None:
+        from coevo.rundir.code import code_version
+
+        out = tmp_path / command
+        shutil.copytree(comparison if command == "compare" else study, out)
+        code = out / ("code.json" if command == "compare" else f"{CELL}/code.json")
+        other = {"package": "0.0.9", "source": "0123456789abcdef"}
+        code.write_text(json.dumps({**other, "earlier": []}))
+        before = digest(out)
+        err = refused_in_one_line(coevo(command, "--resume", "--out", str(out), "--quiet"), code.parent)
+        assert "coevo 0.0.9 (source 0123456789abcdef)" in err and code_version()["source"] in err and "--force" in err
+        assert digest(out) == before
+        res = coevo(command, "--resume", "--force", "--out", str(out), "--quiet")  # nothing left to run: a report
+        assert res.returncode == 0, res.stdout + res.stderr
+        assert json.loads(code.read_text()) == {**code_version(), "earlier": [other]}
 
     def test_check_is_not_complete_for_a_run_whose_checkpoint_a_resume_refuses(self, finished: Path,
                                                                                 tmp_path: Path) -> None:
