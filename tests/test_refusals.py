@@ -25,6 +25,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from procs import coevo_main
 
 from coevo.experiments.compare.experiment import held_spec, problems
 from coevo.experiments.study.declaration import study_cells
@@ -334,6 +335,16 @@ class TestRefusals:
         res = coevo(command, "--resume", "--force", "--out", str(out), "--quiet")  # nothing left to run: a report
         assert res.returncode == 0, res.stdout + res.stderr
         assert json.loads(code.read_text()) == {**code_version(), "earlier": [other]}
+
+    def test_replay_says_which_files_it_did_not_read(self, finished: Path, tmp_path: Path) -> None:
+        run = tmp_path / finished.name
+        shutil.copytree(finished, run)
+        (run / "run.json").write_bytes(random.Random(54).randbytes(64))  # garbage a replay never reads
+        res = coevo_main("replay", str(run))
+        assert res.returncode == 0 and res.stdout.count("reproduced exactly") == 3, res.stdout + res.stderr
+        last = res.stdout.splitlines()[-1]
+        assert last.startswith("not read, so not vouched for: run.json, summary.json") and f"coevo check {run}" in last
+        assert "workers/*/published.jsonl" in last and "workers/*/checkpoint.msgpack" in last
 
     def test_check_is_not_complete_for_a_run_whose_checkpoint_a_resume_refuses(self, finished: Path,
                                                                                 tmp_path: Path) -> None:
