@@ -678,6 +678,33 @@ def test_sigterm_to_a_worker_restarts_it_and_to_the_whole_group_stops_in_order(t
     _stopped_in_order_and_resumes_exact(run_dir, out)
 
 
+def test_sigterm_to_a_comparisons_process_group_stops_its_runs_in_order_and_it_resumes(tmp_path: Path) -> None:
+    """coevo compare (as study and seeds: the replicate runner) takes SIGTERM as Ctrl-C, and so does each coevo run
+    under it: the run stops in order (its workers' done.json, its summary), compare exits 130, --resume completes."""
+    out = tmp_path / "cmp"
+    p = subprocess.Popen([sys.executable, "-m", "coevo", "compare", "--regimes", "independent", "--runs", "1",
+                          "--generations", "12", "--population", "6", "--episodes", "10", "--measure-epochs", "1",
+                          "--out", str(out), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True)
+    run_dir = out / "runs" / "independent-00"
+    try:
+        poll(lambda: _lines(run_dir / "workers" / "tracking" / "curve.jsonl") >= 2, 120, "two tracking generations")
+        os.killpg(p.pid, signal.SIGTERM)
+        _, err = p.communicate(timeout=90)
+        assert p.returncode == 130 and "interrupted; finished runs are kept" in err, err
+    finally:
+        stop(p)
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["stopped_here"] and summary["stopped_early"], summary
+    for b, n in summary["stopped_early"].items():
+        assert json.loads((run_dir / "workers" / b / "done.json").read_text())["generations"] == n
+    r = subprocess.run([sys.executable, "-m", "coevo", "compare", "--resume", "--out", str(out), "--quiet"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    check = check_run(run_dir)
+    assert check.ok, check.problems
+
+
 def _run_of_12(tmp_path: Path, preexec: Any) -> tuple[subprocess.Popen, Path, Path]:
     """A 12-generation coevo run in a session of its own (its group id is its pid), its output in run.out."""
     out = tmp_path / "run.out"

@@ -220,9 +220,10 @@ def is_finished(out: Path, rep: Replicate) -> bool:
     f = RunPaths(run_dir(out, rep)).summary
     if not f.exists():
         return False
-    try:
-        return "measures" in json.loads(f.read_text(encoding="utf-8"))
-    except (OSError, ValueError, TypeError):  # unreadable, not UTF-8, not JSON, not an object
+    try:  # a run stopped early (Ctrl-C, SIGTERM) has its measures too, and is not finished: resumed
+        summary = json.loads(f.read_text(encoding="utf-8"))
+        return "measures" in summary and not summary.get("interrupted", False)
+    except (OSError, ValueError, TypeError, AttributeError):  # unreadable, not UTF-8, not JSON, not an object
         return False
 
 
