@@ -462,6 +462,7 @@ def run_local(
                         if not lr.workers_running():
                             break
                 except KeyboardInterrupt:
+                    settle()  # a Ctrl-C's stop is not cut short by a SIGTERM either
                     interrupted = True
                     lr.ask_stop(s)
                     _wait(list(lr.workers.values()), 15.0)
