@@ -5,7 +5,8 @@ loopback, bounded in time; one runs ``coevo chaos``.  Kills and bad
 messages tried (the README's fault table counts these): worker SIGKILL 2 (one
 directly, one as part of a whole ``coevo run`` group), worker SIGKILL inside
 ``coevo run`` 8 (one restarted, in the run whose broker is killed twice; one whose
-checkpoint was zeroed first; six in a row for the restart bound), a Ctrl-C to a whole ``coevo run`` group, broker SIGKILL 2 (one
+checkpoint was zeroed first; six in a row for the restart bound), a Ctrl-C and a SIGTERM to a whole ``coevo run``
+group, a SIGTERM to one worker of a run (restarted), broker SIGKILL 2 (one
 directly, one with the group), a hung worker 1, and one message of each of 12
 malformed kinds plus a flood of 3,000 on the worker's keys and a 40 MB flood on
 a broker with a 1 MB inbox.
@@ -21,6 +22,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import msgpack
 import numpy as np
@@ -30,18 +32,20 @@ from procs import SMALL, coevo_main, coevo_proc, copy_of, ctrl_c_heard, poll, st
 
 from coevo.agents.checkpoint import load_checkpoint, save_checkpoint
 from coevo.agents.models import PartnerModels
+from coevo.bus.auth import RunKey
 from coevo.bus import keys
 from coevo.bus.messages import MAX_BYTES, PolicyUpdate, Status, encode
 from coevo.bus.session import make_config, open_session
 from coevo.bus.status import StatusBoard
+from coevo.bus.trust import Gate
 from coevo.config import GAConfig
 from coevo.errors import RunDirError
 from coevo.ga import GA
 from coevo.policy import random_ruleset
-from coevo.rundir.layout import WorkerPaths
+from coevo.rundir.layout import RunPaths, WorkerPaths
 from coevo.rundir.settings import RunSettings
 from coevo.runs.check import check_run
-from coevo.runs.local import LocalRun
+from coevo.runs.local import LocalRun, free_port
 from coevo.tasks import get_task
 from coevo.tasks.fuel.behaviours import Behaviour
 from coevo.tasks.fuel.settings import WorldConfig
@@ -239,6 +243,59 @@ def test_a_killed_broker_loses_nothing_once_restarted(tmp_path: Path) -> None:
     for b in Behaviour:
         newest = max(json.loads(x)["version"] for x in (lr.worker_dir(b) / "published.jsonl").read_text().splitlines())
         assert store.latest(lr.run, b, worker=roster[b]).version == newest, b
+
+
+def test_genuine_messages_replayed_after_the_broker_restarted_are_refused_and_counted(tmp_path: Path) -> None:
+    """The broker's memory of the messages it took is kept beside the run's store (store/seen.log): genuine policies
+    captured and put again after the broker was killed and started again are each refused as replayed and counted,
+    none stored twice, while a new genuine one is stored."""
+    run, data = "again", tmp_path / "data"
+    key = RunKey.create(run)
+    RunPaths.of(data, run).dir.mkdir(parents=True)
+    key.save(RunPaths.of(data, run).key_file)
+    gate = Gate(key=key)  # a genuine member: its messages carry the run's MAC and fresh headers
+    kt = keys.policy(run, "tracking")
+    sealed = [gate.seal(_update(run, v), kt) for v in (1, 2, 3)]
+    store = RunPaths.of(data, run).store_file("tracking")
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+
+    def start_broker() -> subprocess.Popen:
+        p = coevo_proc("broker", "--listen", endpoint, "--data-dir", str(data), log=tmp_path / "broker.log")
+        with open_session(make_config(mode="client", connect=[endpoint], connect_timeout=20)) as s:
+            poll(lambda: any(r.ok is not None for r in s.liveliness().get(keys.BROKER, timeout=1.0)), 20, "the broker")
+        return p
+
+    p = start_broker()
+    try:
+        with open_session(make_config(mode="client", connect=[endpoint])) as s:
+            for payload in sealed:
+                s.put(kt, payload)
+            poll(lambda: _lines(store) == 3, 20, "three stored policies")
+        p.kill()
+        p.wait()
+        p = start_broker()
+        counts: dict[str, int] = {}
+
+        def on_status(sample: Any) -> None:
+            counts.update(Gate(key=key).decode(str(sample.key_expr), sample.payload.to_bytes()).rejected)
+
+        with open_session(make_config(mode="client", connect=[endpoint])) as s:
+            sub = s.declare_subscriber(keys.broker_status(run), on_status)
+            for payload in sealed:  # captured before the restart, put again after it
+                s.put(kt, payload)
+            s.put(kt, gate.seal(_update(run, 4), kt))  # a new genuine one
+            poll(lambda: _lines(store) == 4 and counts.get("replayed") == 3, 30, "the replays counted, v4 stored")
+            sub.undeclare()
+    finally:
+        stop(p)
+    assert [json.loads(x)["version"] for x in store.read_text().splitlines()] == [1, 2, 3, 4]
+    assert counts == {"replayed": 3}, counts
+
+
+def _update(run: str, version: int) -> PolicyUpdate:
+    rules = random_ruleset("tracking", 6, np.random.default_rng(version)).to_dict()
+    return PolicyUpdate(run=run, behaviour="tracking", worker="tracking-0", version=version, generation=version,
+                        fitness=0.5, episodes=10, rules=rules, sent_at=time.time())
 
 
 @pytest.mark.slow
@@ -587,18 +644,80 @@ def test_ctrl_c_to_the_whole_process_group_stops_in_order_and_the_run_resumes_ex
     """A terminal's Ctrl-C reaches coevo run and every child: only coevo run takes it, so the workers stop at a
     generation's end and write their done.json, the broker stays up for the final measures, and the stop message
     quotes this run's generations; --resume then completes the run exactly."""
-    out = tmp_path / "run.out"
-    with open(out, "wb") as f:
-        p = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--run", "ci", "--root", str(tmp_path), *SMALL,
-                              "--generations", "12", "--measure-epochs", "2", "--quiet"], stdout=f, stderr=subprocess.STDOUT,
-                             start_new_session=True, preexec_fn=ctrl_c_heard)
-    run_dir = tmp_path / "ci"
+    p, out, run_dir = _run_of_12(tmp_path, ctrl_c_heard)
     try:
         poll(lambda: _lines(run_dir / "workers" / "tracking" / "curve.jsonl") >= 3, 120, "three tracking generations")
         os.killpg(p.pid, signal.SIGINT)
         assert p.wait(timeout=60) == 130, out.read_text()[-3000:]
     finally:
         stop(p)
+    _stopped_in_order_and_resumes_exact(run_dir, out)
+
+
+def test_sigterm_to_a_worker_restarts_it_and_to_the_whole_group_stops_in_order(tmp_path: Path) -> None:
+    """A SIGTERM to one worker alone (not the run's own stop) is a death: the supervisor starts it again.  A SIGTERM
+    to the whole process group (a scheduler's or a shutdown's) is a stop like Ctrl-C: coevo run's children are in a
+    group of their own, so only coevo run hears it and stops them in order (done.json, the final measures);
+    --resume then completes the run exactly."""
+    p, out, run_dir = _run_of_12(tmp_path, None)
+    try:
+        poll(lambda: _lines(run_dir / "workers" / "executive" / "curve.jsonl") >= 1, 120, "an executive generation")
+        kids = {int(k) for k in Path(f"/proc/{p.pid}/task/{p.pid}/children").read_text().split()}
+        assert all(os.getpgid(k) == k for k in kids)  # each child leads a group of its own
+        executive = next(k for k in kids if b"executive" in Path(f"/proc/{k}/cmdline").read_bytes())
+        os.kill(executive, signal.SIGTERM)
+        log = run_dir / "logs" / "worker-executive.log"
+        poll(lambda: "--- start 2" in log.read_text(), 60, "the executive worker started again")
+        assert "executive worker exited with status 130; starting it again (restart 1 of at most 5)" in out.read_text()
+        poll(lambda: _lines(run_dir / "workers" / "tracking" / "curve.jsonl") >= 3, 120, "three tracking generations")
+        os.killpg(p.pid, signal.SIGTERM)
+        assert p.wait(timeout=60) == 130, out.read_text()[-3000:]
+        assert not [k for k in kids if Path(f"/proc/{k}").exists()]  # nothing is left running
+    finally:
+        stop(p)
+    _stopped_in_order_and_resumes_exact(run_dir, out)
+
+
+def test_sigterm_to_a_comparisons_process_group_stops_its_runs_in_order_and_it_resumes(tmp_path: Path) -> None:
+    """coevo compare (as study and seeds: the replicate runner) takes SIGTERM as Ctrl-C, and so does each coevo run
+    under it: the run stops in order (its workers' done.json, its summary), compare exits 130, --resume completes."""
+    out = tmp_path / "cmp"
+    p = subprocess.Popen([sys.executable, "-m", "coevo", "compare", "--regimes", "independent", "--runs", "1",
+                          "--generations", "12", "--population", "6", "--episodes", "10", "--measure-epochs", "1",
+                          "--out", str(out), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True)
+    run_dir = out / "runs" / "independent-00"
+    try:
+        poll(lambda: _lines(run_dir / "workers" / "tracking" / "curve.jsonl") >= 2, 120, "two tracking generations")
+        os.killpg(p.pid, signal.SIGTERM)
+        _, err = p.communicate(timeout=90)
+        assert p.returncode == 130 and "interrupted; finished runs are kept" in err, err
+    finally:
+        stop(p)
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["stopped_here"] and summary["stopped_early"], summary
+    for b, n in summary["stopped_early"].items():
+        assert json.loads((run_dir / "workers" / b / "done.json").read_text())["generations"] == n
+    r = subprocess.run([sys.executable, "-m", "coevo", "compare", "--resume", "--out", str(out), "--quiet"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    check = check_run(run_dir)
+    assert check.ok, check.problems
+
+
+def _run_of_12(tmp_path: Path, preexec: Any) -> tuple[subprocess.Popen, Path, Path]:
+    """A 12-generation coevo run in a session of its own (its group id is its pid), its output in run.out."""
+    out = tmp_path / "run.out"
+    with open(out, "wb") as f:
+        p = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--run", "ci", "--root", str(tmp_path), *SMALL,
+                              "--generations", "12", "--measure-epochs", "2", "--quiet"], stdout=f, stderr=subprocess.STDOUT,
+                             start_new_session=True, preexec_fn=preexec)
+    return p, out, tmp_path / "ci"
+
+
+def _stopped_in_order_and_resumes_exact(run_dir: Path, out: Path) -> None:
+    """Every worker wrote its done.json, the summary has the final measures and says who stopped early (the output
+    too), and --resume completes the run, replay exact."""
     summary = json.loads((run_dir / "summary.json").read_text())
     assert summary["interrupted"] and summary["stopped_here"] and "measures" in summary, summary
     counts = {b: _lines(run_dir / "workers" / b / "curve.jsonl") for b in ("tracking", "docking", "executive")}

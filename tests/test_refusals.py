@@ -15,6 +15,7 @@ and one finished comparison are made per module and copied for every case, so th
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import random
 import shutil
@@ -24,6 +25,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from procs import coevo_main
 
 from coevo.experiments.compare.experiment import held_spec, problems
 from coevo.experiments.study.declaration import study_cells
@@ -69,6 +71,7 @@ RUN_FILES: dict[str, set[str]] = {
     "workers/tracking/done.json": REPLACED,
     "summary.json": REPLACED,
     "logs/worker-tracking.log": REPLACED,  # appended to
+    "code.json": {"deleted"},  # a run made before code.json: resumed as always, and given one
 }
 
 #: The files of a finished comparison that ``coevo compare --resume`` and ``--report-only`` read, and the damages
@@ -79,6 +82,7 @@ COMPARE_FILES: dict[str, dict[str, set[str]]] = {
     f"{RUN}/summary.json": {"resume": {"deleted"}, "report-only": {"deleted"}},
     f"{RUN}/workers/executive/curve.jsonl": {"resume": set(), "report-only": set()},
     f"{RUN}/workers/docking/best.rules": {"resume": set(), "report-only": set()},
+    "code.json": {"resume": {"deleted"}, "report-only": set(DAMAGES)},  # a report reads no code.json
 }
 
 
@@ -288,6 +292,59 @@ class TestRefusals:
         before = digest(out)
         refused_in_one_line(coevo(*SEEDS, "--resume", "--out", str(out)), f)
         assert digest(out) == before
+
+    def test_a_resume_on_other_code_is_refused_unless_forced_and_an_old_run_resumes(self, finished: Path,
+                                                                                     tmp_path: Path) -> None:
+        from coevo.rundir.code import code_version
+        from coevo.runs.check import check_run
+
+        run = tmp_path / finished.name
+        shutil.copytree(finished, run)
+        code = run / "code.json"
+        assert json.loads(code.read_text()) == {**code_version(), "earlier": []}
+        code.unlink()  # a run made before code.json existed
+        res = coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet")
+        assert res.returncode == 0, res.stdout + res.stderr
+        assert json.loads(code.read_text()) == {**code_version(), "earlier": []}
+        other = {"package": "0.0.9", "source": "0123456789abcdef"}
+        code.write_text(json.dumps({**other, "earlier": []}))
+        before = digest(run)
+        err = refused_in_one_line(coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet"), run)
+        assert "coevo 0.0.9 (source 0123456789abcdef)" in err and code_version()["source"] in err and "--force" in err
+        assert digest(run) == before
+        res = coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet", "--force")
+        assert res.returncode == 0, res.stdout + res.stderr
+        assert json.loads(code.read_text()) == {**code_version(), "earlier": [other]}
+        check = check_run(run)
+        assert check.ok, check.problems
+
+    @pytest.mark.parametrize("command", ["compare", "study"])
+    def test_a_comparison_or_study_on_other_code_is_refused_unless_forced(self, comparison: Path, study: Path,
+                                                                           tmp_path: Path, command: str) -> None:
+        from coevo.rundir.code import code_version
+
+        out = tmp_path / command
+        shutil.copytree(comparison if command == "compare" else study, out)
+        code = out / ("code.json" if command == "compare" else f"{CELL}/code.json")
+        other = {"package": "0.0.9", "source": "0123456789abcdef"}
+        code.write_text(json.dumps({**other, "earlier": []}))
+        before = digest(out)
+        err = refused_in_one_line(coevo(command, "--resume", "--out", str(out), "--quiet"), code.parent)
+        assert "coevo 0.0.9 (source 0123456789abcdef)" in err and code_version()["source"] in err and "--force" in err
+        assert digest(out) == before
+        res = coevo(command, "--resume", "--force", "--out", str(out), "--quiet")  # nothing left to run: a report
+        assert res.returncode == 0, res.stdout + res.stderr
+        assert json.loads(code.read_text()) == {**code_version(), "earlier": [other]}
+
+    def test_replay_says_which_files_it_did_not_read(self, finished: Path, tmp_path: Path) -> None:
+        run = tmp_path / finished.name
+        shutil.copytree(finished, run)
+        (run / "run.json").write_bytes(random.Random(54).randbytes(64))  # garbage a replay never reads
+        res = coevo_main("replay", str(run))
+        assert res.returncode == 0 and res.stdout.count("reproduced exactly") == 3, res.stdout + res.stderr
+        last = res.stdout.splitlines()[-1]
+        assert last.startswith("not read, so not vouched for: run.json, summary.json") and f"coevo check {run}" in last
+        assert "workers/*/published.jsonl" in last and "workers/*/checkpoint.msgpack" in last
 
     def test_check_is_not_complete_for_a_run_whose_checkpoint_a_resume_refuses(self, finished: Path,
                                                                                 tmp_path: Path) -> None:

@@ -43,6 +43,7 @@ import msgpack
 from coevo.broker.store import PolicyStore, Quota
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
+from coevo.bus.freshness import KeptSeen
 from coevo.bus.lifecycle import Lifecycle, main_of
 from coevo.bus.messages import MAX_BYTES, BrokerStatus, CaseUpdate, PolicyUpdate
 from coevo.bus.session import Config, LivelinessToken, Query, Sample, Session, SessionGone, config_from_args
@@ -105,17 +106,17 @@ class Keyring:
         except CoevoError as exc:
             log.error("run %s: %s; its messages are refused", run, exc)
             return None
+        gate = Gate(key=key)
         if paths.run_json.exists():
             try:
                 from coevo.rundir.settings import RunSettings
 
                 gate = RunSettings.load(paths.run_json).gate(key)
-                log.info("run %s: key loaded%s", run, ", roster " + str(gate.roster) if gate.roster else "")
-                return gate
             except CoevoError as exc:
                 log.warning("run %s: %s; checking its key only, not its roster", run, exc)
-        log.info("run %s: key loaded", run)
-        return Gate(key=key)
+        gate.fresh.seen = KeptSeen(paths.seen_file)  # what it took before a restart is still refused as a replay
+        log.info("run %s: key loaded%s", run, ", roster " + str(gate.roster) if gate.roster else "")
+        return gate
 
 
 #: What a broker that is not open reads as its stop: set.

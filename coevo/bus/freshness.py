@@ -23,24 +23,31 @@ A receiver with the run's key refuses (:meth:`Freshness.admit`):
 
 Each receiver (every ring, the broker's store thread, the queries of a process) keeps its
 own table, per key expression, so a message two receivers of one process both read is
-new to each.  An open run (no key) has no envelopes, so nothing of this: anyone can steer
+new to each.  The broker's table of a run is also kept in a file beside the run's store
+(:class:`KeptSeen`), so a broker started again still refuses a replay of what it took
+before (a table in memory only would forget it with the process).  An open run (no key) has no envelopes, so nothing of this: anyone can steer
 it anyway.
 """
 
 from __future__ import annotations
 
 import itertools
+import json
+import logging
 import secrets
 import threading
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import msgpack
 
 from coevo.errors import MessageError
 
-__all__ = ["MAX_AGE", "WINDOW", "Freshness", "Seen", "header"]
+__all__ = ["MAX_AGE", "WINDOW", "Freshness", "Seen", "KeptSeen", "header"]
+
+log = logging.getLogger(__name__)
 
 MAX_AGE = 600.0  # seconds: a message sealed longer ago than this is stale (messages are sealed when put)
 WINDOW = 256  # sequence numbers remembered below a key's newest (messages of one sender may cross on the way)
@@ -100,6 +107,46 @@ class Seen:
                 k.top = seq
                 if len(k.recent) > 2 * WINDOW:
                     k.recent = {s for s in k.recent if s > k.top - WINDOW}
+
+
+class KeptSeen(Seen):
+    """A :class:`Seen` that outlives its process: every message it takes is appended to ``path`` (a line ``[key,
+    epoch, born, inc, seq]``) and read back when it is made, so a receiver started again (the broker) refuses a
+    replay of what it took before as ``replayed`` or ``stale``.  A line that does not parse (a torn last one) is
+    skipped; a file that cannot be read or written is said once in the log, and the memory goes on in the process.
+    The lines are appended without fsync: a killed process loses none (the kernel holds them), a lost machine
+    perhaps the last few."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__()
+        self.path = path
+        self._warned = False
+        try:
+            text = path.read_bytes().decode("utf-8", "replace") if path.is_file() else ""
+        except OSError as exc:
+            self._warn(exc)
+            text = ""
+        for line in text.splitlines():
+            try:
+                key, epoch, born, inc, seq = json.loads(line)
+                super().admit(str(key), (int(epoch), float(born), str(inc)), int(seq))
+            except (ValueError, TypeError, MessageError):
+                continue
+
+    def admit(self, key: str, sender: tuple[int, float, str], seq: int) -> None:
+        super().admit(key, sender, seq)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            with open(self.path, "a", encoding="utf-8") as f:
+                f.write(json.dumps([key, *sender, seq]) + "\n")
+        except OSError as exc:
+            self._warn(exc)
+
+    def _warn(self, exc: OSError) -> None:
+        if not self._warned:
+            self._warned = True
+            log.warning("%s: %s; what this process takes is remembered in memory only (a replay after its restart "
+                        "is not refused)", self.path, exc.strerror or exc)
 
 
 class Freshness:

@@ -23,7 +23,9 @@ first, which then reads "dead" for a process that ended well: :meth:`Lifecycle.l
 
 from __future__ import annotations
 
+import ctypes
 import logging
+import os
 import signal
 import threading
 import time
@@ -35,7 +37,7 @@ from typing import Any, Protocol, TypeVar
 from coevo.bus.session import Config, Session, SessionGone, open_session
 from coevo.bus.trust import Gate
 
-__all__ = ["Lifecycle", "main_of", "DONE_LINGER", "JOIN_SECONDS", "SIGNALLED"]
+__all__ = ["Lifecycle", "main_of", "DONE_LINGER", "JOIN_SECONDS", "SIGNALLED", "DIE_WITH_PARENT"]
 
 log = logging.getLogger(__name__)
 
@@ -48,6 +50,11 @@ DONE_LINGER = 0.2
 JOIN_SECONDS = 5.0
 
 T = TypeVar("T")
+
+#: The environment variable by which a parent (``coevo run``'s supervisor) gives its pid to a process it starts in a
+#: process group of its own: :func:`main_of` then has the kernel SIGKILL the process when that parent dies, as a
+#: SIGKILL to the run's group did when they shared it (a lost machine, not a stop).
+DIE_WITH_PARENT = "COEVO_DIE_WITH_PARENT"
 
 #: Set by a stop signal that :func:`main_of` took (SIGTERM, or SIGINT unless it was ignored when the process began).
 SIGNALLED = threading.Event()
@@ -148,10 +155,25 @@ def _stop_signal(signum: int, frame: object) -> None:
     raise KeyboardInterrupt(f"signal {signum}")
 
 
+def _die_with_parent() -> None:
+    """SIGKILL from the kernel when the parent named by :data:`DIE_WITH_PARENT` dies (Linux's PR_SET_PDEATHSIG);
+    at once if it is gone already.  Nothing without the variable, or where prctl is not."""
+    parent = os.environ.pop(DIE_WITH_PARENT, "")
+    if not parent.isdigit():
+        return
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != int(parent):  # it died before the prctl: the kernel would not tell us any more
+        os.kill(os.getpid(), signal.SIGKILL)
+
+
 def main_of(work: Callable[[], T]) -> T | None:
     """``work()`` as a process's main: SIGTERM stops it as Ctrl-C does (a KeyboardInterrupt, so that every
     ``finally`` runs and every :class:`Lifecycle` closes) and sets every open life's ``stop``; None when it was
     interrupted.  A SIGINT that was ignored when the process began (``coevo run &`` in a script) stays ignored."""
+    _die_with_parent()
     SIGNALLED.clear()
     signal.signal(signal.SIGTERM, _stop_signal)
     if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:

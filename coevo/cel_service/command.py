@@ -89,6 +89,8 @@ def cmd_cel(args: argparse.Namespace) -> int:
     from coevo.runs.local import run_local
     from coevo.rundir.settings import RunSettings
 
+    if args.force and not args.resume:
+        raise ConfigError("--force goes with --resume (continue a run that ran on other code)")
     if args.resume:
         given = [f for f in ("run", "settings", "prepare", "seed", "fail", "schedule", "case_base", "cases_from", "trials_per_generation", "chunk",
                              "zero_run", "repair_run", "max_lead", "generations", "population", "episodes", "world", "ga")
@@ -96,7 +98,8 @@ def cmd_cel(args: argparse.Namespace) -> int:
         if given:
             raise ConfigError("--resume takes every setting from the run's run.json; drop " +
                               ", ".join(f"--{f.replace('_', '-')}" for f in given))
-        lr: CelRun = CelRun.resume(Path(args.resume), log_level=args.log_level)  # type: ignore[assignment]
+        lr: CelRun = CelRun.resume(Path(args.resume), log_level=args.log_level,  # type: ignore[assignment]
+                                   force=args.force)
         if lr.settings.block("cel") is None:
             raise ConfigError(f"{args.resume} is not a CEL run (its run.json has no cel block); use coevo run --resume")
     else:
@@ -175,6 +178,8 @@ def configure_cel(p: argparse.ArgumentParser) -> None:
     p.add_argument("--run", help="run id (default cel-TIME)")
     p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
     p.add_argument("--resume", metavar="RUN_DIR", help="continue this run from its processes' checkpoints")
+    p.add_argument("--force", action="store_true",
+                   help="with --resume: continue a run that ran on other code (code.json names it) all the same")
     p.add_argument("--settings", metavar="RUN_JSON",
                    help="start a run with these settings (a CEL run's run.json, e.g. one coevo cel-experiment wrote)")
     p.add_argument("--seed", type=seed_arg, help="the learner's seed (default 0); the robot's world uses seed + 1000003")

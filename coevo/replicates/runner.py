@@ -16,6 +16,7 @@ from pathlib import Path
 
 from coevo.replicates.backends import Backend, H
 from coevo.replicates.replicate import Outcome, Replicate
+from coevo.rundir.layout import sigterm_stops
 
 __all__ = ["Progress", "run_replicates"]
 
@@ -62,43 +63,44 @@ def run_replicates(
     active: dict[str, tuple[Replicate, H]] = {}
     started: dict[str, float] = {}
     (out / "logs").mkdir(parents=True, exist_ok=True)
-    try:
-        while pending or active:
-            for rep in list(pending):
-                lost = [d for d in rep.after if d in prog.failed]
-                if lost:
+    with sigterm_stops():  # a SIGTERM (to the experiment or its process group) stops what runs in order, as Ctrl-C
+        try:
+            while pending or active:
+                for rep in list(pending):
+                    lost = [d for d in rep.after if d in prog.failed]
+                    if lost:
+                        pending.remove(rep)
+                        prog.failed[rep.name] = f"skipped: {lost[0]}, which it needs, failed"
+                        log.error("run %s skipped: the run it needs, %s, failed", rep.name, lost[0])
+                        continue
+                    if any(d not in finished for d in rep.after):
+                        continue
+                    if not backend.room(sum(r.weight for r, _ in active.values()), rep):
+                        continue
                     pending.remove(rep)
-                    prog.failed[rep.name] = f"skipped: {lost[0]}, which it needs, failed"
-                    log.error("run %s skipped: the run it needs, %s, failed", rep.name, lost[0])
-                    continue
-                if any(d not in finished for d in rep.after):
-                    continue
-                if not backend.room(sum(r.weight for r, _ in active.values()), rep):
-                    continue
-                pending.remove(rep)
-                started[rep.name] = time.perf_counter()
-                active[rep.name] = (rep, backend.submit(rep, out))
-            time.sleep(poll)
-            backend.check()
-            for name, (rep, handle) in list(active.items()):
-                if not handle.done():
-                    continue
-                del active[name]
-                res = backend.outcome(handle, rep, out)
-                res.wall = time.perf_counter() - started[name]
-                prog.outcomes.append(res)
-                if res.ok:
-                    finished.add(name)
-                    prog.runs_done += 1
-                    base += rep.cost
-                else:
-                    prog.failed[name] = res.reason
-                    log.error("run %s failed: %s; see %s", name, res.reason, out / "logs" / f"{name}.log")
-            prog.done = base + sum(min(r.cost, r.progress(out)) for r, _ in active.values() if r.progress is not None)
-            if on_progress:
-                on_progress(prog)
-    finally:
-        if active:
-            backend.stop([h for _, h in active.values()])
-        backend.close()
+                    started[rep.name] = time.perf_counter()
+                    active[rep.name] = (rep, backend.submit(rep, out))
+                time.sleep(poll)
+                backend.check()
+                for name, (rep, handle) in list(active.items()):
+                    if not handle.done():
+                        continue
+                    del active[name]
+                    res = backend.outcome(handle, rep, out)
+                    res.wall = time.perf_counter() - started[name]
+                    prog.outcomes.append(res)
+                    if res.ok:
+                        finished.add(name)
+                        prog.runs_done += 1
+                        base += rep.cost
+                    else:
+                        prog.failed[name] = res.reason
+                        log.error("run %s failed: %s; see %s", name, res.reason, out / "logs" / f"{name}.log")
+                prog.done = base + sum(min(r.cost, r.progress(out)) for r, _ in active.values() if r.progress is not None)
+                if on_progress:
+                    on_progress(prog)
+        finally:
+            if active:
+                backend.stop([h for _, h in active.values()])
+            backend.close()
     return prog

@@ -29,7 +29,7 @@ import signal
 import socket
 import tempfile
 import threading
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,7 +43,7 @@ if TYPE_CHECKING:
     from coevo.policy.rules import RuleSet
 
 
-__all__ = ["RunPaths", "WorkerPaths", "ExecutionPaths", "LearnPaths", "read_store", "read_cases", "line_problems", "not_a_file", "append_durably", "cut_back", "staged_dir", "ensure_dir", "read_jsonl", "json_object", "read_json", "write_bytes",
+__all__ = ["RunPaths", "WorkerPaths", "ExecutionPaths", "LearnPaths", "read_store", "read_cases", "line_problems", "not_a_file", "append_durably", "cut_back", "staged_dir", "sigterm_stops", "ensure_dir", "read_jsonl", "json_object", "read_json", "write_bytes",
            "write_json",
            "write_text", "write_csv"]
 
@@ -249,6 +249,12 @@ class RunPaths:
         """The store's policy files (one per behaviour)."""
         return sorted(self.store_dir.glob("*.jsonl"))
 
+    @property
+    def seen_file(self) -> Path:
+        """The broker's memory of the messages of this run it took (one line each: key, sender, sequence number),
+        kept so that a broker started again still refuses a replay of them (:class:`coevo.bus.freshness.KeptSeen`)."""
+        return self.store_dir / "seen.log"
+
     def case_file(self, behaviour: str) -> Path:
         return self.store_dir / "cases" / f"{behaviour}.jsonl"
 
@@ -395,7 +401,7 @@ def staged_dir(final: Path) -> Iterator[Path]:
     except OSError as exc:
         raise RunDirError(f"cannot create output directory {str(final)!r}: {exc.strerror or exc}") from exc
     try:
-        with _sigterm_stops():
+        with sigterm_stops():
             yield tmp
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -409,21 +415,28 @@ def staged_dir(final: Path) -> Iterator[Path]:
 
 
 @contextmanager
-def _sigterm_stops() -> Iterator[None]:
-    """SIGTERM as a stop (KeyboardInterrupt) while a staged directory is written, so that it is removed as after a
-    Ctrl-C; by default SIGTERM ends the process at once and leaves it behind (``.NAME.*.partial``) until the next
-    command there.  Only where SIGTERM has its default action (a command's own handler is kept) and in the main
-    thread (the only one that may set a handler)."""
+def sigterm_stops() -> Iterator[Callable[[], None]]:
+    """SIGTERM as a stop (KeyboardInterrupt), as Ctrl-C is, while inside: a staged directory is removed, a run or an
+    experiment stops in order.  The first SIGTERM raises; later ones are ignored until the block ends, so that the
+    stop it started is not cut short (a group's SIGTERM and then a backend's own reach a run twice).  It yields
+    ``settle()``: SIGTERM ignored from then on to the block's end (what is left is an orderly end, nothing to stop).
+    Only where SIGTERM has its default action (a command's own handler is kept, and ``settle`` does nothing) and in
+    the main thread (the only one that may set a handler); by default SIGTERM ends the process at once (and a staged
+    ``.NAME.*.partial`` stays behind until the next command there)."""
     if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGTERM) != signal.SIG_DFL:
-        yield
+        yield lambda: None
         return
 
     def _stop(signum: int, frame: object) -> None:
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
         raise KeyboardInterrupt(f"signal {signum}")
+
+    def _settle() -> None:
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
     signal.signal(signal.SIGTERM, _stop)
     try:
-        yield
+        yield _settle
     finally:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
 

@@ -44,11 +44,14 @@ def configure_replay(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
-    from coevo.runs.replay import replay
+    from coevo.runs.replay import not_needed, replay
 
     ok = True
     for r in replay(Path(args.run_dir)):
         ok &= r.reproduced
         verdict = "reproduced exactly" if r.reproduced else f"DIFFERS at generation {r.first_mismatch}: {r.detail}"
         print(f"{r.behaviour}: {r.generations} generations {verdict}")
+    skipped = not_needed(Path(args.run_dir))
+    if skipped:
+        print(f"not read, so not vouched for: {', '.join(skipped)} (coevo check {args.run_dir} checks the whole run)")
     return 0 if ok else 1

@@ -74,6 +74,8 @@ def configure_run(p: argparse.ArgumentParser) -> None:
     p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
     p.add_argument("--resume", metavar="RUN_DIR", help="continue this run from its workers' checkpoints, with its settings")
     p.add_argument("--settings", metavar="RUN_JSON", help="start a run with these settings (a run.json, e.g. one coevo compare wrote)")
+    p.add_argument("--force", action="store_true",
+                   help="with --resume: continue a run that ran on other code (code.json names it) all the same")
     p.add_argument("--measure-epochs", type=count_arg(1, 1_000_000), default=100,
                    help="fresh epochs measuring the final policies together at the end (default 100)")
     p.add_argument("--quiet", action="store_true", help="no live status table")
@@ -95,9 +97,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     from coevo.tasks import DEFAULT_TASK
 
     listen = check_listen(args.listen) if args.listen else None
+    if args.force and not args.resume:
+        raise ConfigError("--force goes with --resume (continue a run that ran on other code)")
     if args.resume:
         refuse(args, (*RUN_FLAGS, "run", "settings"), "--resume takes every setting from the run's run.json")
-        lr = LocalRun.resume(Path(args.resume), log_level=args.log_level, listen=listen)
+        lr = LocalRun.resume(Path(args.resume), log_level=args.log_level, listen=listen, force=args.force)
         if (kind := kind_of_settings(lr.settings)) is not COEVOLUTION:
             raise ConfigError(f"{args.resume} is {kind.label}: continue it with {kind.run().COMMAND} --resume {args.resume}")
     else:

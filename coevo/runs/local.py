@@ -4,8 +4,9 @@ Writes the run's settings once to ``run.json`` (:class:`~coevo.rundir.settings.R
 starts ``coevo broker`` and one ``coevo worker --settings RUN/run.json`` per behaviour
 of the task as separate processes (``subprocess``: fork+exec, never a fork of a
 process with a session), shows the live status, and at the end measures the run's
-final policies together from the store's latest.  Ctrl-C (or SIGTERM) asks the
-workers to stop, then ends every child; nothing is left running.  ``coevo run
+final policies together from the store's latest.  Ctrl-C or SIGTERM, to it or to its
+process group (its children are in a group of their own and die with it: they hear only
+``coevo run``), asks the workers to stop, then ends every child; nothing is left running.  ``coevo run
 --resume RUN_DIR`` starts a new broker (its store reloads the run's policies from
 disk; run.json records where it now listens) and every worker with ``--resume``
 (each continues from its last checkpoint).
@@ -15,7 +16,7 @@ are built to outlive a broker (workers keep their versions and republish what th
 lacks; the store reloads from disk), and a worker to outlive itself (its checkpoint, written
 before anything of a generation leaves it, and its logs cut back to it).  So a broker that
 dies is started again on the same endpoint and data directory, and a worker that dies (any
-exit but a stop: 0, or SIGINT/SIGTERM) again with ``--resume``, each at most
+exit but the run's own stop, status 0; a SIGTERM from outside too) again with ``--resume``, each at most
 :data:`MAX_RESTARTS` times in a run (one that keeps dying has a cause to look at: its log,
 ``RUN/logs/NAME.log``), and the run goes on.  A worker that cannot start (it died before a
 generation twice in a row with the same last words, e.g. a checkpoint it refuses) ends the
@@ -54,13 +55,15 @@ from typing import Any
 
 from coevo.bus import keys
 from coevo.bus.auth import RunKey
+from coevo.bus.lifecycle import DIE_WITH_PARENT
 from coevo.bus.messages import Control, PolicyUpdate
-from coevo.bus.session import fetch_latest, make_config, open_session, put_control, Session, sigterm_as_exit
+from coevo.bus.session import fetch_latest, make_config, open_session, put_control, Session
 from coevo.bus.status import StatusBoard
 from coevo.bus.trust import Gate
 from coevo.errors import CoevoError, ConfigError, RunDirError, ServiceError
 from coevo.rundir.layout import (RunPaths, cut_back, not_a_file, read_cases, read_json, read_jsonl, read_store,
-                                 write_csv, write_json)
+                                 sigterm_stops, write_csv, write_json)
+from coevo.rundir.code import record_code, refuse_other_code
 from coevo.rundir.settings import RunSettings
 
 __all__ = ["MAX_RESTARTS", "STOP_EXITS", "default_run_id", "free_port", "loopback_endpoint", "check_listen", "wait_until",
@@ -72,9 +75,10 @@ log = logging.getLogger(__name__)
 #: ends the run and says why).
 MAX_RESTARTS = 5
 
-#: A worker's exit statuses that are a stop, not a death: done or asked to stop (0), stopped by SIGINT/SIGTERM (130,
-#: or killed by one before it could handle it).  Never restarted.
-STOP_EXITS = (0, 130, -signal.SIGINT, -signal.SIGTERM)
+#: A worker's exit statuses that are a stop, not a death: done, or stopped by the run's stop message (0).  Never
+#: restarted.  A worker's SIGTERM or SIGINT can only come from outside the run (its children are in a process group
+#: of their own, and ``coevo run`` stops them with its message): a death like any other, so it is started again.
+STOP_EXITS = (0,)
 
 
 def default_run_id(prefix: str) -> str:
@@ -160,12 +164,15 @@ class LocalRun:
 
     @classmethod
     def resume(cls, run_dir: Path, *, log_level: str = "WARNING", worker_env: dict[str, str] | None = None,
-               listen: str | None = None) -> LocalRun:
+               listen: str | None = None, force: bool = False) -> LocalRun:
         """The run in ``run_dir``, from its run.json, with a new broker endpoint (``listen``, default a free loopback
-        port; recorded in run.json).  Every file the resume reads is read first (:meth:`verify`): a RunDirError
-        naming the first problem leaves the directory byte for byte as it was."""
+        port; recorded in run.json).  Every file the resume reads is read first (:meth:`verify`), and the code that
+        ran it last (``code.json``) must be this code unless ``force``: a RunDirError naming the first problem leaves
+        the directory byte for byte as it was."""
         lr = cls.resumable(run_dir, log_level=log_level, worker_env=worker_env, listen=listen)
+        refuse_other_code(lr.dir, force=force, what="curves")
         lr.verify()  # before anything is written or started
+        record_code(lr.dir)
         lr.settings.save(lr.paths.run_json)  # where its broker listens now: a stale endpoint would mislead status
         lr.paths.summary.unlink(missing_ok=True)  # written again at the end
         return lr
@@ -218,6 +225,7 @@ class LocalRun:
             self.key.save(self.paths.key_file)  # mode 0600; run.json names it, the workers read it from there
             self.settings = self.settings.model_copy(update={"key_file": RunPaths.KEY_FILE})
         self.settings.save(self.paths.run_json)
+        record_code(self.dir)
 
     def _spawn(self, name: str, args: list[str], env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
         self.paths.logs_dir.mkdir(parents=True, exist_ok=True)
@@ -226,8 +234,8 @@ class LocalRun:
             f.write(f"--- start {self.starts[name]} at {time.strftime('%H:%M:%S')}\n".encode())
             f.flush()
             p = subprocess.Popen([sys.executable, "-m", "coevo", "--log-level", self.log_level, *args], stdout=f,
-                                 stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                 env={**os.environ, **(env or {})})
+                                 stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, process_group=0,
+                                 env={**os.environ, **(env or {}), DIE_WITH_PARENT: str(os.getpid())})
         self._all.append(p)
         return p
 
@@ -439,42 +447,43 @@ def run_local(
     run = lr.run
     t0 = time.time()
     interrupted = False
-    previous = sigterm_as_exit()
-    try:
-        lr.start(resume=resume)
-        with open_session(lr.client_config(), what="status session", gate=lr.gate()) as s:
-            board = StatusBoard(s, run, restarts=lr.restarts)  # the restarts shown beside each process's state
-            try:
-                while True:
-                    board.changed.wait(0.5)
-                    board.changed.clear()
-                    if on_status:
-                        on_status(board)
-                    lr.supervise()  # before asking who still runs: a worker that died last is started again
-                    if not lr.workers_running():
-                        break
-            except KeyboardInterrupt:
-                interrupted = True
-                lr.ask_stop(s)
-                _wait(list(lr.workers.values()), 15.0)
-            if on_status:
-                on_status(board)
-            board.close()
-            latest = fetch_latest(s, run)
-        failed = {b: p.returncode for b, p in lr.workers.items() if p.returncode not in (0, None)}
-        if failed and not interrupted:
-            raise RunDirError(f"workers failed {failed}; see {lr.paths.logs_dir} (continue with {lr.resume_command})")
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-        lr.end_all()
-    # Whoever stopped them (Ctrl-C here, or a stop message from elsewhere): a worker short of its
-    # last generation makes the run interrupted, never a finished one.
-    stopped_early = lr.unfinished()
-    if stopped_early and not interrupted:
-        log.warning("run %s: workers stopped before their last generation: %s", run, stopped_early)
-    return lr.finish(latest, seconds=time.time() - t0, interrupted=interrupted or bool(stopped_early),
-                     measure_epochs=measure_epochs,
-                     extra={"resumed": resume, "stopped_early": stopped_early, "stopped_here": interrupted})
+    with sigterm_stops() as settle:  # a SIGTERM (to coevo run, or to its process group: its children have their own) as Ctrl-C
+        try:
+            lr.start(resume=resume)
+            with open_session(lr.client_config(), what="status session", gate=lr.gate()) as s:
+                board = StatusBoard(s, run, restarts=lr.restarts)  # the restarts shown beside each process's state
+                try:
+                    while True:
+                        board.changed.wait(0.5)
+                        board.changed.clear()
+                        if on_status:
+                            on_status(board)
+                        lr.supervise()  # before asking who still runs: a worker that died last is started again
+                        if not lr.workers_running():
+                            break
+                except KeyboardInterrupt:
+                    settle()  # a Ctrl-C's stop is not cut short by a SIGTERM either
+                    interrupted = True
+                    lr.ask_stop(s)
+                    _wait(list(lr.workers.values()), 15.0)
+                settle()  # the run is ending in order from here: a SIGTERM has nothing left to stop
+                if on_status:
+                    on_status(board)
+                board.close()
+                latest = fetch_latest(s, run)
+            failed = {b: p.returncode for b, p in lr.workers.items() if p.returncode not in (0, None)}
+            if failed and not interrupted:
+                raise RunDirError(f"workers failed {failed}; see {lr.paths.logs_dir} (continue with {lr.resume_command})")
+        finally:
+            lr.end_all()
+        # Whoever stopped them (Ctrl-C here, or a stop message from elsewhere): a worker short of its
+        # last generation makes the run interrupted, never a finished one.
+        stopped_early = lr.unfinished()
+        if stopped_early and not interrupted:
+            log.warning("run %s: workers stopped before their last generation: %s", run, stopped_early)
+        return lr.finish(latest, seconds=time.time() - t0, interrupted=interrupted or bool(stopped_early),
+                         measure_epochs=measure_epochs,
+                         extra={"resumed": resume, "stopped_early": stopped_early, "stopped_here": interrupted})
 
 
 @contextmanager

@@ -33,7 +33,7 @@ from coevo.runs.kinds import kind_of_worker, run_kinds
 from coevo.tasks import DEFAULT_TASK, Task, get_task
 from coevo.tasks.base import check_behaviour
 
-__all__ = ["WorkerReplay", "replay"]
+__all__ = ["WorkerReplay", "replay", "not_needed"]
 
 _UNCOMPARED = ("seconds",)  # every other column of the learning curve must be identical
 
@@ -115,4 +115,16 @@ def replay(run_dir: Path) -> list[WorkerReplay]:
             continue
         what, n, first, detail = kind.replay_run(run)
         out.append(WorkerReplay(what, n, first is None, first, detail))
+    return out
+
+
+def not_needed(run_dir: Path) -> list[str]:
+    """The run's files that :func:`replay` does not read (paths relative to the run, a worker's as
+    ``workers/*/NAME``), of those that exist: a replay vouches for none of them (``coevo check`` reads them all)."""
+    run = RunPaths(Path(run_dir))
+    files = [run.run_json, run.summary, run.measures, run.curves_csv]
+    out = [f.name for f in files if f.exists()]
+    for name in ("published", "checkpoint", "done", "best_rules"):
+        if any(getattr(w, name).exists() for w in run.workers()):
+            out.append(f"workers/*/{getattr(run.workers()[0], name).name}")
     return out

@@ -37,6 +37,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     if (args.resume or args.report_only) and args.out is None:
         raise ConfigError("--resume and --report-only need --out: the comparison's folder")
+    if args.force and not args.resume:
+        raise ConfigError("--force goes with --resume (continue a comparison that ran on other code)")
     out = Path(args.out) if args.out else Path("runs") / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"
     held = held_spec(out) if (args.resume or args.report_only) and out.is_dir() else None
     # the settings as given, checked once, by the comparison's own model (its task's world and GA rules)
@@ -58,7 +60,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         todo = prepare(out, spec, resume=True, report_only=True)
         print(f"{len(todo)} runs unfinished; reporting on the rest")
     else:
-        todo = prepare(out, spec, resume=args.resume)
+        todo = prepare(out, spec, resume=args.resume, force=args.force)
         backend = backend_of(args, default_jobs=default_jobs())
         total = len(replicates(spec))
         print(f"comparison in {out}: {total - len(todo)} of {total} runs already done, {len(todo)} to run, "
@@ -135,6 +137,8 @@ def configure_compare(p: argparse.ArgumentParser) -> None:
                    "(given none of its settings, with its own)")
     p.add_argument("--report-only", action="store_true", help="only (re)write the report from the finished runs in --out "
                    "(given none of its settings, with its own)")
+    p.add_argument("--force", action="store_true",
+                   help="with --resume: continue a comparison that ran on other code (its code.json names it) all the same")
     add_backend_flags(p, jobs_help="runs at once on this machine (default: one per two cores; an offline Executive "
                                    "counts half)")
     p.add_argument("--seed", type=seed_arg, help="base seed; run i of every regime uses seed + 1000 i (default 0)")

@@ -47,6 +47,7 @@ from coevo.errors import CoevoError, ConfigError, RunDirError
 from coevo.replicates.backends import Backend
 from coevo.replicates.replicate import Replicate as Job
 from coevo.replicates.runner import Progress, run_replicates
+from coevo.rundir.code import record_code, refuse_other_code
 from coevo.rundir.layout import LearnPaths, RunPaths, ensure_dir, read_json, read_jsonl, write_json
 from coevo.rundir.settings import RunSettings
 from coevo.tasks import DEFAULT_TASK, get_task, saved_settings, split_settings
@@ -250,9 +251,10 @@ def is_finished(out: Path, rep: Replicate) -> bool:
     f = RunPaths(run_dir(out, rep)).summary
     if not f.exists():
         return False
-    try:
-        return "measures" in json.loads(f.read_text(encoding="utf-8"))
-    except (OSError, ValueError, TypeError):  # unreadable, not UTF-8, not JSON, not an object
+    try:  # a run stopped early (Ctrl-C, SIGTERM) has its measures too, and is not finished: resumed
+        summary = json.loads(f.read_text(encoding="utf-8"))
+        return "measures" in summary and not summary.get("interrupted", False)
+    except (OSError, ValueError, TypeError, AttributeError):  # unreadable, not UTF-8, not JSON, not an object
         return False
 
 
@@ -275,13 +277,15 @@ def held_spec(out: Path) -> CompareSpec | None:
         raise RunDirError(f"{exc}; choose another --out") from None
 
 
-def prepare(out: Path, spec: CompareSpec, *, resume: bool, report_only: bool = False) -> list[Replicate]:
+def prepare(out: Path, spec: CompareSpec, *, resume: bool, report_only: bool = False,
+            force: bool = False) -> list[Replicate]:
     """Check OUT before anything starts; returns the replicates still to run.
 
     A fresh comparison needs an empty or missing OUT.  ``resume`` needs OUT to
-    hold this very comparison (same settings); anything else is refused with a
-    message naming what differs.  Every file of OUT that the comparison (``report_only``: its report) will read
-    is read first (:func:`problems`): a problem is a RunDirError naming it, and OUT is left as it was.
+    hold this very comparison (same settings) and, unless ``force``, made by this code (``code.json``); anything
+    else is refused with a message naming what differs.  Every file of OUT that the comparison (``report_only``:
+    its report) will read is read first (:func:`problems`): a problem is a RunDirError naming it, and OUT is left
+    as it was.
     """
     out = Path(out)
     marker = out / "compare.json"
@@ -304,9 +308,13 @@ def prepare(out: Path, spec: CompareSpec, *, resume: bool, report_only: bool = F
             more = f" ({len(found) - 1} more problems)" if len(found) > 1 else ""
             raise RunDirError(f"cannot {'report on' if report_only else 'resume'} the comparison in {out}: {found[0]}; "
                               f"nothing was started or changed{more}")
+        if not report_only:
+            refuse_other_code(out, force=force, what="runs")
     else:
         ensure_dir(out, what="--out")
         write_json(marker, {"spec": _spec_json(spec), "created": time.time()})
+    if not report_only:
+        record_code(out)
     todo = []
     for rep in replicates(spec):
         if is_finished(out, rep):
@@ -438,7 +446,8 @@ def _run_command(spec_json: dict[str, Any], rep: Replicate, root: Path) -> list[
                 "--settings", str(settings), "--history", str(run_dir(root, rep.depends_on)),
                 "--rate", repr(rep.rate), "--out", str(d), "--measure-epochs", epochs]
     if RunPaths(d).run_json.exists():  # interrupted: continue it from the workers' checkpoints
-        return [sys.executable, "-m", "coevo", "run", "--quiet", "--resume", str(d), "--measure-epochs", epochs]
+        return [sys.executable, "-m", "coevo", "run", "--quiet", "--resume", str(d), "--measure-epochs", epochs,
+                "--force"]  # the comparison's own code.json was checked (prepare)
     if d.exists():
         shutil.rmtree(d)  # stopped before it began: run it again
     return [sys.executable, "-m", "coevo", "run", "--quiet", "--settings", str(settings), "--root", str(root / "runs"),

@@ -73,6 +73,8 @@ def cmd_study(args: argparse.Namespace) -> int:
     given_out = Path(args.out) if args.out else None
     if (args.resume or args.report_only) and given_out is None:
         raise ConfigError("--resume and --report-only need --out: the study's folder")
+    if args.force and not args.resume:
+        raise ConfigError("--force goes with --resume (continue a study that ran on other code)")
     spec = _declaration(args, given_out)  # every cell checked before anything is opened or written
     check_backend_flags(args)
     out = given_out or Path("runs") / f"study-{spec.name}-{time.strftime('%Y%m%d-%H%M%S')}"
@@ -88,7 +90,7 @@ def cmd_study(args: argparse.Namespace) -> int:
     else:
         backend = backend_of(args, default_jobs=default_jobs())
         try:
-            the_cells = prepare_study(out, spec, resume=args.resume)
+            the_cells = prepare_study(out, spec, resume=args.resume, force=args.force)
         except BaseException:
             backend.close()
             raise
@@ -176,6 +178,8 @@ def configure_study(p: argparse.ArgumentParser) -> None:
     p.add_argument("--resume", action="store_true", help="continue the study in --out (its finished runs kept); "
                    "without a declaration, the one stored there")
     p.add_argument("--report-only", action="store_true", help="only (re)write the report from the finished runs in --out")
+    p.add_argument("--force", action="store_true",
+                   help="with --resume: continue a study whose cells ran on other code (their code.json) all the same")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     add_backend_flags(p, jobs_help="runs at once on this machine (default: one per two cores; an offline Executive "
                                    "counts half)")

@@ -41,6 +41,7 @@ from coevo.experiments.study.declaration import Cell, LearnCell, StudySpec, stud
 from coevo.replicates.backends import Backend
 from coevo.replicates.replicate import Replicate as Job
 from coevo.replicates.runner import Progress, run_replicates
+from coevo.rundir.code import code_difference
 from coevo.rundir.layout import ensure_dir, write_json
 
 __all__ = ["MARKER", "COMPLETE", "SEP", "prepare_study", "study_jobs", "run_study", "held_declaration", "mark_complete",
@@ -76,10 +77,12 @@ def _prepare_learn_cell(folder: Path, cell: LearnCell) -> None:
     write_json(f, {**mine, "created": time.time()})
 
 
-def check_cells(out: Path, the_cells: Sequence[Cell | LearnCell], *, report_only: bool = False) -> None:
+def check_cells(out: Path, the_cells: Sequence[Cell | LearnCell], *, report_only: bool = False,
+                force: bool = False) -> None:
     """Read every file of the study's cells that its resume (``report_only``: its report) reads, changing nothing:
-    each comparison cell's compare.json and replicates (:func:`coevo.experiments.compare.experiment.problems`), each
-    learning cell's learn.json.  A problem is a RunDirError naming the first, and the folder is left as it was."""
+    each comparison cell's compare.json and replicates (:func:`coevo.experiments.compare.experiment.problems`) and,
+    for a resume not ``force``d, that this code ran it (its code.json), each learning cell's learn.json.  A problem
+    is a RunDirError naming the first, and the folder is left as it was."""
     found: list[str] = []
     for c in the_cells:
         folder = cell_dir(out, c)
@@ -104,6 +107,9 @@ def check_cells(out: Path, the_cells: Sequence[Cell | LearnCell], *, report_only
             found.append(f"{folder / 'compare.json'} holds another cell's settings")
         else:
             found += problems(folder, c.spec, report_only=report_only)
+            differs = "" if report_only or force else code_difference(folder)
+            if differs:
+                found.append(f"{folder}: {differs} (add --force to continue it anyway)")
     if found:
         more = f" ({len(found) - 1} more problems)" if len(found) > 1 else ""
         raise RunDirError(f"cannot {'report on' if report_only else 'resume'} the study in {out}: {found[0]}; nothing "
@@ -147,9 +153,9 @@ def _differences(held: StudySpec, mine: StudySpec) -> list[str]:
     return diff
 
 
-def prepare_study(out: Path, spec: StudySpec, *, resume: bool) -> list[Cell] | list[LearnCell]:
+def prepare_study(out: Path, spec: StudySpec, *, resume: bool, force: bool = False) -> list[Cell] | list[LearnCell]:
     """Check ``out`` and set it up: a fresh study needs an empty or missing folder; ``resume`` needs this very study
-    there (else a RunDirError naming what differs).  Removes the completion marker, writes study.json (fresh) and
+    there, its cells run by this code unless ``force`` (else a RunDirError naming what differs).  Removes the completion marker, writes study.json (fresh) and
     every cell's compare.json (learn.json); returns the cells."""
     out = Path(out)
     if out.exists() and not out.is_dir():
@@ -165,7 +171,7 @@ def prepare_study(out: Path, spec: StudySpec, *, resume: bool) -> list[Cell] | l
         raise RunDirError(f"--out {str(out)!r} is not empty; {more}")
     the_cells = study_cells(spec)
     if resume:
-        check_cells(out, the_cells)  # before anything is changed
+        check_cells(out, the_cells, force=force)  # before anything is changed
     ensure_dir(out, what="--out")
     (out / COMPLETE).unlink(missing_ok=True)  # from here on the folder is a study in progress
     if held is None:
@@ -176,7 +182,8 @@ def prepare_study(out: Path, spec: StudySpec, *, resume: bool) -> list[Cell] | l
         if isinstance(c, LearnCell):
             _prepare_learn_cell(cell_dir(out, c), c)
         else:
-            prepare(cell_dir(out, c), c.spec, resume=True)  # makes the cell's compare.json, or checks the one there
+            prepare(cell_dir(out, c), c.spec, resume=True, force=True)  # makes its compare.json, or checks the one
+            # there (its code.json was checked above, with the rest)
     return the_cells
 
 
