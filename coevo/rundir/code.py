@@ -16,7 +16,6 @@ it always did, and is given one.
 from __future__ import annotations
 
 import hashlib
-import json
 from functools import cache
 from pathlib import Path
 from typing import Any
