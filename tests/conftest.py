@@ -27,6 +27,18 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(1234)
 
 
+# ---------------------------------------------------------------- Dask's clusters, idle
+#: The Dask clusters the tests start (``--cluster local:2``, a scheduler and workers by hand) without Dask's own
+#: diagnostics: each worker's statistical profiler (a sample every 10 ms, for Dask's dashboard, which no test opens) and
+#: the 20 ms tick that watches for a blocked event loop.  An idle local:2 cluster cost 3-4.5 CPU-s a minute with them,
+#: under 1 without (60 s idle, twice each, alternated; docs/development.md), and a test's cluster idles most of its
+#: life while its replicates run.  Environment variables, so the processes the tests start inherit them; what Dask
+#: schedules and how is unchanged, and a user's clusters keep Dask's defaults.
+for _name, _value in (("DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED", "False"),
+                      ("DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL", "500ms")):
+    os.environ.setdefault(_name, _value)
+
+
 # ---------------------------------------------------------------- bytecode, once
 def pytest_configure(config: pytest.Config) -> None:
     """Under PYTHONDONTWRITEBYTECODE (set on this kind of machine), Python never caches coevo's compiled modules (an

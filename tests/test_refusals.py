@@ -3,13 +3,16 @@
 Every command that writes into an existing directory reads every file it will read before it changes anything: a
 damaged one is refused in one line naming it, status 2, no traceback, and the directory is left byte for byte as it
 was (a digest of every path, kind, mode and content before and after).  Tried as a matrix of command x file x damage
-(64 random bytes appended, cut to half, not UTF-8, a directory in its place, deleted), each command a real process.
+(64 random bytes appended, cut to half, not UTF-8, a directory in its place, deleted), each command run in process
+(tests/procs.py: ``coevo_main``, what ``python -m coevo`` runs, with what it prints and logs): a refusal comes before
+anything starts, so a process of its own would add only an interpreter's start-up, about 170 of them.
 
 A damage that a command is built to take is not refused: a log's bytes after what the checkpoint saw (a crash's
 leftovers, cut aside by the resume), a store file (a replica of the workers' published.jsonl, set aside and refilled),
 a done.json or summary.json (written again).  For those the matrix asks, in process, that the command's verification
 finds nothing (their real resumes are run in tests/test_damaged_files.py and tests/test_faults.py); one finished run
-and one finished comparison are made per module and copied for every case, so the matrix costs little CPU.
+(the session's shared ``finished_mutual``), comparison, study, seeds folder and CEL run are made and copied for every
+case, so the matrix costs little CPU.
 """
 
 from __future__ import annotations
@@ -25,6 +28,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from procs import coevo_main
+
 from procs import coevo_main
 
 from coevo.experiments.compare.experiment import held_spec, problems
@@ -120,8 +125,10 @@ CEL_FILES: dict[str, set[str]] = {
 
 
 def coevo(*args: str) -> subprocess.CompletedProcess[str]:
+    """``coevo ARGS`` as a process, for what the module makes (a comparison, a study, ...): 600 s, as
+    tests/procs.py's shared runs (120 s ran out making the comparison under load 30)."""
     return subprocess.run([sys.executable, "-m", "coevo", *args], capture_output=True, text=True, errors="replace",
-                          timeout=120)
+                          timeout=600)
 
 
 def digest(d: Path) -> str:
@@ -148,12 +155,9 @@ def refused_in_one_line(res: subprocess.CompletedProcess[str], f: Path) -> str:
 
 
 @pytest.fixture(scope="module")
-def finished(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    root = tmp_path_factory.mktemp("runs")
-    res = coevo("run", "--regime", "mutual", "--generations", "3", "--population", "6", "--episodes", "4",
-                "--measure-epochs", "1", "--root", str(root), "--run", "small", "--quiet")
-    assert res.returncode == 0, res.stderr
-    return root / "small"
+def finished(finished_mutual: Path) -> Path:
+    """A finished Mutual run: the session's shared one (tests/procs.py), read-only: each case changes a copy."""
+    return finished_mutual
 
 
 @pytest.fixture(scope="module")
@@ -206,7 +210,7 @@ class TestRefusals:
             assert LocalRun.resumable(run).problems() == []
             return
         before = digest(run)
-        refused_in_one_line(coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet"), f)
+        refused_in_one_line(coevo_main("run", "--resume", str(run), "--measure-epochs", "1", "--quiet"), f)
         assert digest(run) == before
 
     @pytest.mark.parametrize("command", ["resume", "report-only"])
@@ -224,7 +228,7 @@ class TestRefusals:
             return
         before = digest(out)
         # no settings repeated: the comparison's own are used (compare.json)
-        refused_in_one_line(coevo("compare", f"--{command}", "--out", str(out), "--quiet"), f)
+        refused_in_one_line(coevo_main("compare", f"--{command}", "--out", str(out), "--quiet"), f)
         assert digest(out) == before
 
     def test_compare_resume_and_report_only_use_the_comparisons_own_settings(self, comparison: Path,
@@ -232,13 +236,13 @@ class TestRefusals:
         out = tmp_path / "cmp"
         shutil.copytree(comparison, out)
         for command in ("--resume", "--report-only"):
-            res = coevo("compare", command, "--out", str(out), "--quiet")
+            res = coevo_main("compare", command, "--out", str(out), "--quiet")
             assert res.returncode == 0 and "Traceback" not in res.stderr, res.stdout + res.stderr
             assert "differs" not in res.stderr
-        assert "1 of 1 runs already done, 0 to run" in coevo("compare", "--resume", "--out", str(out),
-                                                             "--quiet").stdout
+        assert "1 of 1 runs already done, 0 to run" in coevo_main("compare", "--resume", "--out", str(out),
+                                                                  "--quiet").stdout
         # a setting given that is not the comparison's is still refused, naming it
-        res = coevo("compare", "--resume", "--out", str(out), "--runs", "2", "--quiet")
+        res = coevo_main("compare", "--resume", "--out", str(out), "--runs", "2", "--quiet")
         assert res.returncode == 2 and "differs in: runs" in res.stderr and "Traceback" not in res.stderr
 
     @pytest.mark.parametrize("command", ["resume", "report-only"])
@@ -256,7 +260,7 @@ class TestRefusals:
             check_cells(out, study_cells(spec), report_only=command == "report-only")  # raises what it finds
             return
         before = digest(out)
-        refused_in_one_line(coevo("study", f"--{command}", "--out", str(out), "--quiet"), f)
+        refused_in_one_line(coevo_main("study", f"--{command}", "--out", str(out), "--quiet"), f)
         assert digest(out) == before
 
     @pytest.mark.parametrize("how", DAMAGES)
@@ -273,7 +277,7 @@ class TestRefusals:
             assert CelRun.resumable(run).problems() == []
             return
         before = digest(run)
-        refused_in_one_line(coevo("cel", "--resume", str(run), "--quiet"), f)
+        refused_in_one_line(coevo_main("cel", "--resume", str(run), "--quiet"), f)
         assert digest(run) == before
 
     @pytest.mark.parametrize("how", DAMAGES)
@@ -290,7 +294,7 @@ class TestRefusals:
             assert seeds_problems(out, ["docking"], [0]) == []
             return
         before = digest(out)
-        refused_in_one_line(coevo(*SEEDS, "--resume", "--out", str(out)), f)
+        refused_in_one_line(coevo_main(*SEEDS, "--resume", "--out", str(out)), f)
         assert digest(out) == before
 
     def test_a_resume_on_other_code_is_refused_unless_forced_and_an_old_run_resumes(self, finished: Path,
