@@ -590,7 +590,7 @@ def test_ctrl_c_to_the_whole_process_group_stops_in_order_and_the_run_resumes_ex
     out = tmp_path / "run.out"
     with open(out, "wb") as f:
         p = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--run", "ci", "--root", str(tmp_path), *SMALL,
-                              "--generations", "12", "--measure-epochs", "2", "--quiet"], stdout=f, stderr=subprocess.STDOUT,
+                              "--generations", "12", "--measure-epochs", "2"], stdout=f, stderr=subprocess.STDOUT,
                              start_new_session=True, preexec_fn=ctrl_c_heard)
     run_dir = tmp_path / "ci"
     try:
@@ -607,6 +607,11 @@ def test_ctrl_c_to_the_whole_process_group_stops_in_order_and_the_run_resumes_ex
         assert done["finished"] == (n == 12) and done["generations"] == n
     assert summary["stopped_early"] == {b: n for b, n in counts.items() if n < 12}
     assert all(f"{b} after {n}" in out.read_text() for b, n in summary["stopped_early"].items())
+    # The status lines (plain, into a file) read true: a worker that stopped is "stopped", never "dead".
+    lines = out.read_text().splitlines()
+    assert not [x for x in lines if x.endswith(" dead")], lines
+    for b in summary["stopped_early"]:
+        assert [x for x in lines if f" {b}-" in x][-1].endswith(" stopped"), lines
     r = subprocess.run([sys.executable, "-m", "coevo", "run", "--resume", str(run_dir), "--quiet"], capture_output=True,
                        text=True, timeout=300)
     assert r.returncode == 0, r.stdout + r.stderr

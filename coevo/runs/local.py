@@ -443,7 +443,8 @@ def run_local(
     try:
         lr.start(resume=resume)
         with open_session(lr.client_config(), what="status session", gate=lr.gate()) as s:
-            board = StatusBoard(s, run, restarts=lr.restarts)  # the restarts shown beside each process's state
+            # the restarts shown beside each process's state; the run's generations until a worker's first heartbeat
+            board = StatusBoard(s, run, restarts=lr.restarts, generations=lr.settings.ga.generations)
             try:
                 while True:
                     board.changed.wait(0.5)
@@ -455,6 +456,7 @@ def run_local(
                         break
             except KeyboardInterrupt:
                 interrupted = True
+                board.stopping()  # the workers that end now stop, they do not die
                 lr.ask_stop(s)
                 _wait(list(lr.workers.values()), 15.0)
             if on_status:
