@@ -13,7 +13,7 @@ __all__ = ["configure_check", "configure_replay"]
 
 def configure_check(p: argparse.ArgumentParser) -> None:
     """``coevo check``'s arguments."""
-    p.add_argument("run_dir")
+    p.add_argument("run_dir", help="a finished run directory (coevo run, coevo cel or hand-started workers)")
     p.add_argument("--no-replay", action="store_true", help="skip re-running the GAs")
     p.set_defaults(func=cmd_check)
 
@@ -39,7 +39,7 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 def configure_replay(p: argparse.ArgumentParser) -> None:
     """``coevo replay``'s arguments."""
-    p.add_argument("run_dir")
+    p.add_argument("run_dir", help="a finished run directory, re-run in this process from its adoption log")
     p.set_defaults(func=cmd_replay)
 
 

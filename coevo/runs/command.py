@@ -273,7 +273,7 @@ def configure_chaos(p: argparse.ArgumentParser) -> None:
     p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
     p.add_argument("--task", help="the task (default fuel)")
     p.add_argument("--seed", type=seed_arg, default=0, help="seeds the workers and the choice of faults")
-    p.add_argument("--model", default="best", choices=MODELS)
+    p.add_argument("--model", default="best", choices=MODELS, help="how partners are modelled (default best so far)")
     p.add_argument("--faults", type=count_arg(0, 10_000), default=8, help="faults to inject (default 8)")
     p.add_argument("--kinds", nargs="+", default=["kill-worker", "kill-broker", "pause-worker"], metavar="KIND",
                    help="kill-worker kill-broker pause-worker (default all three)")
