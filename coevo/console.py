@@ -139,9 +139,9 @@ def given_settings(args: argparse.Namespace, task: str) -> tuple[dict[str, Any],
     (``--ga docking_sensors=polar`` of the fuel task: :func:`coevo.tasks.split_settings`)."""
     from coevo.tasks import get_task, split_settings
 
-    for flag, model in (("ga", lambda: GAConfig), ("world", lambda: get_task(task).world_settings)):
-        if "help" in (getattr(args, flag, None) or []):  # --ga help, --world help: the names, then nothing else
-            print(settings_listing(model(), flag))
+    for which, model in (("ga", lambda: GAConfig), ("world", lambda: get_task(task).world_settings)):
+        if "help" in (getattr(args, which, None) or []):  # --ga help, --world help: the names, then nothing else
+            print(settings_listing(model(), which))
             raise SystemExit(0)
     over = pairs(args.ga, "ga")
     for name in ("generations", "population", "episodes"):
