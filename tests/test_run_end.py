@@ -5,6 +5,7 @@ read true (a worker not yet heard from shows the run's generations, one that end
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import re
 import shlex
@@ -117,3 +118,36 @@ def test_the_task_checker_names_measure_terms_that_are_not_terms() -> None:
     assert [p for p in problems if p.startswith("measure_terms: ")] == [
         "measure_terms: give a dict (measure -> coevo.tasks.base.Term: name, unit, definition), empty if none"], problems
     assert check_task(CorridorTask(), pictures=False) == []
+
+
+def test_replay_and_check_show_their_progress_on_a_terminal_and_nothing_in_a_pipe(finished_mutual: Path) -> None:
+    """They replay every generation (tens of seconds for a 50-generation run): on a terminal a line per behaviour
+    says how far; piped, their output is only their verdict."""
+    import os
+    import pty
+    import subprocess
+    import sys
+    import threading
+
+    for command, verdict in (("replay", "reproduced exactly"), ("check", "complete (replay exact)")):
+        master, slave = pty.openpty()
+        p = subprocess.Popen([sys.executable, "-m", "coevo", command, str(finished_mutual)], stdout=subprocess.PIPE,
+                             stderr=slave, text=True)
+        os.close(slave)
+        seen: list[bytes] = []
+
+        def read(fd: int = master) -> None:  # read as it comes: a full terminal buffer would block the writer
+            with contextlib.suppress(OSError):  # the terminal's other end closes with the process
+                while chunk := os.read(fd, 65536):
+                    seen.append(chunk)
+
+        reader = threading.Thread(target=read)
+        reader.start()
+        out, _ = p.communicate(timeout=300)
+        reader.join(10)
+        os.close(master)
+        assert p.returncode == 0 and verdict in out, out
+        shown = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", b"".join(seen).decode(errors="replace"))  # colours, moves
+        for b in ("tracking", "docking", "executive"):
+            assert re.search(rf"replaying {b}\s.*3/3 generations", shown), shown
+        assert "replaying" not in out
