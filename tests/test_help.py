@@ -60,3 +60,22 @@ def test_check_and_replay_of_a_directory_that_is_not_there_say_so(command: str, 
     (tmp_path / "empty").mkdir()
     r = coevo_main(command, str(tmp_path / "empty"))
     assert r.returncode == 2 and "not a coevo run directory" in r.stderr, r.stderr
+
+
+def test_a_dashboard_on_a_taken_port_is_refused_before_anything_loads(tmp_path: Path) -> None:
+    """One line, status 2, before the directory is read or Bokeh imported (it took 11.5 s to say so before)."""
+    import socket
+    import subprocess
+    import sys
+
+    code = ("import sys\nfrom coevo.cli import main\nstatus = main(sys.argv[1:])\n"
+            "print('loaded:', sorted(m for m in ('bokeh', 'tornado', 'matplotlib') if m in sys.modules), status)")
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        r = subprocess.run([sys.executable, "-c", code, "dashboard", str(tmp_path / "nosuch"), "--port", str(port)],
+                           capture_output=True, text=True, timeout=120)
+    assert r.stdout.strip() == "loaded: [] 2", r.stdout + r.stderr
+    assert r.stderr.strip() == (f"ConfigError: cannot serve on 127.0.0.1:{port}: Address already in use (choose "
+                                "another --port or --host)"), r.stderr

@@ -497,8 +497,6 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5,
     from tornado.ioloop import IOLoop
     from tornado.netutil import bind_sockets
 
-    from coevo.errors import ConfigError
-
     settings.resources.set_value("server")  # BokehJS from this server, whatever BOKEH_RESOURCES says
     silence(EMPTY_LAYOUT, True)  # the rows of plots are empty until a run's first generation
     problems: list[str] = []  # a refresh that failed: said on the page (and logged)
@@ -514,8 +512,10 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5,
         # dropped and retried by the clients seconds later
         sockets = bind_sockets(port, address=host, backlog=1024)
         port = sockets[0].getsockname()[1]
-    except OSError as exc:
-        raise ConfigError(f"cannot serve on {host}:{port}: {exc.strerror or exc} (choose another --port or --host)") from None
+    except OSError as exc:  # taken since coevo dashboard's check_port found it free
+        from coevo.dashboard.command import cannot_serve
+
+        raise cannot_serve(host, port, exc) from None
     origins = [f"{host}:{port}"] + ([f"localhost:{port}", f"127.0.0.1:{port}"] if host in ("127.0.0.1", "localhost") else [])
     server: BaseServer  # made below: the admission hook is called only once it serves
     admission = _Admission(lambda: server.get_sessions())
