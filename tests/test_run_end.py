@@ -151,3 +151,34 @@ def test_replay_and_check_show_their_progress_on_a_terminal_and_nothing_in_a_pip
         for b in ("tracking", "docking", "executive"):
             assert re.search(rf"replaying {b}\s.*3/3 generations", shown), shown
         assert "replaying" not in out
+
+
+def test_show_draws_the_median_epoch_by_payoff_and_says_which_and_that_it_is_one_sample(finished_mutual: Path,
+                                                                                        tmp_path: Path) -> None:
+    from statistics import median
+
+    from coevo.show.source import from_path
+
+    run_dir = copy_of(finished_mutual, tmp_path)
+    r = coevo_main("show", str(run_dir))
+    assert r.returncode == 0, r.stdout + r.stderr
+    m = re.match(r"drawing seed (\d+): the median of 9 epochs \(seeds 0-8\) by Executive payoff, ([\d.]+) \(they range "
+                 r"([\d.]+) to ([\d.]+)\); one sample of the robot: --seed N draws another$", r.stdout.splitlines()[0])
+    assert m, r.stdout
+    seed = int(m.group(1))
+    assert r.stdout.splitlines()[1].startswith(f"wrote {run_dir / f'show-epoch-seed{seed}.png'} (")
+    shown = from_path(run_dir, world_over={}, partners={}, wanted=None)  # the same nine epochs, played here
+    payoffs = [shown.display.show_score(shown.display.show_play(shown.robot, seed=s, episodes=None))[1]
+               for s in range(9)]
+    assert f"{median(payoffs):.3f}" == m.group(2) == f"{payoffs[seed]:.3f}"
+    assert (m.group(3), m.group(4)) == (f"{min(payoffs):.3f}", f"{max(payoffs):.3f}")
+    r = coevo_main("show", str(run_dir), "--seed", "2")  # a seed given: that one, nothing picked
+    assert r.returncode == 0 and r.stdout.startswith(f"wrote {run_dir / 'show-epoch-seed2.png'} ("), r.stdout
+
+
+def test_a_workers_rule_file_is_shown_with_its_partners_from_its_run_directory(finished_mutual: Path) -> None:
+    """`coevo show RUN/workers/executive/best.rules --rules` found no Tracking or Docking before: they sit beside it."""
+    r = coevo_main("show", str(finished_mutual / "workers" / "executive" / "best.rules"), "--rules")
+    assert r.returncode == 0, r.stdout + r.stderr
+    tables = [line.split(":")[0] for line in r.stdout.splitlines() if "rules by strength" in line]
+    assert sorted(tables) == ["docking", "executive", "tracking"], r.stdout
