@@ -167,13 +167,17 @@ class _Page:
             self._source("", "external").data = ext
 
 
-def _plain_figure(name: str, title: str, y_label: str, *, height: int) -> figure:
-    """A figure of something per generation: whole-number generation ticks, and the page's tools."""
-    from bokeh.models import BasicTicker
+def _plain_figure(name: str, title: str, y_label: str, *, height: int, top: float | None = None) -> figure:
+    """A figure of something per generation: whole-number generation ticks, and the page's tools.  A measure that
+    cannot be negative (a %, or a panel with a ``top``: a fitness from 0 to 1) starts its axis at 0 and spans at least
+    a tenth of its scale, so an all-zero panel reads 0 to 10 %, not -1 to 1."""
+    from bokeh.models import BasicTicker, DataRange1d
     from bokeh.plotting import figure
 
+    scale = top if top is not None else 100.0 if "%" in y_label else None
+    y_range = DataRange1d(start=0, min_interval=scale / 10) if scale else DataRange1d()
     fig = figure(title=title, height=height, sizing_mode="stretch_width", x_axis_label="generation",
-                 y_axis_label=y_label, tools="pan,wheel_zoom,box_zoom,reset,save", name=name)
+                 y_axis_label=y_label, tools="pan,wheel_zoom,box_zoom,reset,save", name=name, y_range=y_range)
     fig.xaxis.ticker = BasicTicker(min_interval=1)  # generations are whole: no 1.5 on a 3-generation run
     return fig
 
@@ -225,8 +229,8 @@ class _Regimes:
         self.labels: dict[tuple[int, str], str] = {}  # ... and its text now
         self.groups: list[str] = []
         self.view: View | None = None
-        figs = [_plain_figure(f"panel-{beh}-{col}", title, ylabel, height=270)
-                for title, beh, col, ylabel, _ in self.panels]
+        figs = [_plain_figure(f"panel-{beh}-{col}", title, ylabel, height=270, top=top)
+                for title, beh, col, ylabel, top in self.panels]
         self.figures = figs
         self.rows = [row(*figs[i:i + 3], sizing_mode="stretch_width") for i in range(0, len(figs), 3)]
         view = first if first is not None else dash.current()[1]
@@ -251,8 +255,13 @@ class _Regimes:
                                     name=f"band-{i}-{group}")
             lines = ColumnDataSource({k: [] for k in ("xs", "ys", "run", "state", "alpha", "width", "dash")},
                                      name=f"runs-{i}-{group}")
-            area = fig.varea("generation", "low", "high", source=band, fill_color=colour, fill_alpha=0.22,
-                             name=f"band-{group}")
+            # two bands that overlap stay two: each hatched its own way, its edges drawn (colours that blend, such
+            # as red and green into olive, are told apart by the hatching and the lines)
+            area = fig.varea("generation", "low", "high", source=band, fill_color=colour, fill_alpha=0.12,
+                             hatch_pattern=render.regime_hatch(self.groups.index(group)), hatch_color=colour,
+                             hatch_alpha=0.5, hatch_scale=9, name=f"band-{group}")
+            edges = [fig.line("generation", edge, source=band, line_color=colour, line_width=1, line_dash="dashed",
+                              name=f"edge-{edge}-{group}") for edge in ("low", "high")]
             runs = fig.multi_line("xs", "ys", source=lines, line_color=colour, line_alpha="alpha", line_width="width",
                                   line_dash="dash", name=f"runs-{group}")
             mean = fig.line("generation", "mean", source=band, line_color=colour, line_width=3.5, name=f"mean-{group}")
@@ -268,13 +277,13 @@ class _Regimes:
                                       # as the Property itself (Padding, not PaddingType): an int is refused there,
                                       # though it is what the property takes
                                       margin=0, spacing=12, glyph_width=16, border_line_alpha=0), "above")
-            item = LegendItem(label=value(group), renderers=[mean, area, runs])  # type: ignore[list-item]  # the stub's
+            item = LegendItem(label=value(group), renderers=[mean, area, *edges, runs])  # type: ignore[list-item]  # the stub's
             # GlyphRenderer[Glyph] is invariant in its glyph: a line's renderer is refused where any glyph's is taken
             fig.legend[0].items.append(item)  # type: ignore[arg-type]  # bokeh 3.9's stub types the items as the
             # (label, renderers) pairs the property also takes, not the LegendItem it holds
             self.items.append((i, group, item))
             self.sources[(i, group)] = (band, lines)
-            mine += [area, mean, runs]
+            mine += [area, *edges, mean, runs]
         # a click on a legend entry hides the regime in its panel: the same in every panel
         sync = CustomJS(args={"all": mine}, code="for (const r of all) { if (r.visible != cb_obj.visible) "
                                                  "r.visible = cb_obj.visible; }")
