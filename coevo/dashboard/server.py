@@ -170,7 +170,7 @@ class _Page:
 def _plain_figure(name: str, title: str, y_label: str, *, height: int, top: float | None = None) -> figure:
     """A figure of something per generation: whole-number generation ticks, and the page's tools.  A measure that
     cannot be negative (a %, or a panel with a ``top``: a fitness from 0 to 1) starts its axis at 0 and spans at least
-    a tenth of its scale, so an all-zero panel reads 0 to 10 %, not -1 to 1."""
+    a tenth of its scale, so an all-zero panel starts at 0 (it read -1 to 1)."""
     from bokeh.models import BasicTicker, DataRange1d
     from bokeh.plotting import figure
 
@@ -259,7 +259,7 @@ class _Regimes:
             # as red and green into olive, are told apart by the hatching and the lines)
             area = fig.varea("generation", "low", "high", source=band, fill_color=colour, fill_alpha=0.12,
                              hatch_pattern=render.regime_hatch(self.groups.index(group)), hatch_color=colour,
-                             hatch_alpha=0.5, hatch_scale=9, name=f"band-{group}")
+                             hatch_alpha=0.35, hatch_scale=12, name=f"band-{group}")
             edges = [fig.line("generation", edge, source=band, line_color=colour, line_width=1, line_dash="dashed",
                               name=f"edge-{edge}-{group}") for edge in ("low", "high")]
             runs = fig.multi_line("xs", "ys", source=lines, line_color=colour, line_alpha="alpha", line_width="width",
