@@ -56,6 +56,8 @@ def configure_dashboard(p: argparse.ArgumentParser) -> None:
 def cmd_dashboard(args: argparse.Namespace) -> int:
     from coevo.dashboard.model import Dashboard, classify_dir
 
+    from coevo.dashboard.port import check_port
+
     check_port(args.host, args.port)  # a port that is taken is refused at once, before anything loads
     target = Path(args.dir) if args.dir else None
     kind = classify_dir(target) if target else None
@@ -117,26 +119,6 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
               port=args.port, every=args.every, on_ready=ready)
         return 0
     return _on_bus(args, target, runs_dir, title, ready, robot, gate, note)
-
-
-def cannot_serve(host: str, port: int, exc: OSError) -> ConfigError:
-    """The one line a dashboard that cannot listen on ``host:port`` says."""
-    return ConfigError(f"cannot serve on {host}:{port}: {exc.strerror or exc} (choose another --port or --host)")
-
-
-def check_port(host: str, port: int) -> None:
-    """A ConfigError when ``host:port`` cannot be listened on (taken, or not an address of this machine), found by
-    binding it as the server will (SO_REUSEADDR) and letting it go: the server binds it again once the page is built."""
-    import socket
-
-    try:
-        addresses = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
-        for family, kind, proto, _, address in addresses:
-            with socket.socket(family, kind, proto) as s:
-                s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-                s.bind(address)
-    except OSError as exc:  # socket.gaierror included: a host that is no address
-        raise cannot_serve(host, port, exc) from None
 
 
 def _gate(args: argparse.Namespace) -> Gate | None:

@@ -522,7 +522,7 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5,
         sockets = bind_sockets(port, address=host, backlog=1024)
         port = sockets[0].getsockname()[1]
     except OSError as exc:  # taken since coevo dashboard's check_port found it free
-        from coevo.dashboard.command import cannot_serve
+        from coevo.dashboard.port import cannot_serve
 
         raise cannot_serve(host, port, exc) from None
     origins = [f"{host}:{port}"] + ([f"localhost:{port}", f"127.0.0.1:{port}"] if host in ("127.0.0.1", "localhost") else [])
