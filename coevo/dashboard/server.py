@@ -488,6 +488,22 @@ def _static_handler() -> type[StaticHandler]:
     return Static
 
 
+#: What Bokeh logs, once per pending update, when a page's tab was closed: nothing is wrong (7 lines a closed tab).
+CLOSED_TAB = "Failed sending message as connection was closed"
+
+
+def _not_a_closed_tab(record: logging.LogRecord) -> bool:
+    return record.getMessage() != CLOSED_TAB
+
+
+def quiet_closed_tabs() -> None:
+    """Leave out of the terminal Bokeh's warning for each update that could not reach a tab closed meanwhile; every
+    other warning of its websocket stays."""
+    ws = logging.getLogger("bokeh.server.views.ws")
+    if _not_a_closed_tab not in ws.filters:
+        ws.addFilter(_not_a_closed_tab)
+
+
 def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5,
           on_ready: Callable[[str], None] | None = None) -> None:
     """Serve ``dash`` on http://host:port/ until SIGINT/SIGTERM, refreshing it every ``every`` s on its own thread.
@@ -507,6 +523,7 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5,
     from tornado.netutil import bind_sockets
 
     settings.resources.set_value("server")  # BokehJS from this server, whatever BOKEH_RESOURCES says
+    quiet_closed_tabs()
     silence(EMPTY_LAYOUT, True)  # the rows of plots are empty until a run's first generation
     problems: list[str] = []  # a refresh that failed: said on the page (and logged)
 
