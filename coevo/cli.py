@@ -88,7 +88,8 @@ def configure(name: str, p: argparse.ArgumentParser) -> None:
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The whole command line; with ``only``, every command listed but only that one configured."""
     parser = _Parser(prog="coevo", description="Co-evolve robot behaviours with SAMUEL-style rule GAs.")
-    parser.add_argument("--log-level", default="WARNING", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+    parser.add_argument("--log-level", default="WARNING", choices=["DEBUG", "INFO", "WARNING", "ERROR"],
+                        help="what the command logs on stderr (default WARNING)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, (_, what) in COMMANDS.items():
         p = sub.add_parser(name, help=what, description=what)

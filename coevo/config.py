@@ -288,6 +288,17 @@ def _model_at(model: type[BaseModel], loc: Sequence[int | str]) -> type[BaseMode
     return model
 
 
+def settings_listing(model: type[BaseModel], flag: str) -> str:
+    """Every setting of ``model`` a ``--FLAG NAME=VALUE`` takes, one a line: its name, its default and what it is
+    (``--ga help``, ``--world help``)."""
+    lines = [f"--{flag} NAME=VALUE takes ({model.__name__}):"]
+    for name, f in model.model_fields.items():
+        default = f.default if f.default_factory is None else f.default_factory()  # type: ignore[call-arg]
+        shown = default.model_dump(mode="json") if isinstance(default, BaseModel) else default
+        lines.append(f"  {name} = {json.dumps(shown)}" + (f"  {f.description}" if f.description else ""))
+    return "\n".join(lines)
+
+
 def pairs(values: list[str] | None, flag: str) -> dict[str, Any]:
     """``--world/--ga name=value`` pairs (values parsed as JSON when they can be)."""
     out: dict[str, Any] = {}

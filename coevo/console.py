@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
-from coevo.config import Bounded, GAConfig, pairs
+from coevo.config import Bounded, GAConfig, pairs, settings_listing
 from coevo.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -139,6 +139,10 @@ def given_settings(args: argparse.Namespace, task: str) -> tuple[dict[str, Any],
     (``--ga docking_sensors=polar`` of the fuel task: :func:`coevo.tasks.split_settings`)."""
     from coevo.tasks import get_task, split_settings
 
+    for which, model in (("ga", lambda: GAConfig), ("world", lambda: get_task(task).world_settings)):
+        if "help" in (getattr(args, which, None) or []):  # --ga help, --world help: the names, then nothing else
+            print(settings_listing(model(), which))
+            raise SystemExit(0)
     over = pairs(args.ga, "ga")
     for name in ("generations", "population", "episodes"):
         flag = getattr(args, name, None)
@@ -187,8 +191,8 @@ def add_settings(p: argparse.ArgumentParser, *, generations: int = 50, initial: 
     p.add_argument("--population", type=Bounded.setting(GAConfig, "population"), help="population size (default 50)")
     p.add_argument("--episodes", type=Bounded.setting(GAConfig, "episodes"),
                    help="evaluation episodes per individual (default 90)")
-    p.add_argument("--world", action="append", metavar="NAME=VALUE", help="world setting, e.g. target_speed=3 (repeatable)")
-    p.add_argument("--ga", action="append", metavar="NAME=VALUE", help="GA setting, e.g. mutation_rate=0.05 (repeatable)")
+    p.add_argument("--world", action="append", metavar="NAME=VALUE", help="world setting, e.g. target_speed=3 (repeatable; --world help lists them)")
+    p.add_argument("--ga", action="append", metavar="NAME=VALUE", help="GA setting, e.g. mutation_rate=0.05 (repeatable; --ga help lists them)")
     if initial is not None:
         p.add_argument("--initial", dest="ga", action="append", type=lambda v: f"initial={v}", metavar="default|random",
                        help=initial)

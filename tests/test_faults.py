@@ -706,11 +706,12 @@ def test_sigterm_to_a_comparisons_process_group_stops_its_runs_in_order_and_it_r
 
 
 def _run_of_12(tmp_path: Path, preexec: Any) -> tuple[subprocess.Popen, Path, Path]:
-    """A 12-generation coevo run in a session of its own (its group id is its pid), its output in run.out."""
+    """A 12-generation coevo run in a session of its own (its group id is its pid), its output (the status lines,
+    plain into a file) in run.out."""
     out = tmp_path / "run.out"
     with open(out, "wb") as f:
         p = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--run", "ci", "--root", str(tmp_path), *SMALL,
-                              "--generations", "12", "--measure-epochs", "2", "--quiet"], stdout=f, stderr=subprocess.STDOUT,
+                              "--generations", "12", "--measure-epochs", "2"], stdout=f, stderr=subprocess.STDOUT,
                              start_new_session=True, preexec_fn=preexec)
     return p, out, tmp_path / "ci"
 
@@ -726,6 +727,11 @@ def _stopped_in_order_and_resumes_exact(run_dir: Path, out: Path) -> None:
         assert done["finished"] == (n == 12) and done["generations"] == n
     assert summary["stopped_early"] == {b: n for b, n in counts.items() if n < 12}
     assert all(f"{b} after {n}" in out.read_text() for b, n in summary["stopped_early"].items())
+    # The status lines (plain, into a file) read true: a worker that stopped is "stopped", never "dead".
+    lines = out.read_text().splitlines()
+    assert not [x for x in lines if x.endswith(" dead")], lines
+    for b in summary["stopped_early"]:
+        assert [x for x in lines if f" {b}-" in x][-1].endswith(" stopped"), lines
     r = subprocess.run([sys.executable, "-m", "coevo", "run", "--resume", str(run_dir), "--quiet"], capture_output=True,
                        text=True, timeout=300)
     assert r.returncode == 0, r.stdout + r.stderr

@@ -30,7 +30,6 @@ from pathlib import Path
 import pytest
 from procs import coevo_main
 
-from procs import coevo_main
 
 from coevo.experiments.compare.experiment import held_spec, problems
 from coevo.experiments.study.declaration import study_cells

@@ -141,7 +141,8 @@ def test_show_draws_a_run_directory_and_prints_rules(tmp_path: Path) -> None:
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "epoch.png").read_bytes().startswith(PNG)
     lines = r.stdout.splitlines()
-    assert lines[0].startswith("executive: 2 rules by strength")
+    assert lines[0].startswith("drawing seed ") and "the median of 9 epochs" in lines[0]  # which epoch, and why
+    assert lines[1].startswith("executive: 2 rules by strength")
     assert any(line.startswith("episode 1 (") for line in lines)  # --trace with --rules
     assert "│" not in r.stdout and "┃" not in r.stdout  # plain text when not on a terminal
 

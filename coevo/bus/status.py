@@ -6,10 +6,13 @@ token exists and its last heartbeat is recent, *stalled* when the token exists b
 heartbeat came for ``stall`` seconds (a token proves the process exists, not that it
 progresses; a worker heartbeats about every second, even in the middle of a generation),
 *dead* when its token is gone (its process died: seen within milliseconds on a LAN, or its
-link stayed silent for a lease), and *done* when it said so or when its token went after its
-heartbeats showed it at its last generation (a worker that finished its generations and
-ends: its final heartbeat and its token travel apart and may arrive in either order, so a
-finishing worker is never shown dead, in the table, the plain lines or JSON).  The broker is
+link stayed silent for a lease), *stopped* when its token went short of its last generation once
+the board was told the run was asked to stop (:meth:`StatusBoard.stopping`: ``coevo run`` on a Ctrl-C),
+and *done* when it said so or when its token went after its heartbeats showed it at its last
+generation (a worker that finished its generations and ends: its final heartbeat and its token
+travel apart and may arrive in either order, so a finishing worker is never shown dead, in the
+table, the plain lines or JSON).  Before its first heartbeat a worker's generations are the
+run's, when the board was told them (``generations``).  The broker is
 *starting* until its token is first seen (for at most ``BROKER_GRACE`` s: its router opens
 before its store), *up* while its token exists; its last :class:`~coevo.bus.messages.BrokerStatus`
 says what it stored and rejected for this run; it is *degraded* while its store cannot write
@@ -59,7 +62,7 @@ def _process_state(view: WorkerView | RobotView, now: float, stall: float) -> st
     if view.done:
         return "done"
     if not view.token:
-        return "done" if view.finished() else "dead"
+        return "done" if view.finished() else "stopped" if view.stopping else "dead"
     if view.generation == 0:
         return "starting"  # no generation done yet: loading, or waiting for its broker or partners
     if view.last_heartbeat and now - view.last_heartbeat > stall:
@@ -82,6 +85,7 @@ class WorkerView:
     open: bool = False
     token: bool = False
     done: bool = False
+    stopping: bool = False  # the run was asked to stop: a token that goes is a stop, not a death
     last_heartbeat: float = 0.0
     died_at: float | None = None
 
@@ -120,6 +124,7 @@ class RobotView:
     open: bool = False
     token: bool = False
     done: bool = False
+    stopping: bool = False  # the run was asked to stop: a token that goes is a stop, not a death
     last_heartbeat: float = 0.0
     died_at: float | None = None
 
@@ -143,9 +148,12 @@ class StatusBoard:
     """Subscribes to a run's heartbeats, liveliness and broker status; thread-safe snapshot for display."""
 
     def __init__(self, session: Session, run: str, *, stall: float = DEFAULT_STALL,
-                 restarts: Mapping[str, int] | None = None) -> None:
+                 restarts: Mapping[str, int] | None = None, generations: int = 0) -> None:
+        """``generations``: the run's, shown as a worker's until its first heartbeat says its own (0: unknown)."""
         self.run = run
         self.stall = stall
+        self.generations = generations
+        self._stopping = False
         self._lock = threading.Lock()
         self.workers: dict[str, WorkerView] = {}
         self.robots: dict[str, RobotView] = {}  # a CEL run's execution module
@@ -188,8 +196,19 @@ class StatusBoard:
     def _view(self, behaviour: str, worker: str) -> WorkerView:
         v = self.workers.get(worker)
         if v is None:
-            v = self.workers[worker] = WorkerView(behaviour, worker)
+            v = self.workers[worker] = WorkerView(behaviour, worker, generations=self.generations,
+                                                  stopping=self._stopping)
         return v
+
+    def stopping(self) -> None:
+        """The run was asked to stop (its supervisor sent the stop): a process whose token goes from now on short of
+        its end is *stopped*, not dead (one already gone stays dead)."""
+        with self._lock:
+            self._stopping = True
+            views: list[WorkerView | RobotView] = [*self.workers.values(), *self.robots.values()]
+            for v in views:
+                v.stopping = v.stopping or v.token
+        self.changed.set()
 
     def poll(self) -> None:
         """Take in the heartbeats and broker reports that arrived since the last call."""
@@ -242,7 +261,7 @@ class StatusBoard:
             return
         alive = is_put(sample)
         with self._lock:
-            v = self.robots.setdefault(robot, RobotView(robot))
+            v = self.robots.setdefault(robot, RobotView(robot, stopping=self._stopping))
             v.token = alive
             v.died_at = None if alive else time.time()
         self.changed.set()
@@ -309,7 +328,7 @@ def _reasons(counts: dict[str, int]) -> str:
     return ", ".join(f"{r} {n}" for r, n in sorted(counts.items())) or "0"
 
 
-_STATE_STYLE = {"starting": "cyan", "alive": "green", "done": "blue", "stalled": "yellow", "dead": "bold red", "up": "green", "down": "bold red",
+_STATE_STYLE = {"starting": "cyan", "alive": "green", "done": "blue", "stalled": "yellow", "dead": "bold red", "stopped": "magenta", "up": "green", "down": "bold red",
                 "degraded": "bold yellow"}
 
 

@@ -190,7 +190,7 @@ def configure_cel(p: argparse.ArgumentParser) -> None:
                    help="the monitor: zero readings in a row while moving forward to mark a sonar defective (default 8)")
     p.add_argument("--repair-run", type=count_arg(1, 10_000),
                    help="the monitor: non-zero readings in a row to mark it working again (default 3)")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no live status table")
     p.add_argument("--open", action="store_true", help="make no key: messages unauthenticated (local experiments only)")
     p.add_argument("--prepare", action="store_true",
                    help="only make the run directory (run.json, key, cases) and print how to start its three processes, "

@@ -56,6 +56,9 @@ def configure_dashboard(p: argparse.ArgumentParser) -> None:
 def cmd_dashboard(args: argparse.Namespace) -> int:
     from coevo.dashboard.model import Dashboard, classify_dir
 
+    from coevo.dashboard.port import check_port
+
+    check_port(args.host, args.port)  # a port that is taken is refused at once, before anything loads
     target = Path(args.dir) if args.dir else None
     kind = classify_dir(target) if target else None
     runs_dir = Path(args.runs_dir) if args.runs_dir else None

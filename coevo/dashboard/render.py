@@ -27,7 +27,11 @@ PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e
            "#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#c49c94", "#f7b6d2", "#c7c7c7", "#dbdb8d", "#9edae5")
 DASHES = ("solid", "dashed", "dotted", "dotdash")
 #: A comparison's regimes in the colours of its report's regimes.png (matplotlib's tab:red, tab:green, ...)
-REGIME_COLOURS = ("#d62728", "#2ca02c", "#1f77b4", "#ff7f0e", "#9467bd", "#8c564b")
+#: A comparison's groups: Okabe and Ito's colour-blind-safe colours (vermillion, blue, bluish green, orange, reddish
+#: purple, sky blue), none two of which a colour-blind reader confuses or whose overlap reads as a third.
+REGIME_COLOURS = ("#D55E00", "#0072B2", "#009E73", "#E69F00", "#CC79A7", "#56B4E9")
+#: Each group's band hatching, in the same order: overlapping bands cross-hatch.
+REGIME_HATCHES = ("/", "\\", "|", "-", "x", ".")
 _STATE_COLOUR = {"alive": "#2ca02c", "running": "#2ca02c", "done": "#1f77b4", "stalled": "#b8860b", "dead": "#d62728",
                  "failed": "#d62728", "stopped": "#7f7f7f", "up": "#2ca02c", "down": "#d62728", "degraded": "#b8860b",
                  "waiting": "#7f7f7f", "files": "#7f7f7f", "starting": "#7f7f7f"}
@@ -193,6 +197,11 @@ def regime_colour(view: View, group: str) -> str:
     groups = list((view.comparison or {}).get("table1", {}))
     i = groups.index(group) if group in groups else len(groups)
     return REGIME_COLOURS[i % len(REGIME_COLOURS)]
+
+
+def regime_hatch(i: int) -> str:
+    """The hatching of the ``i``-th group's band."""
+    return REGIME_HATCHES[i % len(REGIME_HATCHES)]
 
 
 RUN_ALPHA, RUN_WIDTH = 0.3, 1.0  # a run: thin and faint under its regime's mean
@@ -379,7 +388,9 @@ def study_title_html(view: View) -> str:
     """The study's name, its description, its folder."""
     s = view.study or {}
     desc = f"{_e(s['description'])} · " if s.get("description") else ""
-    return (f"<h2 style='font:bold 20px sans-serif;margin:4px 0'>Study {_e(s.get('name', '?'))}</h2>"
+    name = s.get("name")  # a study declared on the command line has the declaration's default name, "study"
+    heading = f"Study {_e(name)}" if name and name != "study" else "A study declared on the command line"
+    return (f"<h2 style='font:bold 20px sans-serif;margin:4px 0'>{heading}</h2>"
             f"<span style='font:13px sans-serif;color:#333'>{desc}</span>"
             f"<span style='font:12px sans-serif;color:#555'>{_e(s.get('dir', ''))} · factors {_e(s.get('factors', ''))}"
             " · read-only: nothing here can steer a run</span>")
@@ -455,9 +466,12 @@ def study_verdict_html(view: View) -> str:
                 items.append(f"<li>{text[2:]}</li>")
             elif part.strip():
                 paras.append(f"<p>{text}</p>")
-        # the smoke-test warning first: a finished study's verdict is read with it, as its report.md says it
-        body = caveat + (f"<ul style='padding-left:18px;margin:4px 0'>{''.join(items)}</ul>" if items else "")
-        body += "".join(paras) + (f"<p><i>{stale}</i></p>" if stale else "")
+        # the smoke-test warning first: a finished study's verdict is read with it, as its report.md says it; then
+        # the findings in words (the paragraphs), then the tests one by one: a finding is not left at the bottom of
+        # a box of a dozen bullets
+        body = caveat + "".join(paras)
+        body += (f"<ul style='padding-left:18px;margin:4px 0'>{''.join(items)}</ul>" if items else "")
+        body += f"<p><i>{stale}</i></p>" if stale else ""
     return f"<h3 class='coevo'>The study's verdict</h3><div class='study-verdict' style='{box}'>{body}</div>"
 
 

@@ -167,13 +167,17 @@ class _Page:
             self._source("", "external").data = ext
 
 
-def _plain_figure(name: str, title: str, y_label: str, *, height: int) -> figure:
-    """A figure of something per generation: whole-number generation ticks, and the page's tools."""
-    from bokeh.models import BasicTicker
+def _plain_figure(name: str, title: str, y_label: str, *, height: int, top: float | None = None) -> figure:
+    """A figure of something per generation: whole-number generation ticks, and the page's tools.  A measure that
+    cannot be negative (a %, or a panel with a ``top``: a fitness from 0 to 1) starts its axis at 0 and spans at least
+    a tenth of its scale, so an all-zero panel starts at 0 (it read -1 to 1)."""
+    from bokeh.models import BasicTicker, DataRange1d
     from bokeh.plotting import figure
 
+    scale = top if top is not None else 100.0 if "%" in y_label else None
+    y_range = DataRange1d(start=0, min_interval=scale / 10) if scale else DataRange1d()
     fig = figure(title=title, height=height, sizing_mode="stretch_width", x_axis_label="generation",
-                 y_axis_label=y_label, tools="pan,wheel_zoom,box_zoom,reset,save", name=name)
+                 y_axis_label=y_label, tools="pan,wheel_zoom,box_zoom,reset,save", name=name, y_range=y_range)
     fig.xaxis.ticker = BasicTicker(min_interval=1)  # generations are whole: no 1.5 on a 3-generation run
     return fig
 
@@ -236,8 +240,8 @@ class _Regimes:
         self.labels: dict[tuple[int, str], str] = {}  # ... and its text now
         self.groups: list[str] = []
         self.view: View | None = None
-        figs = [_plain_figure(f"panel-{beh}-{col}", title, ylabel, height=270)
-                for title, beh, col, ylabel, _ in self.panels]
+        figs = [_plain_figure(f"panel-{beh}-{col}", title, ylabel, height=270, top=top)
+                for title, beh, col, ylabel, top in self.panels]
         self.figures = figs
         self.rows = [row(*figs[i:i + 3], sizing_mode="stretch_width") for i in range(0, len(figs), 3)]
         self._add_groups(view)
@@ -261,8 +265,13 @@ class _Regimes:
                                     name=f"band-{i}-{group}")
             lines = ColumnDataSource({k: [] for k in ("xs", "ys", "run", "state", "alpha", "width", "dash")},
                                      name=f"runs-{i}-{group}")
-            area = fig.varea("generation", "low", "high", source=band, fill_color=colour, fill_alpha=0.22,
-                             name=f"band-{group}")
+            # two bands that overlap stay two: each hatched its own way, its edges drawn (colours that blend, such
+            # as red and green into olive, are told apart by the hatching and the lines)
+            area = fig.varea("generation", "low", "high", source=band, fill_color=colour, fill_alpha=0.12,
+                             hatch_pattern=render.regime_hatch(self.groups.index(group)), hatch_color=colour,
+                             hatch_alpha=0.35, hatch_scale=12, name=f"band-{group}")
+            edges = [fig.line("generation", edge, source=band, line_color=colour, line_width=1, line_dash="dashed",
+                              name=f"edge-{edge}-{group}") for edge in ("low", "high")]
             runs = fig.multi_line("xs", "ys", source=lines, line_color=colour, line_alpha="alpha", line_width="width",
                                   line_dash="dash", name=f"runs-{group}")
             mean = fig.line("generation", "mean", source=band, line_color=colour, line_width=3.5, name=f"mean-{group}")
@@ -278,13 +287,13 @@ class _Regimes:
                                       # as the Property itself (Padding, not PaddingType): an int is refused there,
                                       # though it is what the property takes
                                       margin=0, spacing=12, glyph_width=16, border_line_alpha=0), "above")
-            item = LegendItem(label=value(group), renderers=[mean, area, runs])  # type: ignore[list-item]  # the stub's
+            item = LegendItem(label=value(group), renderers=[mean, area, *edges, runs])  # type: ignore[list-item]  # the stub's
             # GlyphRenderer[Glyph] is invariant in its glyph: a line's renderer is refused where any glyph's is taken
             fig.legend[0].items.append(item)  # type: ignore[arg-type]  # bokeh 3.9's stub types the items as the
             # (label, renderers) pairs the property also takes, not the LegendItem it holds
             self.items.append((i, group, item))
             self.sources[(i, group)] = (band, lines)
-            mine += [area, mean, runs]
+            mine += [area, *edges, mean, runs]
         # a click on a legend entry hides the regime in its panel: the same in every panel
         sync = CustomJS(args={"all": mine}, code="for (const r of all) { if (r.visible != cb_obj.visible) "
                                                  "r.visible = cb_obj.visible; }")
@@ -489,6 +498,22 @@ def _static_handler() -> type[StaticHandler]:
     return Static
 
 
+#: What Bokeh logs, once per pending update, when a page's tab was closed: nothing is wrong (7 lines a closed tab).
+CLOSED_TAB = "Failed sending message as connection was closed"
+
+
+def _not_a_closed_tab(record: logging.LogRecord) -> bool:
+    return record.getMessage() != CLOSED_TAB
+
+
+def quiet_closed_tabs() -> None:
+    """Leave out of the terminal Bokeh's warning for each update that could not reach a tab closed meanwhile; every
+    other warning of its websocket stays."""
+    ws = logging.getLogger("bokeh.server.views.ws")
+    if _not_a_closed_tab not in ws.filters:
+        ws.addFilter(_not_a_closed_tab)
+
+
 def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5,
           on_ready: Callable[[str], None] | None = None) -> None:
     """Serve ``dash`` on http://host:port/ until SIGINT/SIGTERM, refreshing it every ``every`` s on its own thread.
@@ -507,9 +532,8 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5,
     from tornado.ioloop import IOLoop
     from tornado.netutil import bind_sockets
 
-    from coevo.errors import ConfigError
-
     settings.resources.set_value("server")  # BokehJS from this server, whatever BOKEH_RESOURCES says
+    quiet_closed_tabs()
     silence(EMPTY_LAYOUT, True)  # the rows of plots are empty until a run's first generation
     problems: list[str] = []  # a refresh that failed: said on the page (and logged)
 
@@ -524,8 +548,10 @@ def serve(dash: Dashboard, *, host: str, port: int, every: float = 0.5,
         # dropped and retried by the clients seconds later
         sockets = bind_sockets(port, address=host, backlog=1024)
         port = sockets[0].getsockname()[1]
-    except OSError as exc:
-        raise ConfigError(f"cannot serve on {host}:{port}: {exc.strerror or exc} (choose another --port or --host)") from None
+    except OSError as exc:  # taken since coevo dashboard's check_port found it free
+        from coevo.dashboard.port import cannot_serve
+
+        raise cannot_serve(host, port, exc) from None
     origins = [f"{host}:{port}"] + ([f"localhost:{port}", f"127.0.0.1:{port}"] if host in ("127.0.0.1", "localhost") else [])
     server: BaseServer  # made below: the admission hook is called only once it serves
     admission = _Admission(lambda: server.get_sessions())

@@ -1,8 +1,10 @@
 """One name for each measure, with its unit and its definition: what the reports, the dashboard and
 ``docs/glossary.md`` call it (a test holds the three to this table).
 
-The fields on the left are the names in the run files (``summary.json``, ``curve.jsonl``, ``results.json``); a
-reader sees only the name on the right, with its unit.  Two fitnesses are easily confused, and are kept apart by
+The combined robot's measures are the fuel task's (:mod:`coevo.tasks.fuel.terms`, which ``coevo run`` prints
+with); the fitnesses, Table 1's classes and the statistics are the experiments'.  The fields on the left are the
+names in the run files (``summary.json``, ``curve.jsonl``, ``results.json``); a reader sees only the name on the
+right, with its unit.  Two fitnesses are easily confused, and are kept apart by
 name: a **generation's best** is the fitness of one generation's best individual, re-evaluated on
 ``best_episodes`` episodes (the report's learning curve); the **best so far** is the highest such re-evaluation of
 any generation until then (with ``best_candidates``, the highest mean of a few policies' repeated re-evaluations):
@@ -11,45 +13,10 @@ the policy the worker publishes, and a maximum over noisy values, so it mostly s
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from coevo.tasks.base import Term
+from coevo.tasks.fuel.terms import MEASURES
 
 __all__ = ["Term", "MEASURES", "CLASSES", "FITNESSES", "STATISTICS", "label", "with_unit", "TERMS", "markdown"]
-
-
-@dataclass(frozen=True)
-class Term:
-    """A measure's readable name, its unit (printed after a value: '%', ' episodes'; '' for none) and what it is."""
-
-    name: str
-    unit: str
-    definition: str
-
-
-#: The combined robot's measures (docs/spec.md §2 "Measures"), by field name.
-MEASURES: dict[str, Term] = {
-    "quality_tracking": Term("Quality Tracking", " %", "% of episodes in which the robot was within the tracking "
-                             "range (40–60 in from the Target) for at least 80 % of the steps."),
-    "successful_docking": Term("Successful Docking", " %", "% of all episodes in which the Executive picked Docking "
-                               "and the robot docked."),
-    "docking_success_rate": Term("docked of picked", " %", "% of the episodes in which the Executive picked Docking "
-                                 "that ended docked; Table 1's Good Docking is 20 % or more."),
-    "dock_choice": Term("Docking picked", " %", "% of episodes for which the Executive picked Docking; Table 1's No "
-                        "Docking is under 5 %."),
-    "average_epoch_length": Term("Average Epoch Length", " episodes", "episodes per complete epoch: 4 for a robot "
-                                 "that never docks, up to 10 for one that docks well."),
-    "executive_payoff": Term("Executive payoff", "", "the Executive's payoff per epoch, t / (600 + p): t steps "
-                             "spent tracking, p the towing penalty; 0 to 1, the mean over the measured epochs."),
-    "collision_rate": Term("collisions", " %", "% of episodes that ended in a collision (with a wall, the Target or "
-                           "the dock), which also ends the epoch."),
-    "dry_rate": Term("ran dry", " %", "% of episodes that ended out of fuel."),
-    "tracking_payoff": Term("Tracking payoff", "", "Tracking's mean payoff over its episodes: the share of the "
-                            "steps in range, 0 after a collision."),
-    "docking_payoff": Term("Docking payoff", "", "Docking's mean payoff over its episodes: 0.5 + 0.5 m/t when it "
-                           "docked, else 0."),
-    "docking_from_random_starts": Term("Docking alone", " %", "% of fresh single episodes, from random starts, in "
-                                       "which a run's final Docking policy docks on its own (300 episodes); it tells "
-                                       "a starved Docking agent from one that never learned."),
-}
 
 #: Table 1's docking classes as a study counts them, per cell: the share of its runs in the class.
 CLASSES: dict[str, Term] = {
@@ -102,10 +69,7 @@ def label(field: str) -> str:
 def with_unit(field: str, value: float, digits: int = 1) -> str:
     """'Quality Tracking 72.2 %', 'Average Epoch Length 7.05 episodes', 'Executive payoff 0.660'."""
     term = TERMS.get(field)
-    if term is None:
-        return f"{field} {value:.{digits}f}"
-    places = 3 if term.unit == "" else digits
-    return f"{term.name} {value:.{places}f}{term.unit}"
+    return f"{field} {value:.{digits}f}" if term is None else term.text(value, digits)
 
 
 def markdown() -> str:

@@ -275,6 +275,10 @@ class RunPaths:
     def workers(self) -> list[WorkerPaths]:
         """The directories of the workers that started (those with a worker.json), by behaviour name;
         none at all is a RunDirError (not a run directory)."""
+        if not self.dir.exists():
+            raise RunDirError(f"no such directory: {str(self.dir)!r}")
+        if not self.dir.is_dir():
+            raise RunDirError(f"{str(self.dir)!r} is a file, not a run directory")
         found = [WorkerPaths(p) for p in sorted(self.workers_dir.glob("*")) if (p / "worker.json").exists()]
         if not found:
             raise RunDirError(f"{str(self.dir)!r} holds no workers/*/worker.json: not a coevo run directory")

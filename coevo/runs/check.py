@@ -27,6 +27,7 @@ its checks of them (:mod:`coevo.runs.kinds`; for CEL, :func:`coevo.cel_service.a
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -52,7 +53,8 @@ class RunCheck:
         return not self.problems
 
 
-def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
+def check_run(run_dir: Path, *, replay: bool = True, progress: Callable[[str, int, int], None] | None = None) -> RunCheck:
+    """What is wrong with a finished run directory (``progress``: told each generation its replay reproduced)."""
     run = RunPaths(Path(run_dir))
     check = RunCheck(run.dir)
     wdirs = run.workers()
@@ -122,7 +124,7 @@ def check_run(run_dir: Path, *, replay: bool = True) -> RunCheck:
     if replay and not check.problems:
         from coevo.runs.replay import replay as replay_run
 
-        for r in replay_run(run.dir):
+        for r in replay_run(run.dir, progress=progress):
             if not r.reproduced:
                 check.problems.append(f"{r.behaviour}: replay differs at generation {r.first_mismatch}: {r.detail}")
         check.facts["replayed"] = True

@@ -32,6 +32,8 @@ __all__ = ["configure_run", "configure_worker", "configure_chaos", "configure_st
            "GA_FLAGS", "RUN_FLAGS", "refuse", "add_run_settings"]
 
 GA_FLAGS = ("generations", "population", "episodes", "world", "ga")  # the settings flags of console.add_settings
+WIDTH = 110  # characters of a line of the run's last words
+
 RUN_FLAGS = ("task", "regime", "seed", "model", "max_lead", *GA_FLAGS)  # and a run's
 
 
@@ -101,9 +103,14 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise ConfigError("--force goes with --resume (continue a run that ran on other code)")
     if args.resume:
         refuse(args, (*RUN_FLAGS, "run", "settings"), "--resume takes every setting from the run's run.json")
-        lr = LocalRun.resume(Path(args.resume), log_level=args.log_level, listen=listen, force=args.force)
+        lr = LocalRun.resumable(Path(args.resume), log_level=args.log_level, listen=listen)
         if (kind := kind_of_settings(lr.settings)) is not COEVOLUTION:
             raise ConfigError(f"{args.resume} is {kind.label}: continue it with {kind.run().COMMAND} --resume {args.resume}")
+        if (done := _complete(lr)) is not None:  # nothing to continue: say so, start nothing, change nothing
+            print(f"run {lr.run} is complete: every worker finished its generations; nothing to continue")
+            _say_end(lr, done)
+            return 0
+        lr = LocalRun.resume(Path(args.resume), log_level=args.log_level, listen=listen, force=args.force)
     else:
         if args.settings:
             refuse(args, RUN_FLAGS, "--settings gives every run setting but the run id")
@@ -125,10 +132,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     with StatusDisplay(title, quiet=args.quiet) as display:
         summary = run_local(lr, resume=bool(args.resume), measure_epochs=args.measure_epochs, on_status=display.show)
     print(f"run directory: {lr.dir} ({summary['seconds']:.1f} s)")
-    if "measures" in summary:
-        m = summary["measures"]
-        print("final policies together: " + ", ".join(f"{k} {v:.1f}" for k, v in m.items()
-                                                     if isinstance(v, float) and k not in ("tracking_payoff", "docking_payoff")))
+    _say_end(lr, summary, measure_epochs=args.measure_epochs,
+             complete=not summary["interrupted"] and not summary["unstored"])
     if summary["interrupted"]:
         early = ", ".join(f"{b} after {g}" for b, g in summary.get("stopped_early", {}).items())
         print(f"the run stopped early{' (' + early + ' generations)' if early else ''}; continue it with "
@@ -140,6 +145,51 @@ def cmd_run(args: argparse.Namespace) -> int:
               "says what is wrong", file=sys.stderr)
         return 1
     return 0
+
+
+def _complete(lr: Any) -> dict[str, Any] | None:
+    """A finished run's summary.json when there is nothing to continue: every worker finished its generations and
+    the run ended complete (not interrupted, every version stored); else None."""
+    from coevo.rundir.layout import read_json
+
+    if lr.unfinished() or not lr.paths.summary.exists():
+        return None
+    summary: dict[str, Any] = read_json(lr.paths.summary, what="run directory (its summary.json)")
+    return None if summary.get("interrupted") or summary.get("unstored") else summary
+
+
+def _say_end(lr: Any, summary: dict[str, Any], *, measure_epochs: int | None = None, complete: bool = True) -> None:
+    """A run's last lines: what its final policies did together, in the task's words; for a complete run, what they
+    amount to (the task's verdict) and what to do next, with the run's own path."""
+    import shlex
+    import textwrap
+
+    from coevo.tasks.base import measures_text
+
+    if "measures" in summary:
+        m = summary["measures"]
+        over = f" (measured together on {measure_epochs} fresh epochs)" if measure_epochs else ""
+        print(_wrapped(["final policies together:", *(f"{x}," for x in measures_text(lr.task, m))], over))
+        if complete and (verdict := lr.task.run_verdict(m)):
+            print(textwrap.fill(verdict, WIDTH, subsequent_indent="  ", break_on_hyphens=False))
+    if not complete:
+        return
+    where = shlex.quote(str(lr.dir))
+    print(f"next: coevo show {where}  (draw an epoch of the final policies)\n"
+          f"      coevo check {where}  (is the run complete, does it replay exactly)\n"
+          f"      coevo dashboard {where}  (its curves and its robot in the browser)")
+
+
+def _wrapped(items: list[str], end: str) -> str:
+    """``items`` in lines of at most WIDTH characters, broken only between items, the last one's comma replaced by
+    ``end``: a measure's name and value stay on one line."""
+    items = [*items[:-1], items[-1].rstrip(",") + end]
+    lines = [items[0]]
+    for item in items[1:]:
+        if len(lines[-1]) + 1 + len(item) > WIDTH:
+            lines.append(" ")
+        lines[-1] += f" {item}"
+    return "\n".join(lines)
 
 
 def configure_worker(p: argparse.ArgumentParser) -> None:
@@ -233,7 +283,7 @@ def configure_chaos(p: argparse.ArgumentParser) -> None:
     p.add_argument("--root", default="runs", help="parent of the run directory (default runs/)")
     p.add_argument("--task", help="the task (default fuel)")
     p.add_argument("--seed", type=seed_arg, default=0, help="seeds the workers and the choice of faults")
-    p.add_argument("--model", default="best", choices=MODELS)
+    p.add_argument("--model", default="best", choices=MODELS, help="how partners are modelled (default best so far)")
     p.add_argument("--faults", type=count_arg(0, 10_000), default=8, help="faults to inject (default 8)")
     p.add_argument("--kinds", nargs="+", default=["kill-worker", "kill-broker", "pause-worker"], metavar="KIND",
                    help="kill-worker kill-broker pause-worker (default all three)")

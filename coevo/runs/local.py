@@ -451,7 +451,8 @@ def run_local(
         try:
             lr.start(resume=resume)
             with open_session(lr.client_config(), what="status session", gate=lr.gate()) as s:
-                board = StatusBoard(s, run, restarts=lr.restarts)  # the restarts shown beside each process's state
+                # the restarts shown beside each process's state; the run's generations until a worker's first heartbeat
+                board = StatusBoard(s, run, restarts=lr.restarts, generations=lr.settings.ga.generations)
                 try:
                     while True:
                         board.changed.wait(0.5)
@@ -464,6 +465,7 @@ def run_local(
                 except KeyboardInterrupt:
                     settle()  # a Ctrl-C's stop is not cut short by a SIGTERM either
                     interrupted = True
+                    board.stopping()  # the workers that end now stop, they do not die
                     lr.ask_stop(s)
                     _wait(list(lr.workers.values()), 15.0)
                 settle()  # the run is ending in order from here: a SIGTERM has nothing left to stop

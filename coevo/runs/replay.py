@@ -14,7 +14,7 @@ from which trial; its world is its own seed's), in :mod:`coevo.cel_service.audit
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -51,7 +51,12 @@ def _store(run: RunPaths) -> dict[tuple[str, str, int], RuleSet]:
     return {(m.behaviour, m.worker, m.version): m.ruleset() for f in run.store_files() for m in read_store(f)}
 
 
-def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, until: int | None = None) -> WorkerReplay:
+#: Told each generation a replay reproduced: (behaviour, generations done, of how many).
+Progress = Callable[[str, int, int], None]
+
+
+def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, until: int | None = None,
+                  progress: Progress | None = None) -> WorkerReplay:
     w = WorkerPaths(Path(wdir))
     meta = w.meta()
     task = get_task(meta.get("task", DEFAULT_TASK))
@@ -68,6 +73,8 @@ def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, unt
         for k in sorted(set(rep) | set(curve[g])):
             if k not in _UNCOMPARED and rep.get(k) != curve[g].get(k):
                 return WorkerReplay(behaviour, n, False, g + 1, f"{k}: recorded {curve[g].get(k)!r}, replayed {rep.get(k)!r}")
+        if progress is not None:
+            progress(behaviour, g + 1, n)
     return WorkerReplay(behaviour, n, True, None, "identical")
 
 
@@ -105,11 +112,12 @@ def _with_machine(r: WorkerReplay, w: WorkerPaths) -> WorkerReplay:
     return replace(r, detail=r.detail + note)
 
 
-def replay(run_dir: Path) -> list[WorkerReplay]:
+def replay(run_dir: Path, *, progress: Progress | None = None) -> list[WorkerReplay]:
+    """Each worker's curve replayed (``progress`` told each generation), then each kind's own replay."""
     run = RunPaths(Path(run_dir))
     workers = run.workers()
     store = _store(run)
-    out = [_with_machine(replay_worker(w.dir, store), w) for w in workers]
+    out = [_with_machine(replay_worker(w.dir, store, progress=progress), w) for w in workers]
     for kind in run_kinds(run):
         if kind.replay_run is None:
             continue

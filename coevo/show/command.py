@@ -71,14 +71,14 @@ def _episodes(args: argparse.Namespace, default: int | None) -> int | None:
     return None if args.epoch else default
 
 
-def _out_path(args: argparse.Namespace, name: str, episodes: int | None, animated: bool) -> Path:
+def _out_path(args: argparse.Namespace, name: str, episodes: int | None, animated: bool, seed: int) -> Path:
     what = "epoch" if episodes is None else f"episodes{episodes}"
     suffix = ".gif" if animated else ".png"
     if args.out is not None:
         return Path(args.out)
-    file = f"{name}-{what}-seed{args.seed}{suffix}"
+    file = f"{name}-{what}-seed{seed}{suffix}"
     if args.source and Path(args.source).is_dir():
-        return Path(args.source) / f"show-{what}-seed{args.seed}{suffix}"
+        return Path(args.source) / f"show-{what}-seed{seed}{suffix}"
     if args.source:
         return Path(args.source).parent / file
     return Path(file)
@@ -96,11 +96,18 @@ def cmd_show(args: argparse.Namespace) -> int:
     episodes = _episodes(args, display.show_episodes(robot))
     animated = args.animate or (args.out is not None and Path(args.out).suffix.lower() in ANIMATION_FORMATS)
     draw = not args.rules or args.out is not None or args.animate
-    out = _out_path(args, robot.name, episodes, animated) if draw else None
+    if args.out is not None:  # a bad --out is said before anything is played
+        check_out_path(Path(args.out), ANIMATION_FORMATS if animated else FORMATS)
+    seed, played = args.seed or 0, None
+    if args.seed is None and episodes is None:  # one epoch of a whole robot: a typical one, if its task scores epochs
+        seed, played, said = _typical(display, robot)
+        if said:
+            print(said)
+    if played is None:
+        played = display.show_play(robot, seed=seed, episodes=episodes)
+    out = _out_path(args, robot.name, episodes, animated, seed) if draw else None
     if out is not None:
         check_out_path(out, ANIMATION_FORMATS if animated else FORMATS)
-
-    played = display.show_play(robot, seed=args.seed, episodes=episodes)
     if args.rules:
         from coevo.show.rules_view import print_tables
 
@@ -119,6 +126,25 @@ def cmd_show(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Epochs ``coevo show`` plays to pick a typical one to draw (odd: the median is one of them).
+SAMPLES = 9
+
+
+def _typical(display: Any, robot: Any) -> tuple[int, Any, str]:
+    """(seed, its play, a line saying which it is and that it is one sample): the epoch of median score among those
+    of seeds 0..SAMPLES-1 (ties: the lower seed); (0, seed 0's play, '') when the task scores no epoch."""
+    first = display.show_play(robot, seed=0, episodes=None)
+    if display.show_score(first) is None:
+        return 0, first, ""
+    plays = [first, *(display.show_play(robot, seed=s, episodes=None) for s in range(1, SAMPLES))]
+    scores = [display.show_score(p) for p in plays]
+    ranked = sorted((score[1], s) for s, score in enumerate(scores))
+    value, seed = ranked[SAMPLES // 2]
+    return seed, plays[seed], (f"drawing seed {seed}: the median of {SAMPLES} epochs (seeds 0-{SAMPLES - 1}) by "
+                               f"{scores[0][0]}, {value:.3f} (they range {ranked[0][0]:.3f} to {ranked[-1][0]:.3f}); "
+                               "one sample of the robot: --seed N draws another")
+
+
 DESCRIPTION = (
     "Play a robot from a seed and draw its episodes as its task draws them. The fuel task: the arena,\n"
     "walls and dock, the robot's path coloured by the Executive's choice (Track/Dock), the Target's path,\n"
@@ -132,7 +158,7 @@ DESCRIPTION = (
 EPILOG = (
     "examples:\n"
     "  coevo show --default tracking                 # default-tracking-episodes3-seed0.png\n"
-    "  coevo show runs/ID                            # a coevo run's combined robot, one epoch\n"
+    "  coevo show runs/ID                            # a coevo run's combined robot, its median epoch\n"
     "  coevo show runs/learn-docking-... --episodes 5 --trace\n"
     "  coevo show runs/learn-door-...                # a door trial\n"
     "  coevo show best.rules --rules                 # rules by strength, with fire counts\n"
@@ -157,7 +183,9 @@ def configure_show(p: argparse.ArgumentParser) -> None:
                    help=f"play N episodes (door: trials) in a row, starting a new epoch when one ends (default: the "
                         f"task's; {DEFAULT_EPISODES} for a Tracking or Docking rule set)")
     p.add_argument("--epoch", action="store_true", help="play one epoch (default for a combined fuel robot)")
-    p.add_argument("--seed", type=seed_arg, default=0, help="where the robot and Target start, the Target's walk (default 0)")
+    p.add_argument("--seed", type=seed_arg,
+                   help="where the robot and Target start, the Target's walk (default: for one epoch of a whole "
+                        "robot whose task scores epochs, the median of 9 epochs by that score, its seed said; else 0)")
     p.add_argument("--task", default=None, choices=_TaskNames(), metavar="TASK",
                    help="the task to draw, one of %(choices)s (default: the one the run directory, rule file or "
                         "behaviour names; another is an error)")

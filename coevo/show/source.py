@@ -136,7 +136,19 @@ def from_path(path: Path, *, world_over: Mapping[str, Any], partners: Mapping[st
     if wanted is not None and wanted is not task:
         raise ConfigError(f"{str(path)!r} holds {rs.behaviour} rules of the {task.name!r} task, not {wanted.name!r} (--task)")
     _partners_of(task, partners, str(path))
+    if (run := _run_of(path)) is not None:  # a worker's rule file: its partners and world are its run's
+        f = RunPaths(run).run_json
+        meta = _meta(f)
+        needed = task.partners_needed(rs.behaviour, str(meta.get("regime", task.regimes[0])))
+        rules = RunPaths(run).final_rules(needed, partners)
+        return _shown(task, path.stem, _run_world(task, meta, f, world_over, ""), {**rules, rs.behaviour: rs})
     return _shown(task, path.stem, _world(task, world_over), {**partners, rs.behaviour: rs})
+
+
+def _run_of(path: Path) -> Path | None:
+    """The run directory a worker's rule file sits in (``RUN/workers/BEHAVIOUR/FILE`` with ``RUN/run.json``)."""
+    run = path.resolve().parent.parent.parent
+    return run if path.resolve().parent.parent.name == "workers" and RunPaths(run).run_json.exists() else None
 
 
 def _meta(f: Path) -> dict[str, Any]:

@@ -14,11 +14,12 @@ The shape, after Gymnasium's ``Env``: a small class of what a task must say, gen
 world's settings, and functions for what follows from that.
 
 * :class:`Task` ``[W]``: class attributes ``name``, ``behaviours``, ``regimes``, ``world_settings``
-  (the model ``W``, a frozen pydantic model), ``aliases``, ``measure_labels``, ``mirror_symmetric``;
-  methods ``initial_rules``, ``learnable_sensors``, ``ga_choices``, ``partners_needed``,
-  ``evaluator`` (the only abstract one), ``status_measures``, ``final_measures``, ``run_measures``
-  and ``display``.  Every method that takes a world takes a ``W``, so a task reads its own
-  settings' fields and names no other model.
+  (the model ``W``, a frozen pydantic model), ``aliases``, ``measure_labels``, ``measure_terms``,
+  ``mirror_symmetric``; methods ``initial_rules``, ``learnable_sensors``, ``ga_choices``, ``partners_needed``,
+  ``evaluator`` (the only abstract one), ``status_measures``, ``final_measures``, ``run_measures``,
+  ``run_verdict`` and ``display``.  A measure is named to a reader by its :class:`Term` (readable name, unit,
+  definition); :func:`measures_text` writes a run's measures with them.  Every method that takes a world takes
+  a ``W``, so a task reads its own settings' fields and names no other model.
 * Functions every task shares and none overrides: :func:`check_behaviour`, :func:`ga_settings`
   (the GA settings left to the task, filled in), :func:`check_ga` and :func:`initial_model` live
   with the GA (:mod:`coevo.ga.problem`, which needs them too) and are re-exported here;
@@ -39,6 +40,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Generic, TypeVar
 
 import numpy as np
@@ -53,11 +55,26 @@ from coevo.policy.rules import RuleSet
 if TYPE_CHECKING:
     from coevo.tasks.showing import TaskDisplay
 
-__all__ = ["Task", "W", "Evaluator", "Evaluation", "Partners", "Tick", "ChildRng", "TASK_CHOICE_OFF",
+__all__ = ["Task", "W", "Term", "measures_text", "Evaluator", "Evaluation", "Partners", "Tick", "ChildRng", "TASK_CHOICE_OFF",
            "check_behaviour", "check_regime", "ga_settings", "check_ga", "initial_model"]
 
 #: The model of a task's world settings.
 W = TypeVar("W", bound=BaseModel)
+
+
+@dataclass(frozen=True)
+class Term:
+    """A measure's readable name, its unit (printed after a value: ' %', ' episodes'; '' for none) and what it is."""
+
+    name: str
+    unit: str
+    definition: str
+
+    def text(self, value: float, digits: int = 1) -> str:
+        """'Quality Tracking 72.2 %'; a value without a unit (a payoff, a fitness) to 3 places: 'Executive payoff
+        0.660'."""
+        places = 3 if self.unit == "" else digits
+        return f"{self.name} {value:.{places}f}{self.unit}"
 
 
 class Task(ABC, Generic[W]):
@@ -72,6 +89,9 @@ class Task(ABC, Generic[W]):
     aliases: ClassVar[tuple[str, ...]] = ()
     #: Short names of its status measures for narrow displays (e.g. quality_tracking -> QT).
     measure_labels: ClassVar[dict[str, str]] = {}
+    #: Each measure's readable name, unit and definition, by field name: how a reader sees the fields of
+    #: ``run_measures`` and ``final_measures`` (``coevo run``'s last lines); a field without one shows its own name.
+    measure_terms: ClassVar[Mapping[str, Term]] = {}
     #: Command-line flags of its own, each a world setting by another name (the door task's ``--fail front`` is
     #: ``--world failed=front``), taken by ``coevo learn``, ``show``, ``run`` and ``worker`` once the task is known;
     #: every behaviour of a task is a flag too there, giving a partner's rule file (``--tracking FILE``).
@@ -125,10 +145,24 @@ class Task(ABC, Generic[W]):
         """The measures of a whole run's final policies together (``coevo run``), or None if incomplete."""
         return None
 
+    def run_verdict(self, measures: Mapping[str, float | int | None]) -> str | None:
+        """What a run's final measures (``run_measures``'s) say, in words, for ``coevo run``'s last lines (the fuel
+        task: the run's class in the report's Table 1, and why), or None: nothing beyond the numbers."""
+        return None
+
     def display(self) -> TaskDisplay[W] | None:
         """Its pictures (:class:`~coevo.tasks.showing.TaskDisplay`: ``coevo show``, ``coevo learn``'s best.png, the
         dashboard's robot), or None: it has none."""
         return None
+
+
+def measures_text(task: Task[Any], measures: Mapping[str, float | int | None]) -> list[str]:
+    """A run's measures as a reader reads them, each by its task's :class:`Term`: ['Quality Tracking 72.2 %', ...,
+    'Executive payoff 0.660'], in the order of the task's terms; a field the task names no term for by its own name,
+    to 3 significant digits, after them.  Counts (ints) and missing values are left out."""
+    terms = task.measure_terms
+    fields = [k for k in terms if k in measures] + [k for k in measures if k not in terms]
+    return [terms[k].text(v) if k in terms else f"{k} {v:.3g}" for k in fields if isinstance(v := measures[k], float)]
 
 
 def check_regime(task: Task[Any], regime: str) -> str:

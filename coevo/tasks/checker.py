@@ -29,7 +29,7 @@ from coevo.errors import RuleSetError
 from coevo.ga.evaluator import Evaluation, Partners
 from coevo.policy.rules import RuleSet
 from coevo.policy.schema import schema
-from coevo.tasks.base import Task, check_behaviour, check_ga, ga_settings, initial_model
+from coevo.tasks.base import Task, Term, check_behaviour, check_ga, ga_settings, initial_model
 from coevo.tasks.showing import TaskDisplay
 
 __all__ = ["check_task", "TINY_GA"]
@@ -84,6 +84,9 @@ def _identity(task: Task[Any], say: Callable[[str], None]) -> None:
         say(f"world_settings: its defaults do not make a world ({exc})")
     if not isinstance(getattr(task, "measure_labels", None), dict):
         say("measure_labels: give a dict (measure -> short label), empty if none")
+    terms = getattr(task, "measure_terms", None)
+    if not (isinstance(terms, Mapping) and all(isinstance(t, Term) for t in terms.values())):
+        say("measure_terms: give a dict (measure -> coevo.tasks.base.Term: name, unit, definition), empty if none")
 
 
 def _rules(task: Task[Any], behaviour: str, world: BaseModel, say: Callable[[str], None]) -> None:

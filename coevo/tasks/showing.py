@@ -97,6 +97,12 @@ class TaskDisplay(ABC, Generic[W]):
         """Per episode, one line: the rules that fired in turn and how it ended."""
         return []
 
+    def show_score(self, played: Any) -> tuple[str, float] | None:
+        """What a play of one epoch scored, and the score's name (the fuel task: ``("Executive payoff", 0.65)``), by
+        which ``coevo show`` picks a typical epoch to draw when no ``--seed`` is given; None (the default): no score,
+        and it draws seed 0."""
+        return None
+
 
 def display_of(task: Task[Any]) -> TaskDisplay[Any]:
     """``task``'s pictures, or a ConfigError saying it has none (what ``coevo show`` and the dashboard say)."""

@@ -89,7 +89,7 @@ def configure_evolvability(p: argparse.ArgumentParser) -> None:
     p.add_argument("--runs", type=count_arg(1, 100), help="runs per landscape and condition (default 10)")
     p.add_argument("--generations", type=count_arg(1, 10_000), help="generations per run (default 200)")
     p.add_argument("--population", type=count_arg(2, 1000), help="population size (default 100)")
-    p.add_argument("--seed", type=seed_arg, default=0)
+    p.add_argument("--seed", type=seed_arg, default=0, help="seeds the landscapes and the runs (default 0)")
     p.add_argument("--report-only", action="store_true", help="only rewrite the report from the grid finished in --out")
     p.add_argument("--resume", action="store_true", help="continue the grid in --out, keeping its finished landscapes")
     add_backend_flags(p, jobs_help="landscapes at once on this machine (default 1: all its runs advance together "

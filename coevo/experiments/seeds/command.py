@@ -156,7 +156,7 @@ def configure_seeds(p: argparse.ArgumentParser) -> None:
                    help="fuel: Tracking and Docking against the learning targets (default); door: Appendix B's door "
                         "traversal, all sonars then --fail, beside Figure 3's numbers")
     p.add_argument("--seeds", type=count_arg(1, 10_000), help="seeds per behaviour (default 5; --task door: 10)")
-    p.add_argument("--first-seed", type=seed_arg, default=0)
+    p.add_argument("--first-seed", type=seed_arg, default=0, help="the first of the seeds (default 0)")
     p.add_argument("--out", help="output directory (default runs/seeds-TIME, runs/door-seeds-TIME)")
     p.add_argument("--resume", action="store_true", help="keep the finished runs in --out and run the rest")
     p.add_argument("--quiet", action="store_true", help="no progress display")

@@ -29,6 +29,7 @@ from coevo.tasks.fuel.behaviours import TARGET_SENSORS, Behaviour
 from coevo.tasks.fuel.dock_frame import DEFAULT_FILES, DOCK_SENSORS, SENSOR_SETS
 from coevo.tasks.fuel.evaluate import FuelEvaluator
 from coevo.tasks.fuel.settings import WorldConfig
+from coevo.tasks.fuel.terms import MEASURES, verdict
 
 if TYPE_CHECKING:
     from coevo.tasks.showing import TaskDisplay
@@ -82,6 +83,7 @@ class FuelTask(Task[WorldConfig]):
     comparison = "coevo.experiments.compare.table1:READING"  # the report's Table 1, Executive curve, Docking probe
     measure_labels = {"quality_tracking": "QT", "docking_from_random": "docks", "dock_choice": "picks-D",
                       "docking_success_rate": "docked"}
+    measure_terms = MEASURES
 
     def initial_rules(self, behaviour: str, world: WorldConfig) -> RuleSet | None:
         """Tracking's and Docking's shipped direction-only rules, Docking's in the terms of its sensor set
@@ -143,6 +145,10 @@ class FuelTask(Task[WorldConfig]):
             return None
         return measure_robot(world, executive=policies["executive"], tracking=policies["tracking"],
                              docking=policies["docking"], epochs=epochs, seed=seed).as_dict()
+
+    def run_verdict(self, measures: Mapping[str, float | int | None]) -> str | None:
+        """The run's Table 1 class, and why (:func:`~coevo.tasks.fuel.terms.verdict`)."""
+        return verdict(measures)
 
     def display(self) -> TaskDisplay[WorldConfig]:
         """Its pictures (:mod:`coevo.tasks.fuel.pictures`), imported only when something is drawn."""

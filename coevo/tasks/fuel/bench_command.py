@@ -17,14 +17,16 @@ __all__ = ["configure_bench"]
 
 def configure_bench(p: argparse.ArgumentParser) -> None:
     """``coevo bench``'s arguments."""
-    p.add_argument("--behaviour", default="tracking", choices=["tracking", "docking"])
+    p.add_argument("--behaviour", default="tracking", choices=["tracking", "docking"],
+                   help="whose rule layout the policies have (default tracking)")
     p.add_argument("--lanes", type=Bounded(1, 100_000), default=4500, help="episodes run at once (default 50 x 90)")
     p.add_argument("--rules", type=Bounded(1, 64), default=32, help="rules per policy (evolved size)")
     p.add_argument("--policy", help="a rule file to drive every lane instead of random rule sets")
-    p.add_argument("--repeats", type=Bounded(1, 1000), default=3)
-    p.add_argument("--baseline-seconds", type=Bounded(0, 3600, whole=False, above=True), default=3.0)
-    p.add_argument("--seed", type=Bounded(0, 2**63 - 1, what="seed"), default=0)
-    p.add_argument("--world", action="append", metavar="NAME=VALUE")
+    p.add_argument("--repeats", type=Bounded(1, 1000), default=3, help="times the batched run is timed, the best kept (default 3)")
+    p.add_argument("--baseline-seconds", type=Bounded(0, 3600, whole=False, above=True), default=3.0,
+                   help="seconds the plain one-episode loop runs (default 3)")
+    p.add_argument("--seed", type=Bounded(0, 2**63 - 1, what="seed"), default=0, help="seeds the policies and starts (default 0)")
+    p.add_argument("--world", action="append", metavar="NAME=VALUE", help="world setting, e.g. target_speed=3 (repeatable)")
     p.add_argument("--json", action="store_true", help="print both figures and their ratio as JSON")
     p.set_defaults(func=cmd_bench)
 

@@ -54,3 +54,8 @@ class FuelDisplay(TaskDisplay[WorldConfig]):
 
     def show_trace(self, played: Played) -> list[str]:
         return trace_lines(played)
+
+    def show_score(self, played: Played) -> tuple[str, float] | None:
+        """A combined robot's epoch: its Executive payoff; Tracking or Docking alone: none."""
+        payoff = played.outcome.epoch_payoff
+        return ("Executive payoff", float(payoff[0])) if played.epoch and played.robot.combined and payoff.size else None

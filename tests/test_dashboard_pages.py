@@ -1,0 +1,90 @@
+"""The dashboard's pages read true (issue 55): a study declared on the command line is not "Study study"; a study's
+findings come before its dozen test lines; a panel of a measure that cannot be negative starts at 0 (an all-zero
+panel read "% of fresh starts" down to -1); a comparison's regimes are told apart by colour-blind-safe colours and by
+their bands' hatching and edges, not only by two colours whose overlap blends into a third."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+from typing import Any
+
+from coevo.dashboard import render
+
+
+def _study(**kw: Any) -> Any:
+    return SimpleNamespace(study={"dir": "runs/s", "factors": "max_lead", "caveat": "", "runs_done": 4,
+                                  "runs_total": 4, **kw})
+
+
+def test_a_study_declared_on_the_command_line_is_not_titled_study_study() -> None:
+    declared = render.study_title_html(_study(name="study"))  # the declaration's default name
+    assert "Study study" not in declared and "A study declared on the command line" in declared
+    assert "Study mutual-failure" in render.study_title_html(_study(name="mutual-failure"))
+
+
+def test_a_studys_findings_in_words_come_before_its_tests() -> None:
+    text = "\n".join([*(f"- No detectable effect of f{i} on x." for i in range(12)),
+                      "Docking starved (No Docking) in most runs of: 00-a."])
+    html = render.study_verdict_html(_study(verdict={"text": text, "finished": 4, "expected": 4}))
+    assert html.index("Docking starved") < html.index("No detectable effect of f0")
+
+
+def test_a_panel_of_a_measure_that_cannot_be_negative_starts_at_zero_and_spans_a_tenth_of_its_scale() -> None:
+    from coevo.dashboard.server import _plain_figure
+
+    pct = _plain_figure("p", "Docking alone", "% of fresh starts", height=200, top=100.0)
+    fitness = _plain_figure("f", "Executive learning curve", "generation's best fitness", height=200, top=1.0)
+    measures = _plain_figure("m", "docking: docks (solid) (%)", "%", height=200)
+    other = _plain_figure("o", "something", "metres", height=200)
+    assert (pct.y_range.start, pct.y_range.min_interval) == (0, 10.0)
+    assert (fitness.y_range.start, fitness.y_range.min_interval) == (0, 0.1)
+    assert (measures.y_range.start, measures.y_range.min_interval) == (0, 10.0)
+    assert math.isnan(other.y_range.start)  # a measure whose sign is unknown keeps Bokeh's own range (unset: NaN)
+
+
+def _srgb_to_linear(c: float) -> float:
+    return c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4
+
+
+def _deuteranope(hex_colour: str) -> tuple[float, float, float]:
+    """How a deuteranope sees a colour (Viénot, Brettel and Mollon's 1999 simulation), in linear RGB."""
+    r, g, b = (_srgb_to_linear(int(hex_colour[i:i + 2], 16) / 255) for i in (1, 3, 5))
+    return (0.29031 * r + 0.70969 * g, 0.29031 * r + 0.70969 * g, -0.02197 * r + 0.02197 * g + b)
+
+
+def test_the_regimes_colours_stay_apart_for_a_deuteranope_and_each_band_has_its_own_hatching() -> None:
+    seen = [_deuteranope(c) for c in render.REGIME_COLOURS[:4]]
+    for i in range(len(seen)):
+        for j in range(i + 1, len(seen)):
+            assert sum((a - b) ** 2 for a, b in zip(seen[i], seen[j])) ** 0.5 > 0.1, (render.REGIME_COLOURS[i],
+                                                                                     render.REGIME_COLOURS[j])
+    old_red, old_green = _deuteranope("#d62728"), _deuteranope("#2ca02c")  # what the first two regimes were
+    assert sum((a - b) ** 2 for a, b in zip(old_red, old_green)) ** 0.5 < 0.1  # ... one colour to a deuteranope
+    assert len({render.regime_hatch(i) for i in range(len(render.REGIME_COLOURS))}) == len(render.REGIME_COLOURS)
+
+
+def test_a_closed_tab_leaves_no_warnings_in_the_terminal_and_other_warnings_stay() -> None:
+    """Bokeh logged "Failed sending message as connection was closed" for each update a closed tab missed (7 a tab)."""
+    import logging
+
+    from bokeh.server.views import ws
+
+    from coevo.dashboard.server import CLOSED_TAB, quiet_closed_tabs
+
+    seen: list[str] = []
+    handler = logging.Handler()
+    handler.emit = lambda record: seen.append(record.getMessage())  # type: ignore[method-assign]
+    ws.log.addHandler(handler)
+    try:
+        quiet_closed_tabs()
+        quiet_closed_tabs()  # once is enough, twice adds nothing
+        ws.log.warning(CLOSED_TAB)
+        ws.log.warning("WebSocket connection opened")
+    finally:
+        ws.log.removeHandler(handler)
+    assert seen == ["WebSocket connection opened"]
+    assert len(ws.log.filters) == 1
+    import inspect
+
+    assert f'log.warning("{CLOSED_TAB}")' in inspect.getsource(ws)  # Bokeh still says it so: the filter still bites
