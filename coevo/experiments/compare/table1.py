@@ -27,6 +27,8 @@ from collections import Counter
 from collections.abc import Iterable, Mapping
 
 from coevo.experiments.compare.reading import Panel, Reading
+# the thresholds are the fuel task's, defined once with its terms
+from coevo.tasks.fuel.terms import GOOD_DOCKING, HI_TRACKING, MED_TRACKING, NO_DOCKING_CHOICE
 
 __all__ = ["BEHAVIOURS", "CURVE", "DOCKING", "TRACKING", "CLASSES", "REPORT_COUNTS", "PANELS", "READING", "classify",
            "count"]
@@ -39,10 +41,6 @@ DOCKING = ("Good Docking", "Poor Docking", "No Docking")
 TRACKING = ("Hi", "Med", "Lo")
 CLASSES = tuple(f"{d} / {t}" for d in DOCKING for t in TRACKING)
 
-NO_DOCKING_CHOICE = 5.0  # % of episodes the Executive picks Docking, below which Docking is starved
-GOOD_DOCKING = 20.0  # % of the episodes Docking was picked for that ended docked
-HI_TRACKING = 60.0  # % quality tracking
-MED_TRACKING = 30.0
 
 REPORT_COUNTS: dict[str, dict[str, int]] = {
     "mutual": {"Good Docking / Med": 1, "No Docking / Hi": 4, "No Docking / Med": 3, "No Docking / Lo": 2},
