@@ -7,11 +7,18 @@ For every behaviour and every partner it learned against (:mod:`.matrix`), writt
 * ``master-LEARNER-PARTNER.csv`` and ``.png``: each learner version's mean over every partner version, with a 95 %
   t interval over the partner versions (none below three), and the mean over the partner versions published up
   to it (its ancestors, CIAO's lower triangle) beside the mean over all of them.
+
+``--generations A:B`` keeps the versions published at generations A to B and, for each behaviour, the one in play
+at A (the last published by then).  Only a finished run is read (every worker's ``done.json`` says finished);
+every matrix is played before anything is written, and ``RUN/dynamics/`` is replaced whole, so a refusal or a
+stop leaves the run as it was.
 """
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -26,22 +33,42 @@ def configure_dynamics(p: argparse.ArgumentParser) -> None:
     p.add_argument("--episodes", type=count_arg(1, 100_000), default=60,
                    help="fresh episodes per cell, the same for every cell (default 60)")
     p.add_argument("--seed", type=seed_arg, default=1, help="the seed of those episodes (default 1)")
+    p.add_argument("--generations", type=generation_range, metavar="A:B",
+                   help="only the versions published at generations A to B (and each side's in play at A); "
+                        "default the whole run")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     p.set_defaults(func=cmd_dynamics)
 
 
+def generation_range(text: str) -> tuple[int, int]:
+    """``A:B``, whole numbers with 0 <= A <= B (whether the run has them is checked against the run)."""
+    shown = text if len(text) <= 40 else text[:40] + "..."
+    parts = text.strip().split(":")
+    if len(parts) != 2 or not all(x.strip().isdigit() for x in parts):
+        raise argparse.ArgumentTypeError(f"invalid generation range {shown!r}: give A:B, whole numbers, e.g. 0:50")
+    a, b = int(parts[0]), int(parts[1])
+    if a > b:
+        raise argparse.ArgumentTypeError(f"invalid generation range {shown!r}: A must not exceed B")
+    return a, b
+
+
 def cmd_dynamics(args: argparse.Namespace) -> int:
-    from coevo.experiments.dynamics.matrix import pairs_of, play_matrix, read_run, versions_of
-    from coevo.rundir.layout import ensure_dir
+    from coevo.experiments.dynamics.matrix import check_finished, pairs_of, play_matrix, read_run, versions_of, within
 
     settings, task, world, ga, paths = read_run(Path(args.run))
     pairs = pairs_of(task, settings.regime)
     if not pairs:
         raise ConfigError(f"{args.run}: in the {settings.regime} regime no behaviour of task {task.name!r} learns "
-                          "against another's policies: there is no matrix to play")
-    versions = {b: versions_of(paths, b) for b in {x for pair in pairs for x in pair}}
+                          f"against another's policies (behaviours: {', '.join(task.behaviours)}): there is no "
+                          "matrix to play")
+    check_finished(paths, task, settings.ga.generations)
+    span = args.generations or (0, settings.ga.generations)
+    if span[1] > settings.ga.generations:
+        raise ConfigError(f"--generations {span[0]}:{span[1]}: run {settings.run} has generations 0 to "
+                          f"{settings.ga.generations}")
+    versions = {b: within(versions_of(paths, b), *span) for b in {x for pair in pairs for x in pair}}
     final = {b: v.rules[-1] for b, v in versions.items()}
-    out = ensure_dir(paths.dir / "dynamics", what="the dynamics' directory")
+    matrices = []
     with ProgressBar("dynamics", total=sum(len(versions[b].rules) for _, b in pairs), unit="columns",
                      quiet=args.quiet) as bar:
         done = 0
@@ -51,12 +78,32 @@ def cmd_dynamics(args: argparse.Namespace) -> int:
             def tick(j: int, n: int, first: int = done, what: str = f"{a} with {b}") -> None:
                 bar.update(first + j, info=what)
 
-            m = play_matrix(task, world, ga, versions[a], versions[b], others, episodes=args.episodes, seed=args.seed,
-                            tick=tick)
+            matrices.append(play_matrix(task, world, ga, versions[a], versions[b], others, episodes=args.episodes,
+                                        seed=args.seed, tick=tick))
             done += len(versions[b].rules)
+    with replaced_dir(paths.dir / "dynamics") as out:
+        for m in matrices:
             written = _write(out, m)
-            print(f"{a} with {b}: {m.fitness.shape[0]} x {m.fitness.shape[1]} versions: {', '.join(written)}")
+            print(f"{m.learner.behaviour} with {m.partner.behaviour}: {m.fitness.shape[0]} x {m.fitness.shape[1]} "
+                  f"versions: {', '.join(written)}")
     return 0
+
+
+@contextmanager
+def replaced_dir(final: Path) -> Iterator[Path]:
+    """A staged directory that takes the place of ``final`` (and of whatever it held) only when the block succeeds."""
+    import shutil
+
+    from coevo.rundir.layout import staged_dir
+
+    aside = final.with_name(f".{final.name}.old")
+    shutil.rmtree(aside, ignore_errors=True)
+    with staged_dir(aside) as tmp:
+        yield tmp
+    if final.exists():
+        final.rename(final.with_name(f".{final.name}.older"))
+    aside.rename(final)
+    shutil.rmtree(final.with_name(f".{final.name}.older"), ignore_errors=True)
 
 
 def _write(out: Path, m: Any) -> list[str]:

@@ -24,7 +24,7 @@ from coevo.errors import RunDirError
 from coevo.policy.rules import RuleSet
 from coevo.rundir.layout import RunPaths, read_store
 
-__all__ = ["Versions", "Matrix", "versions_of", "pairs_of", "play_matrix"]
+__all__ = ["Versions", "Matrix", "versions_of", "within", "pairs_of", "play_matrix", "read_run", "check_finished"]
 
 
 @dataclass(frozen=True)
@@ -62,6 +62,18 @@ def versions_of(run: RunPaths, behaviour: str) -> Versions:
                     tuple(u.ruleset() for u in ordered))
 
 
+def within(v: Versions, first: int, last: int) -> Versions:
+    """The versions of ``v`` published at generations ``first`` to ``last``, and the one in play at ``first`` (the
+    last published by then) ahead of them."""
+    keep = [i for i, g in enumerate(v.generation) if first <= g <= last]
+    before = [i for i, g in enumerate(v.generation) if g < first]
+    keep = before[-1:] + keep
+    if not keep:
+        raise RunDirError(f"no {v.behaviour} version was published by generation {last}: choose a later --generations")
+    return Versions(v.behaviour, tuple(v.version[i] for i in keep), tuple(v.generation[i] for i in keep),
+                    tuple(v.rules[i] for i in keep))
+
+
 def pairs_of(task: Any, regime: str) -> list[tuple[str, str]]:
     """(learner, partner) for every partner a behaviour learned against in ``regime``."""
     return [(a, b) for a in task.behaviours for b in task.partners_needed(a, regime)]
@@ -91,3 +103,21 @@ def read_run(run_dir: Path) -> tuple[Any, Any, Any, Any, RunPaths]:
         raise RunDirError(f"{str(run_dir)!r} is not a run directory (no run.json)")
     settings = RunSettings.load(paths.run_json)
     return settings, settings.the_task, settings.world_config(), settings.ga, paths
+
+
+def check_finished(paths: RunPaths, task: Any, generations: int) -> None:
+    """A RunDirError naming the first worker of the run whose ``done.json`` does not say it finished (a run still
+    going, or stopped and not yet resumed)."""
+    from coevo.rundir.layout import read_json
+
+    run_dir = paths.dir
+    for b in task.behaviours:
+        w = paths.worker(b)
+        if not w.done.is_file():
+            raise RunDirError(f"{str(run_dir)!r} is not finished: its {b} worker has no {w.done.name} (still going, "
+                              f"or stopped: continue it with coevo run --resume {run_dir})")
+        done = read_json(w.done, what=f"{b} worker's done.json")
+        if done.get("finished") is not True:
+            raise RunDirError(f"{str(run_dir)!r} is not finished: its {b} worker stopped after "
+                              f"{done.get('generations')!r} of {generations} generations (continue it with coevo "
+                              f"run --resume {run_dir})")
