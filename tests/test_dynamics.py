@@ -80,3 +80,46 @@ def test_a_run_with_one_behaviour_is_refused_naming_its_task(tmp_path: Path) -> 
                                               ("-1:2", "'-1:2'"), (":", "':'")])
 def test_a_generation_range_outside_the_run_or_malformed_is_one_line(run: Path, span: str, needle: str) -> None:
     _refused(run, f"--generations={span}", needle=needle)
+
+
+def _master_by_generation(ciao: Path, generations: int) -> dict[int, float]:
+    """The generation-weighted master score, computed the plain way: for each generation g, the learner's version in
+    play at g against the partner's version in play at every generation h (h with none left out)."""
+    rows = list(csv.DictReader(open(ciao)))
+    cols = [(int(k.split("@")[1]), k) for k in rows[0] if "@" in k]
+    out = {}
+    for g in range(1, generations + 1):
+        mine = [r for r in rows if int(r["generation"]) <= g]
+        if not mine:
+            continue
+        row = mine[-1]
+        vals = []
+        for h in range(1, generations + 1):
+            theirs = [k for gen, k in cols if gen <= h]
+            if theirs:
+                vals.append(float(row[theirs[-1]]))
+        out[g] = sum(vals) / len(vals)
+    return out
+
+
+def test_a_folder_of_runs_each_played_then_summarised_across_them(finished_mutual: Path, tmp_path: Path) -> None:
+    folder = tmp_path / "many"
+    (folder / "one").mkdir(parents=True)
+    (folder / "two").mkdir()
+    a, b = copy_of(finished_mutual, folder / "one"), copy_of(finished_mutual, folder / "two")
+    going = copy_of(finished_mutual, folder)
+    (going / "workers" / "executive" / "done.json").unlink()
+    _refused(folder, needle="its executive worker has no done.json")
+    assert not (a / "dynamics").exists() and not (folder / "logs").exists()
+    import shutil
+    shutil.rmtree(going)
+    r = coevo_main("dynamics", str(folder), "--episodes", "2", "--quiet", "--jobs", "2")
+    assert r.returncode == 0, r.stderr
+    assert (a / "dynamics" / "dynamics.json").is_file() and (b / "dynamics" / "ciao-executive-docking.csv").is_file()
+    rows = list(csv.DictReader(open(folder / "dynamics" / "summary-executive-docking.csv")))
+    expected = _master_by_generation(a / "dynamics" / "ciao-executive-docking.csv", 3)
+    assert rows and {r["group"] for r in rows} == {"mutual, model best"}
+    assert {int(r["generation"]): (int(r["runs"]), float(r["mean"])) for r in rows} == \
+        {g: (2, pytest.approx(v, abs=1e-6)) for g, v in expected.items()}
+    r = coevo_main("dynamics", str(a), "--jobs", "2")
+    assert r.returncode == 2 and "--jobs and --cluster are for a folder of runs" in r.stderr, r.stderr

@@ -23,13 +23,18 @@ from pathlib import Path
 from typing import Any
 
 from coevo.console import ProgressBar, count_arg, seed_arg
-from coevo.errors import ConfigError
+from coevo.errors import ConfigError, RunDirError
+from coevo.replicates.flags import add_backend_flags, check_backend_flags
 
-__all__ = ["configure_dynamics"]
+__all__ = ["configure_dynamics", "DONE"]
+
+#: What a run's dynamics/ says it was played with, written last (coevo.experiments.dynamics.across reads it).
+DONE = "dynamics.json"
 
 
 def configure_dynamics(p: argparse.ArgumentParser) -> None:
-    p.add_argument("run", metavar="RUN_DIR", help="a finished coevo run directory")
+    p.add_argument("run", metavar="RUN_DIR", help="a finished coevo run directory, or a folder of them (a comparison, "
+                   "a study): each run's dynamics and a summary across them in DIR/dynamics")
     p.add_argument("--episodes", type=count_arg(1, 100_000), default=60,
                    help="fresh episodes per cell, the same for every cell (default 60)")
     p.add_argument("--seed", type=seed_arg, default=1, help="the seed of those episodes (default 1)")
@@ -37,6 +42,7 @@ def configure_dynamics(p: argparse.ArgumentParser) -> None:
                    help="only the versions published at generations A to B (and each side's in play at A); "
                         "default the whole run")
     p.add_argument("--quiet", action="store_true", help="no progress display")
+    add_backend_flags(p, jobs_help="with a folder of runs: runs played at a time on this machine (default 2)")
     p.set_defaults(func=cmd_dynamics)
 
 
@@ -52,20 +58,40 @@ def generation_range(text: str) -> tuple[int, int]:
     return a, b
 
 
-def cmd_dynamics(args: argparse.Namespace) -> int:
-    from coevo.experiments.dynamics.matrix import check_finished, pairs_of, play_matrix, read_run, versions_of, within
+def _readable(run: Path, generations: tuple[int, int] | None) -> tuple[Any, Any, Any, Any, Any, list[tuple[str, str]],
+                                                                      tuple[int, int]]:
+    """A run dynamics can play: (settings, task, world, GA settings, paths, pairs, generation span); else the one-line
+    refusal that names what is wrong."""
+    from coevo.experiments.dynamics.matrix import check_finished, pairs_of, read_run
 
-    settings, task, world, ga, paths = read_run(Path(args.run))
+    settings, task, world, ga, paths = read_run(run)
     pairs = pairs_of(task, settings.regime)
     if not pairs:
-        raise ConfigError(f"{args.run}: in the {settings.regime} regime no behaviour of task {task.name!r} learns "
+        raise ConfigError(f"{run}: in the {settings.regime} regime no behaviour of task {task.name!r} learns "
                           f"against another's policies (behaviours: {', '.join(task.behaviours)}): there is no "
                           "matrix to play")
     check_finished(paths, task, settings.ga.generations)
-    span = args.generations or (0, settings.ga.generations)
+    span = generations or (0, settings.ga.generations)
     if span[1] > settings.ga.generations:
         raise ConfigError(f"--generations {span[0]}:{span[1]}: run {settings.run} has generations 0 to "
                           f"{settings.ga.generations}")
+    return settings, task, world, ga, paths, pairs, span
+
+
+def cmd_dynamics(args: argparse.Namespace) -> int:
+    check_backend_flags(args)
+    if not (Path(args.run) / "run.json").exists() and Path(args.run).is_dir():
+        return _many(args)
+    if args.jobs is not None or args.cluster is not None:
+        raise ConfigError(f"--jobs and --cluster are for a folder of runs; {args.run} is one run")
+    return _one(args)
+
+
+def _one(args: argparse.Namespace) -> int:
+    from coevo.experiments.dynamics.matrix import play_matrix, versions_of, within
+    from coevo.rundir.layout import write_json
+
+    settings, task, world, ga, paths, pairs, span = _readable(Path(args.run), args.generations)
     versions = {b: within(versions_of(paths, b), *span) for b in {x for pair in pairs for x in pair}}
     final = {b: v.rules[-1] for b, v in versions.items()}
     matrices = []
@@ -86,6 +112,34 @@ def cmd_dynamics(args: argparse.Namespace) -> int:
             written = _write(out, m)
             print(f"{m.learner.behaviour} with {m.partner.behaviour}: {m.fitness.shape[0]} x {m.fitness.shape[1]} "
                   f"versions: {', '.join(written)}")
+        write_json(out / DONE, {"episodes": args.episodes, "seed": args.seed, "generations": list(span),
+                                "pairs": [list(p) for p in pairs]})
+    return 0
+
+
+def _many(args: argparse.Namespace) -> int:
+    """Every run under the folder ``args.run``, each checked before any is played; then the summary."""
+    from coevo.experiments.dynamics.across import find_runs, replicates, summarise
+    from coevo.replicates.flags import backend_of
+    from coevo.replicates.runner import run_replicates
+
+    root = Path(args.run).resolve()
+    runs = [r for r in find_runs(root) if r != root]
+    read = {r: _readable(r, args.generations) for r in runs}
+    spans = {r: read[r][6] for r in runs}
+    groups = {r: f"{read[r][0].regime}, model {read[r][0].model}" for r in runs}
+    reps = replicates(root, runs, lambda r: {"episodes": args.episodes, "seed": args.seed,
+                                             "generations": list(spans[r])})
+    with ProgressBar("dynamics", total=len(reps), unit="runs", quiet=args.quiet) as bar:
+        prog = run_replicates(reps, root, backend_of(args, default_jobs=2),
+                              on_progress=lambda p: bar.update(p.runs_done, info=f"{len(p.failed)} failed"))
+    if prog.failed:
+        name, why = next(iter(prog.failed.items()))
+        raise RunDirError(f"{len(prog.failed)} of {len(reps)} runs' dynamics failed, {name} first: {why} (its log: "
+                          f"{root / 'logs' / (name + '.log')}); nothing summarised")
+    with replaced_dir(root / "dynamics") as out:
+        written = summarise(root, runs, groups, spans, out)
+    print(f"{len(runs)} runs ({', '.join(sorted(set(groups.values())))}): {', '.join(written)} in {root / 'dynamics'}")
     return 0
 
 
