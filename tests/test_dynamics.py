@@ -123,3 +123,26 @@ def test_a_folder_of_runs_each_played_then_summarised_across_them(finished_mutua
         {g: (2, pytest.approx(v, abs=1e-6)) for g, v in expected.items()}
     r = coevo_main("dynamics", str(a), "--jobs", "2")
     assert r.returncode == 2 and "--jobs and --cluster are for a folder of runs" in r.stderr, r.stderr
+
+
+def test_the_dashboard_shows_a_finished_runs_dynamics_once_they_are_played(run: Path) -> None:
+    from coevo.dashboard import render
+    from coevo.dashboard.model import Dashboard, RunFiles
+
+    files = RunFiles(run)
+    assert files.read().dynamics is None
+    dash = Dashboard(target=run)
+    dash.refresh()
+    before = dash.current()[0]
+    assert render.dynamics_html(dash.current()[1]) == ""
+    r = coevo_main("dynamics", str(run), "--episodes", "2", "--quiet")
+    assert r.returncode == 0, r.stderr
+    d = files.read().dynamics
+    assert d is not None and d.played["episodes"] == 2
+    names = [n for n, _ in d.pictures]
+    assert names[:2] == ["master-tracking-docking.png", "ciao-tracking-docking.png"] and len(names) == 12
+    assert all(png.startswith("iVBOR") for _, png in d.pictures)  # base64 of a PNG's signature
+    dash.refresh()
+    version, view = dash.current()
+    html = render.dynamics_html(view)
+    assert version != before and html.count("<img class=\"dynamics\"") == 12 and "Dynamics of small" in html
