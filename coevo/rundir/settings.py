@@ -78,12 +78,13 @@ class RunSettings(Settings):
 
     @model_serializer(mode="wrap")
     def _spread_blocks(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
-        """Each kind's block back at run.json's top level, where the "blocks" field stands (as runs always kept it)."""
+        """Each kind's block back at run.json's top level, where the "blocks" field stands (as runs always kept it);
+        the hall of fame's settings only where the partner model is the hall (other runs' run.json as it always was)."""
         out: dict[str, Any] = {}
         for k, v in handler(self).items():
             if k == "blocks":
                 out.update(v)
-            else:
+            elif not (k.startswith("hall_") and self.model != "hall"):
                 out[k] = v
         return out
 
