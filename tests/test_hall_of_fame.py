@@ -166,6 +166,11 @@ def test_a_pursuit_mutual_run_with_the_hall_replays_exactly(pursuit_site: Path, 
     assert r.returncode == 0 and "replay exact" in r.stdout, r.stdout + r.stderr
     metas = [json.loads((w / "worker.json").read_text()) for w in sorted((tmp_path / "runs/chase/workers").iterdir())]
     assert [(m["model"], m["hall_sample"]) for m in metas] == [("hall", 3), ("hall", 3)]
+    adopted = [json.loads(x)["version"] for x in (tmp_path / "runs/chase/workers/pursuer/adoptions.jsonl").read_text()
+               .splitlines()]
+    published = len((tmp_path / "runs/chase/workers/evader/published.jsonl").read_text().splitlines())
+    assert len(adopted) >= 4 and adopted == sorted(adopted) and max(adopted) <= 6  # every generation's best, by number
+    assert len(adopted) >= published
     r = _run(["python", "-c", "import sys; from pathlib import Path; sys.path.insert(0, sys.argv[2]); "
               "from test_hall_of_fame import _as_best; print(_as_best(Path(sys.argv[1]), Path(sys.argv[3])))",
               str(tmp_path / "runs/chase"), str(Path(__file__).parent), str(tmp_path)], pursuit_site, tmp_path)

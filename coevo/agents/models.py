@@ -10,14 +10,15 @@ from the worker's seed.  Model kinds: ``best`` (the newest published best so far
 the report's choice), ``current`` (the partner's current policy: the best
 individual of its latest generation, published every generation on its own key),
 ``recent`` (each generation, one of the last ``recent`` bests at random) and ``hall``
-(a hall of fame, after Rosin & Belew: the newest best, as ``best``, and beside it
-``hall_sample`` of the partner's past bests, its initial model included, drawn
-afresh every generation without replacement; the population plays a share
-``hall_share`` of its episodes against them, split evenly, the rest against the
-newest best, so a generation costs what it costs under ``best``; the best's
-re-evaluation, and so the learning curve, is against the newest best alone.  Where
-a task needs several partners, each sampled opponent is one past best of each
-(the newest where a partner has no past yet).  docs/competition.md says why.)
+(a hall of fame, after Rosin & Belew: every generation's best the partner published,
+as ``current`` takes them, its initial model first; the newest, as ``current``, and
+beside it ``hall_sample`` of the earlier ones, drawn afresh every generation without
+replacement; the population plays a share ``hall_share`` of its episodes against
+them, split evenly, the rest against the newest, so a generation costs what it
+costs under ``best``; the best's re-evaluation, and so the learning curve, is
+against the newest alone.  Where a task needs several partners, each sampled
+opponent is one past best of each (the newest where a partner has no past yet).
+docs/competition.md says why.)
 """
 
 from __future__ import annotations
@@ -75,6 +76,11 @@ class PartnerModels:
             self._bests[b] = [initial_model(self.task, b, world, self.ga, rng)]
             self.versions[b] = 0
         self._rng = np.random.default_rng([self.seed, 11])
+
+    @property
+    def generational(self) -> bool:
+        """Does it model partners by each generation's best (their ``current`` key), not by their published bests?"""
+        return self.kind in ("current", "hall")
 
     def adopt(self, behaviour: str, version: int, rules: RuleSet) -> bool:
         """Take a newer version of a partner; False if it is not newer or not needed."""
