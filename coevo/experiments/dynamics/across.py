@@ -25,10 +25,10 @@ from typing import Any
 import numpy as np
 
 from coevo.errors import ConfigError, RunDirError
-from coevo.experiments.dynamics.command import DONE
+from coevo.experiments.dynamics.matrix import DONE, interval
 from coevo.replicates.replicate import Replicate
 
-__all__ = ["find_runs", "replicates", "summarise", "DONE"]
+__all__ = ["find_runs", "replicates", "summarise"]
 
 
 
@@ -107,7 +107,6 @@ def _scores(run: Path, group: str, span: tuple[int, int]) -> list[_Scores]:
 def summarise(root: Path, runs: Sequence[Path], groups: dict[Path, str], spans: dict[Path, tuple[int, int]],
               out: Path) -> list[str]:
     """The summary files in ``out`` (a staged folder); their names."""
-    from coevo.experiments.dynamics.command import _interval  # the per-run master tournament's interval
     from coevo.rundir.layout import write_csv, write_json
 
     scores = [s for run in runs for s in _scores(run, groups[run], spans[run])]
@@ -120,7 +119,7 @@ def summarise(root: Path, runs: Sequence[Path], groups: dict[Path, str], spans: 
             mine = [s for s in scores if (s.learner, s.partner, s.group) == (learner, partner, group)]
             for g in sorted({g for s in mine for g in s.by_generation}):
                 x = np.array([s.by_generation[g] for s in mine if g in s.by_generation])
-                lo, hi = _interval(x)
+                lo, hi = interval(x)
                 rows.append({"group": group, "generation": g, "runs": len(x), "mean": round(float(x.mean()), 6),
                              "low95": lo, "high95": hi})
         name = f"summary-{learner}-{partner}"

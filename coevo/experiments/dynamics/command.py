@@ -26,10 +26,7 @@ from coevo.console import ProgressBar, count_arg, seed_arg
 from coevo.errors import ConfigError, RunDirError
 from coevo.replicates.flags import add_backend_flags, check_backend_flags
 
-__all__ = ["configure_dynamics", "DONE"]
-
-#: What a run's dynamics/ says it was played with, written last (coevo.experiments.dynamics.across reads it).
-DONE = "dynamics.json"
+__all__ = ["configure_dynamics"]
 
 
 def configure_dynamics(p: argparse.ArgumentParser) -> None:
@@ -88,7 +85,7 @@ def cmd_dynamics(args: argparse.Namespace) -> int:
 
 
 def _one(args: argparse.Namespace) -> int:
-    from coevo.experiments.dynamics.matrix import play_matrix, versions_of, within
+    from coevo.experiments.dynamics.matrix import DONE, play_matrix, versions_of, within
     from coevo.rundir.layout import write_json
 
     settings, task, world, ga, paths, pairs, span = _readable(Path(args.run), args.generations)
@@ -164,6 +161,7 @@ def _write(out: Path, m: Any) -> list[str]:
     """The matrix and its master tournament, as CSV and PNG; the files' names."""
     import numpy as np
 
+    from coevo.experiments.dynamics.matrix import interval
     from coevo.rundir.layout import write_csv
 
     a, b = m.learner.behaviour, m.partner.behaviour
@@ -173,7 +171,7 @@ def _write(out: Path, m: Any) -> list[str]:
     write_csv(out / f"ciao-{a}-{b}.csv", rows)
     master = []
     for i, (v, g) in enumerate(zip(m.learner.version, m.learner.generation, strict=True)):
-        lo, hi = _interval(m.fitness[i])
+        lo, hi = interval(m.fitness[i])
         ancestors = [j for j, gb in enumerate(m.partner.generation) if gb <= g]
         master.append({"version": v, "generation": g, "mean": round(float(m.fitness[i].mean()), 6),
                        "low95": lo, "high95": hi, "partner_versions": len(m.fitness[i]),
@@ -181,17 +179,6 @@ def _write(out: Path, m: Any) -> list[str]:
     write_csv(out / f"master-{a}-{b}.csv", master)
     _draw(out, m, master)
     return [f"ciao-{a}-{b}.csv", f"ciao-{a}-{b}.png", f"master-{a}-{b}.csv", f"master-{a}-{b}.png"]
-
-
-def _interval(x: Any) -> tuple[float | None, float | None]:
-    """A 95 % t interval of the mean of ``x``; none below three values (too few for one to hold)."""
-    import numpy as np
-    from scipy import stats
-
-    if len(x) < 3:
-        return None, None
-    half = float(stats.t.ppf(0.975, len(x) - 1) * np.std(x, ddof=1) / np.sqrt(len(x)))
-    return round(float(np.mean(x)) - half, 6), round(float(np.mean(x)) + half, 6)
 
 
 def _draw(out: Path, m: Any, master: list[dict[str, Any]]) -> None:

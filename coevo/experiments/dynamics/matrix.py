@@ -24,7 +24,21 @@ from coevo.errors import RunDirError
 from coevo.policy.rules import RuleSet
 from coevo.rundir.layout import RunPaths, read_store
 
-__all__ = ["Versions", "Matrix", "versions_of", "within", "pairs_of", "play_matrix", "read_run", "check_finished"]
+__all__ = ["DONE", "interval", "Versions", "Matrix", "versions_of", "within", "pairs_of", "play_matrix", "read_run",
+           "check_finished"]
+
+#: What a run's dynamics/ says it was played with, written last (a folder of runs' summary reads it).
+DONE = "dynamics.json"
+
+
+def interval(x: Any) -> tuple[float | None, float | None]:
+    """A 95 % t interval of the mean of ``x``; none below three values (too few for one to hold)."""
+    from scipy import stats
+
+    if len(x) < 3:
+        return None, None
+    half = float(stats.t.ppf(0.975, len(x) - 1) * np.std(x, ddof=1) / np.sqrt(len(x)))
+    return round(float(np.mean(x)) - half, 6), round(float(np.mean(x)) + half, 6)
 
 
 @dataclass(frozen=True)
