@@ -171,6 +171,10 @@ def test_a_pursuit_mutual_run_with_the_hall_replays_exactly(pursuit_site: Path, 
     published = len((tmp_path / "runs/chase/workers/evader/published.jsonl").read_text().splitlines())
     assert len(adopted) >= 4 and adopted == sorted(adopted) and max(adopted) <= 6  # every generation's best, by number
     assert len(adopted) >= published
+    r = _run(["coevo", "dynamics", "runs/chase", "--episodes", "2", "--quiet"], pursuit_site, tmp_path)
+    assert r.returncode == 0, r.stdout + r.stderr
+    header = (tmp_path / "runs/chase/dynamics/ciao-pursuer-evader.csv").read_text().splitlines()[0].split(",")
+    assert [c for c in header if "@" in c] == [f"evader@{v}" for v in sorted(set(adopted))]  # what the pursuer met
     r = _run(["python", "-c", "import sys; from pathlib import Path; sys.path.insert(0, sys.argv[2]); "
               "from test_hall_of_fame import _as_best; print(_as_best(Path(sys.argv[1]), Path(sys.argv[3])))",
               str(tmp_path / "runs/chase"), str(Path(__file__).parent), str(tmp_path)], pursuit_site, tmp_path)

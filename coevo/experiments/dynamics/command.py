@@ -8,6 +8,10 @@ For every behaviour and every partner it learned against (:mod:`.matrix`), writt
   t interval over the partner versions (none below three), and the mean over the partner versions published up
   to it (its ancestors, CIAO's lower triangle) beside the mean over all of them.
 
+In a run whose partner model is each generation's best (``--model current`` or ``hall``) the versions played are
+every generation's best the partners adopted (their adoption logs), not the bests so far the store holds: what
+each side met.
+
 ``--generations A:B`` keeps the versions published at generations A to B and, for each behaviour, the one in play
 at A (the last published by then).  Only a finished run is read (every worker's ``done.json`` says finished);
 every matrix is played before anything is written, and ``RUN/dynamics/`` is replaced whole, so a refusal or a
@@ -85,11 +89,16 @@ def cmd_dynamics(args: argparse.Namespace) -> int:
 
 
 def _one(args: argparse.Namespace) -> int:
-    from coevo.experiments.dynamics.matrix import DONE, play_matrix, versions_of, within
+    from coevo.experiments.dynamics.matrix import DONE, adopted_versions, play_matrix, versions_of, within
     from coevo.rundir.layout import write_json
 
     settings, task, world, ga, paths, pairs, span = _readable(Path(args.run), args.generations)
-    versions = {b: within(versions_of(paths, b), *span) for b in {x for pair in pairs for x in pair}}
+    generational = settings.model in ("current", "hall")  # the partners met every generation's best: play those
+
+    def played(b: str) -> Any:
+        return adopted_versions(paths, b, task, settings.regime) if generational else versions_of(paths, b)
+
+    versions = {b: within(played(b), *span) for b in {x for pair in pairs for x in pair}}
     final = {b: v.rules[-1] for b, v in versions.items()}
     matrices = []
     with ProgressBar("dynamics", total=sum(len(versions[b].rules) for _, b in pairs), unit="columns",

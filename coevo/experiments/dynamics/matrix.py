@@ -24,7 +24,7 @@ from coevo.errors import RunDirError
 from coevo.policy.rules import RuleSet
 from coevo.rundir.layout import RunPaths, read_store
 
-__all__ = ["DONE", "interval", "Versions", "Matrix", "versions_of", "within", "pairs_of", "play_matrix", "read_run",
+__all__ = ["DONE", "interval", "Versions", "Matrix", "versions_of", "adopted_versions", "within", "pairs_of", "play_matrix", "read_run",
            "check_finished"]
 
 #: What a run's dynamics/ says it was played with, written last (a folder of runs' summary reads it).
@@ -74,6 +74,25 @@ def versions_of(run: RunPaths, behaviour: str) -> Versions:
     ordered = [by_version[v] for v in sorted(by_version)]
     return Versions(behaviour, tuple(u.version for u in ordered), tuple(u.generation for u in ordered),
                     tuple(u.ruleset() for u in ordered))
+
+
+def adopted_versions(run: RunPaths, behaviour: str, task: Any, regime: str) -> Versions:
+    """The versions of ``behaviour`` its partners adopted (their adoption logs hold the rules): under a model by each
+    generation's best (``current``, ``hall``) every generation's best they met, by generation (the version is the
+    generation), which the store does not hold."""
+    from coevo.rundir.layout import read_jsonl
+    from coevo.rundir.records import AdoptionLine
+
+    met: dict[int, RuleSet] = {}
+    for a in task.behaviours:
+        if behaviour in task.partners_needed(a, regime):
+            for row in read_jsonl(run.worker(a).adoptions, schema=AdoptionLine):
+                if row["partner"] == behaviour and row.get("rules") is not None:
+                    met.setdefault(int(row["version"]), RuleSet.from_dict(row["rules"]))
+    if not met:
+        raise RunDirError(f"{run.dir}: no partner of {behaviour} adopted any of its generations' bests")
+    order = sorted(met)
+    return Versions(behaviour, tuple(order), tuple(order), tuple(met[v] for v in order))
 
 
 def within(v: Versions, first: int, last: int) -> Versions:
