@@ -2,7 +2,8 @@
 
     python benchmarks/dynamics.py RUN_DIR [--episodes 60] [--seed 1] [--every-generation]
 
-Plays what ``coevo dynamics RUN_DIR`` plays (every published version of each behaviour against every published
+Plays what ``coevo dynamics RUN_DIR`` plays (every published version, or in a run modelled by each generation's
+best every generation's best the partners adopted, of each behaviour against every published
 version of each partner it learned against, ``--episodes`` fresh episodes a cell), in this process, without
 writing; the run's reading and the imports are not timed.  ``--every-generation`` plays the tournament a run that
 published a new best every generation would need: for each generation 1..G the version in play then (the last
@@ -23,7 +24,8 @@ import time
 from pathlib import Path
 
 from coevo.errors import CoevoError
-from coevo.experiments.dynamics.matrix import Versions, check_finished, pairs_of, play_matrix, read_run, versions_of
+from coevo.experiments.dynamics.matrix import (Versions, adopted_versions, check_finished, pairs_of, play_matrix, read_run,
+                                               versions_of)
 
 
 def every_generation(v: Versions, generations: int) -> Versions:
@@ -46,7 +48,9 @@ def main() -> int:
         settings, task, world, ga, paths = read_run(a.run)
         check_finished(paths, task, settings.ga.generations)
         pairs = pairs_of(task, settings.regime)
-        versions = {b: versions_of(paths, b) for pair in pairs for b in pair}
+        generational = settings.model in ("current", "hall")  # as the command plays them: what the partners met
+        versions = {b: adopted_versions(paths, b, task, settings.regime) if generational else versions_of(paths, b)
+                    for pair in pairs for b in pair}
     except CoevoError as exc:
         print(f"{type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
