@@ -23,15 +23,20 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from coevo.errors import ConfigError
 
-__all__ = ["pairs", "Bounded", "MAX_MAGNITUDE", "Settings", "GAConfig", "build", "did_you_mean", "MODELS", "DEFAULT_MAX_LEAD",
+__all__ = ["pairs", "Bounded", "MAX_MAGNITUDE", "Settings", "GAConfig", "build", "did_you_mean", "MODELS", "HALL_SAMPLE", "HALL_SHARE", "DEFAULT_MAX_LEAD",
            "parse_max_lead", "SAVED_GA_BEFORE",
            "saved_ga"]
 
 _M = TypeVar("_M", bound=BaseModel)
 
 #: How a worker models a partner (:mod:`coevo.agents.models`): its best so far (the report's choice),
-#: its current policy, or one drawn from its recent best.
-MODELS = ("best", "current", "recent")
+#: its current policy, one drawn from its recent best, or its best so far beside a sample of its past bests
+#: (a hall of fame, Rosin & Belew).
+MODELS = ("best", "current", "recent", "hall")
+#: The hall of fame's defaults (:mod:`coevo.agents.models`, docs/competition.md): past bests sampled for each
+#: generation, and the share of the population's episodes played against them.
+HALL_SAMPLE = 3
+HALL_SHARE = 0.5
 #: Pacing (:mod:`coevo.agents.pacing`): generations a worker may lead its slowest partner.
 DEFAULT_MAX_LEAD = 1
 

@@ -58,7 +58,7 @@ class Inbox:
         self.stop = threading.Event()
         self.refetch = True  # ask the store for the partners' latest before the next generation
         self._fetched: list[tuple[str, bytes]] = []  # partner policies fetched from the store
-        self._partner_key = keys.current if models.kind == "current" else keys.policy
+        self._partner_key = keys.current if models.generational else keys.policy
         self._subs: list[Ring] = []
         self._control: Ring | None = None
 
@@ -89,7 +89,7 @@ class Inbox:
         if not self.refetch:
             return
         self.refetch = False
-        if self.models.kind == "current" or not self.models.needed or not self.broker.up.is_set():
+        if self.models.generational or not self.models.needed or not self.broker.up.is_set():
             return  # current policies are not stored; the next generation's arrives within a generation
         for b in self.models.needed:
             try:
@@ -102,7 +102,7 @@ class Inbox:
     def _in_sequence(self, msg: PolicyUpdate) -> None:
         """A version beyond what its publisher can have reached since the one held is ``bad_version``."""
         held = self._held.get(msg.behaviour)
-        if held is None or msg.version <= held[0] or self.models.kind == "current":
+        if held is None or msg.version <= held[0] or self.models.generational:
             return  # "current" versions are generations, checked by the gate
         if msg.version - held[0] > msg.generation - held[1]:
             raise MessageError("bad_version", f"{msg.behaviour} v{msg.version} at generation {msg.generation} after "

@@ -37,7 +37,7 @@ from typing import IO, Any
 from coevo import __version__
 from coevo.agents.checkpoint import cut_logs, prepare_dir, resume_problems, resume_state, save_checkpoint
 from coevo.agents.inbox import INBOX, Inbox
-from coevo.agents.models import PartnerModels
+from coevo.agents.models import PartnerModels, hall_settings
 from coevo.agents.outbox import BrokerWatch, Outbox
 from coevo.agents.pacing import Pacer
 from coevo.bus import keys
@@ -100,7 +100,8 @@ class Worker:
         self.paths = WorkerPaths(Path(out_dir))
         self.conf = conf
         self.models = PartnerModels(self.task, self.behaviour, self.regime, self.seed, kind=settings.model, ga=settings.ga,
-                                    world=self.world)
+                                    world=self.world, **hall_settings(settings.model, settings.hall_sample,
+                                                                      settings.hall_share))
         self.store_timeout = store_timeout
         self.broker_wait = broker_wait
         self.final_sync = final_sync
@@ -139,6 +140,7 @@ class Worker:
             "coevo": __version__, "task": self.task.name, "behaviour": self.behaviour, "regime": self.regime,
             "run": self.run_id, "worker": self.worker_id, "seed": self.seed, "model": self.models.kind,
             "max_lead": self.max_lead, "world": self.world.model_dump(mode="json"), "ga": self.ga_cfg.model_dump(mode="json"),
+            **hall_settings(self.models.kind, self.models.hall_sample, self.models.hall_share),
         }
 
     def _ident(self) -> dict[str, Any]:
@@ -220,7 +222,7 @@ class Worker:
     def generation(self, ga: GA) -> tuple[GenerationReport, RuleSet | None, float]:
         """One generation: its report, the new best so far to publish (None: no improvement), the best so far's
         fitness."""
-        rep = ga.generation(self.models.partners(), tick=self._tick)
+        rep = ga.generation(self.models.partners(), tick=self._tick, mixture=self.models.mixture(ga.cfg.episodes))
         return rep, (ga.played(ga.best) if rep.improved and ga.best is not None else None), rep.best_so_far
 
     def take_in(self, inbox: Inbox, completed: int) -> None:

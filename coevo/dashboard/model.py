@@ -80,6 +80,34 @@ class Curve:
         return len(self.generation)
 
 
+@dataclass(frozen=True)
+class Dynamics:
+    """A finished run's ``coevo dynamics`` pictures (RUN/dynamics): what they were played with (its dynamics.json)
+    and each PNG, base64, by name: per pair the master tournament, then the CIAO matrix."""
+
+    played: dict[str, Any]
+    pictures: tuple[tuple[str, str], ...]
+    stamp: float  # dynamics.json's time of change: a new coevo dynamics redraws the page
+
+    @staticmethod
+    def read(run: Path) -> Dynamics | None:
+        import base64
+
+        done = run / "dynamics" / "dynamics.json"
+        played = _read_json(done)
+        if played is None:
+            return None
+        pictures = []
+        for pair in played.get("pairs") or []:
+            for kind in ("master", "ciao"):
+                png = run / "dynamics" / f"{kind}-{'-'.join(map(str, pair))}.png"
+                try:
+                    pictures.append((png.name, base64.b64encode(png.read_bytes()).decode("ascii")))
+                except OSError:
+                    continue
+        return Dynamics(played, tuple(pictures), mtime(done))
+
+
 @dataclass
 class RunView:
     """One run as the page shows it."""
@@ -96,6 +124,7 @@ class RunView:
     external: Curve | None = None  # a CEL run's external performance per generation
     final: dict[str, float] = field(default_factory=dict)  # summary.json's measures of the combined robot
     problems: list[str] = field(default_factory=list)
+    dynamics: Dynamics | None = None  # what coevo dynamics drew of a finished run (RUN/dynamics), if it has
 
 
 @dataclass
@@ -118,7 +147,8 @@ class View:
         runs = [{"run": r.run, "source": r.source, "state": r.state, "workers": [worker(w) for w in r.workers],
                  "robots": [worker(w) for w in r.robots], "broker": r.broker, "final": r.final, "problems": r.problems,
                  "curves": {k: len(c) for k, (_, c) in r.curves.items()},
-                 "external": len(r.external) if r.external else 0} for r in self.runs]
+                 "external": len(r.external) if r.external else 0,
+                 "dynamics": r.dynamics.stamp if r.dynamics else None} for r in self.runs]
         def short(c: dict[str, Any] | None) -> dict[str, Any] | None:  # a comparison's "lengths" stand for its
             # panels: a panel changes only when a curve grows or a run's state moves
             return {k: v for k, v in c.items() if k != "panels"} if c else None
@@ -265,6 +295,7 @@ class RunFiles:
         self._external = Curve()
         self._performance = Tail(self.paths.execution.performance)
         self.settings: dict[str, Any] | None = None
+        self._dynamics: Dynamics | None = None
 
     @property
     def run(self) -> str:
@@ -312,9 +343,13 @@ class RunFiles:
             problems.append(f"{self.paths.dir} holds no run.json and no workers yet")
         broker = {"state": "files", "open": bool((summary or {}).get("open", s.get("key_file") is None)),
                   "stored": dict(self._stored), "rejected": {}, "dropped": 0, "degraded": ""}
+        stamp = mtime(self.paths.dir / "dynamics" / "dynamics.json")
+        if stamp != (self._dynamics.stamp if self._dynamics else 0.0):
+            self._dynamics = Dynamics.read(self.paths.dir) if stamp else None
         return RunView(run=self.run, source="files", task=task, regime=str(s.get("regime", "?")), state=state,
                        workers=sorted(workers, key=lambda w: w["worker"]), broker=broker, curves=curves,
-                       external=self._external if self._external else None, final=final, problems=problems)
+                       external=self._external if self._external else None, final=final, problems=problems,
+                       dynamics=self._dynamics if state == "done" else None)
 
 
 # ---------------------------------------------------------------- the bus
@@ -466,7 +501,8 @@ def _merge(bus: RunView, files: RunView) -> RunView:
     return RunView(run=bus.run, source="bus+files", task=files.task, regime=files.regime if files.regime != "?" else bus.regime,
                    state=state, workers=bus.workers or files.workers,
                    robots=bus.robots, broker=bus.broker, curves=curves, external=files.external or bus.external,
-                   final=files.final, problems=(bus.problems if state != "done" else []) + files.problems)
+                   final=files.final, problems=(bus.problems if state != "done" else []) + files.problems,
+                   dynamics=files.dynamics)
 
 
 #: A study's cells whose comparison is read: those a page asked for (:meth:`Dashboard.want`) in the last WANTED_FOR

@@ -326,6 +326,24 @@ def external_lines(view: View) -> dict[str, list[Any]]:
 ROBOT_RULES = 12  # rules listed per rule set: the strongest that fired
 
 
+def dynamics_html(view: View) -> str:
+    """Each finished run's ``coevo dynamics`` pictures (master tournament, CIAO matrix per pair), when it has them."""
+    parts = []
+    for r in view.runs:
+        d = r.dynamics
+        if d is None or not d.pictures:
+            continue
+        span = d.played.get("generations") or ["?", "?"]
+        parts.append(f'<h3 class="coevo">Dynamics of {_e(r.run)}</h3><p style="font:12px sans-serif;color:#555;'
+                     f'margin:0">every published version against every partner version, generations {_e(span[0])} to '
+                     f'{_e(span[-1])}, {_e(d.played.get("episodes", "?"))} episodes a cell from seed '
+                     f'{_e(d.played.get("seed", "?"))} (coevo dynamics {_e(r.run)}; how to read them: '
+                     'docs/competition.md)</p>')
+        parts += [f'<img class="dynamics" alt="{_e(name)}" title="{_e(name)}" style="max-width:49%" '
+                  f'src="data:image/png;base64,{png}"/>' for name, png in d.pictures]
+    return (_STYLE + "".join(parts)) if parts else ""
+
+
 def robot_html(view: View) -> str:
     """The drawn robot of one run: its picture (an inline PNG, shown at its own size: its smallest text is
     robot.TEXT_PX) and each rule set's strongest rules that fired; or why there is none and how to have one."""

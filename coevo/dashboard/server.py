@@ -57,6 +57,7 @@ class _Page:
         self.workers = Div(text="", name="workers", sizing_mode="stretch_width")
         self.comparison = Div(text="", name="comparison", sizing_mode="stretch_width")
         self.robot = Div(text="", name="robot", sizing_mode="stretch_width")
+        self.dynamics = Div(text="", name="dynamics", sizing_mode="stretch_width")
         self.fitness_row = row(sizing_mode="stretch_width")
         self.measures_row = row(sizing_mode="stretch_width")
         self.external_row = row(sizing_mode="stretch_width")
@@ -85,7 +86,7 @@ class _Page:
                             self.robot, sizing_mode="stretch_width")
         else:
             layout = column(self.title, self.banner, self.runs, self.workers, self.fitness_row, self.measures_row,
-                            self.external_row, self.comparison, self.robot, sizing_mode="stretch_width")
+                            self.external_row, self.comparison, self.dynamics, self.robot, sizing_mode="stretch_width")
         self.update()  # before the layout is the document's: a change to a model held by a document costs a walk
         doc.add_root(layout)  # over all of its models (seconds for a comparison's hundred), one here costs nothing
         doc.add_periodic_callback(self.update, REDRAW)
@@ -154,6 +155,7 @@ class _Page:
         self.workers.text = render.workers_html(view)
         self.comparison.text = render.comparison_html(view)
         self.robot.text = render.robot_html(view)
+        self.dynamics.text = render.dynamics_html(view)
         if self.regimes is not None:
             self.regimes.update(view)
             return

@@ -30,7 +30,7 @@ from pydantic import BaseModel
 
 from coevo.config import GAConfig
 from coevo.errors import ConfigError
-from coevo.ga.evaluator import Evaluation, Partners, Tick
+from coevo.ga.evaluator import Evaluation, Mixture, Partners, Tick, pooled
 from coevo.ga.mutation import CONTROL_LEVELS, MutationModel, model_from_config
 from coevo.ga.operators import Experience, cover, crossover, delete, generalise, select_parents, specialise, split, trim
 from coevo.ga.problem import Problem, check_behaviour, ga_settings
@@ -223,12 +223,18 @@ class GA:
     def _child_rng(self) -> np.random.Generator:
         return np.random.default_rng(int(self.rng.integers(2**63)))
 
-    def generation(self, partners: Partners, *, tick: Tick | None = None) -> GenerationReport:
+    def generation(self, partners: Partners, *, tick: Tick | None = None, mixture: Mixture | None = None) -> GenerationReport:
         """Run one generation against ``partners`` and breed the next population; ``tick`` is
-        called between episode rounds of the population's evaluation (a worker's heartbeat)."""
+        called between episode rounds of the population's evaluation (a worker's heartbeat).  With ``mixture``
+        the population plays each of its partner sets for its episodes instead (:func:`~coevo.ga.evaluator.pooled`);
+        the best's re-evaluation and measures are still against ``partners``."""
         t0 = time.perf_counter()
         cfg = self.cfg
-        ev = self.evaluator.evaluate(self.population, partners, self._child_rng(), tick=tick)
+        if mixture is None:
+            ev = self.evaluator.evaluate(self.population, partners, self._child_rng(), tick=tick)
+        else:
+            ev = pooled([self.evaluator.evaluate(self.population, p, self._child_rng(), episodes=n, tick=tick)
+                         for p, n in mixture])
         self.last = ev
         learned = [
             update_strengths(p, e.fired, e.payoff, cfg.strength_rate) for p, e in zip(self.population, ev.experience)

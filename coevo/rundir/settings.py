@@ -20,7 +20,7 @@ from pydantic import BaseModel, Field, SerializerFunctionWrapHandler, field_vali
 from coevo.bus.auth import KEY_ENV, RunKey
 from coevo.bus.keys import check_id
 from coevo.bus.trust import Gate
-from coevo.config import DEFAULT_MAX_LEAD, MODELS, GAConfig, Settings, build
+from coevo.config import DEFAULT_MAX_LEAD, HALL_SAMPLE, HALL_SHARE, MODELS, GAConfig, Settings, build
 from coevo.errors import CoevoError, ConfigError, MessageError, RunDirError
 from coevo.rundir.kinds import KINDS
 from coevo.rundir.layout import RunPaths, read_json, write_json
@@ -38,7 +38,12 @@ class RunSettings(Settings):
     task: str = DEFAULT_TASK
     regime: str
     seed: int = Field(0, ge=0, lt=2**63, description="worker i of the task's behaviours uses seed + i")
-    model: Literal["best", "current", "recent"] = Field("best", description=f"how partners are modelled: {', '.join(MODELS)}")
+    model: Literal["best", "current", "recent", "hall"] = Field("best", description=f"how partners are modelled: "
+                                                                f"{', '.join(MODELS)}")
+    hall_sample: int = Field(HALL_SAMPLE, ge=1, le=1000, description="model hall: past bests of each partner sampled "
+                             "for each generation")
+    hall_share: float = Field(HALL_SHARE, gt=0.0, lt=1.0, description="model hall: the share of the population's "
+                              "episodes played against the sampled past bests, split evenly among them")
     max_lead: int | None = Field(DEFAULT_MAX_LEAD, ge=0, description="pacing: generations a worker may lead (None: unpaced)")
     world: dict[str, Any] = Field(default_factory=dict, description="the task's world settings")
     ga: GAConfig = GAConfig()
@@ -73,12 +78,13 @@ class RunSettings(Settings):
 
     @model_serializer(mode="wrap")
     def _spread_blocks(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
-        """Each kind's block back at run.json's top level, where the "blocks" field stands (as runs always kept it)."""
+        """Each kind's block back at run.json's top level, where the "blocks" field stands (as runs always kept it);
+        the hall of fame's settings only where the partner model is the hall (other runs' run.json as it always was)."""
         out: dict[str, Any] = {}
         for k, v in handler(self).items():
             if k == "blocks":
                 out.update(v)
-            else:
+            elif not (k.startswith("hall_") and self.model != "hall"):
                 out[k] = v
         return out
 

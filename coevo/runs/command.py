@@ -25,7 +25,7 @@ from coevo.console import (
     seed_arg,
     task_arg,
 )
-from coevo.config import DEFAULT_MAX_LEAD, MODELS
+from coevo.config import DEFAULT_MAX_LEAD, HALL_SAMPLE, HALL_SHARE, MODELS, Bounded
 from coevo.errors import ConfigError, RunDirError
 
 __all__ = ["configure_run", "configure_worker", "configure_chaos", "configure_status", "configure_keygen",
@@ -34,7 +34,7 @@ __all__ = ["configure_run", "configure_worker", "configure_chaos", "configure_st
 GA_FLAGS = ("generations", "population", "episodes", "world", "ga")  # the settings flags of console.add_settings
 WIDTH = 110  # characters of a line of the run's last words
 
-RUN_FLAGS = ("task", "regime", "seed", "model", "max_lead", *GA_FLAGS)  # and a run's
+RUN_FLAGS = ("task", "regime", "seed", "model", "hall_sample", "hall_share", "max_lead", *GA_FLAGS)  # and a run's
 
 
 
@@ -64,9 +64,23 @@ def add_run_settings(p: argparse.ArgumentParser, *, defaults_note: bool = True) 
     """A run's settings flags (task, seed, partner model, pacing, GA and world), shared by run and worker."""
     p.add_argument("--task", type=task_arg, help="the task (default fuel; coevo plugins lists those installed)")
     p.add_argument("--seed", type=seed_arg, help="default 0" + ("; worker i of the task's behaviours uses seed + i" if defaults_note else ""))
-    p.add_argument("--model", choices=MODELS, help="how partners are modelled (default best so far)")
+    p.add_argument("--model", choices=MODELS, help="how partners are modelled (default best so far; hall: the best so "
+                   "far and a sample of past bests, docs/competition.md)")
+    p.add_argument("--hall-sample", type=Bounded(1, 1000), metavar="N",
+                   help=f"--model hall: past bests sampled each generation (default {HALL_SAMPLE})")
+    p.add_argument("--hall-share", type=Bounded(0, 1, whole=False, above=True), metavar="SHARE",
+                   help=f"--model hall: share of the episodes played against them, below 1 (default {HALL_SHARE})")
     add_max_lead(p)
     add_settings(p)
+
+
+def model_settings(args: argparse.Namespace) -> dict[str, object]:
+    """The partner model's settings from ``--model`` and the hall of fame's flags, which only ``--model hall`` takes."""
+    model = args.model or "best"
+    if model != "hall":
+        refuse(args, ("hall_sample", "hall_share"), f"the hall of fame's flags are for --model hall, not {model}")
+    given = {k: getattr(args, k) for k in ("hall_sample", "hall_share") if getattr(args, k, None) is not None}
+    return {"model": model, **given}
 
 
 def configure_run(p: argparse.ArgumentParser) -> None:
@@ -119,7 +133,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             task = args.task or DEFAULT_TASK
             regime = args.regime or "independent"
             settings = RunSettings.make(run=args.run or default_run_id(regime), task=task, regime=regime,
-                                        seed=args.seed or 0, model=args.model or "best",
+                                        seed=args.seed or 0, **model_settings(args),
                                         max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
                                         **_given(args, task))
         if (kind := kind_of_settings(settings)) is not COEVOLUTION:
@@ -225,7 +239,8 @@ def cmd_worker(args: argparse.Namespace) -> int:
     from coevo.tasks.base import check_behaviour
 
     if args.settings:
-        refuse(args, ("task", "regime", "run", "model", "max_lead", *GA_FLAGS), "--settings gives every run setting")
+        refuse(args, ("task", "regime", "run", "model", "hall_sample", "hall_share", "max_lead", *GA_FLAGS),
+               "--settings gives every run setting")
         settings = RunSettings.load(Path(args.settings))
         base: Path | None = Path(args.settings).parent
     else:
@@ -234,7 +249,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
             raise ConfigError("give --settings RUN/run.json (a run's settings), or --run and --regime")
         task = args.task or DEFAULT_TASK
         settings = RunSettings.make(run=args.run, task=task, regime=args.regime, seed=args.seed or 0,
-                                    model=args.model or "best", max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
+                                    **model_settings(args), max_lead=max_lead_of(args.max_lead, DEFAULT_MAX_LEAD),
                                     **_given(args, task))
     check_behaviour(settings.the_task, args.behaviour)
     kind = kind_of_settings(settings).worker()  # another kind's learner (coevo.rundir.kinds) plugs into the worker's seam

@@ -21,8 +21,8 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from coevo.agents.models import PartnerModels
-from coevo.config import GAConfig, build
+from coevo.agents.models import PartnerModels, hall_settings
+from coevo.config import HALL_SAMPLE, HALL_SHARE, GAConfig, build
 from coevo.errors import RunDirError
 from coevo.ga import GA
 from coevo.policy.rules import RuleSet
@@ -81,7 +81,9 @@ def replay_worker(wdir: Path, store: dict[tuple[str, str, int], RuleSet], *, unt
 def _rows(w: WorkerPaths, task: Task, behaviour: str, meta: dict[str, Any], world: BaseModel, ga_cfg: GAConfig,
           store: dict[tuple[str, str, int], RuleSet]) -> Iterator[dict[str, Any]]:
     """A co-evolution worker's curve, again: its GA fed the partner versions it adopted, when it adopted them."""
-    models = PartnerModels(task, behaviour, meta["regime"], meta["seed"], kind=meta["model"], ga=ga_cfg, world=world)
+    models = PartnerModels(task, behaviour, meta["regime"], meta["seed"], kind=meta["model"], ga=ga_cfg, world=world,
+                           **hall_settings(meta["model"], meta.get("hall_sample", HALL_SAMPLE),
+                                           meta.get("hall_share", HALL_SHARE)))
     ga = GA(task, behaviour, world=world, ga=ga_cfg, seed=meta["seed"])
     by_gen = by_generation(read_jsonl(w.adoptions, schema=AdoptionLine))
     g = 0
@@ -95,7 +97,7 @@ def _rows(w: WorkerPaths, task: Task, behaviour: str, meta: dict[str, Any], worl
             else:
                 raise RunDirError(f"{w.dir.name}: adopted {key} is neither in the log nor in the store; the run directory is incomplete")
             models.adopt(a["partner"], a["version"], rules)
-        yield ga.generation(models.partners()).as_dict()
+        yield ga.generation(models.partners(), mixture=models.mixture(ga.cfg.episodes)).as_dict()
         g += 1
 
 

@@ -7,41 +7,100 @@ For every behaviour and every partner it learned against (:mod:`.matrix`), writt
 * ``master-LEARNER-PARTNER.csv`` and ``.png``: each learner version's mean over every partner version, with a 95 %
   t interval over the partner versions (none below three), and the mean over the partner versions published up
   to it (its ancestors, CIAO's lower triangle) beside the mean over all of them.
+
+In a run whose partner model is each generation's best (``--model current`` or ``hall``) the versions played are
+every generation's best the partners adopted (their adoption logs), not the bests so far the store holds: what
+each side met.
+
+``--generations A:B`` keeps the versions published at generations A to B and, for each behaviour, the one in play
+at A (the last published by then).  Only a finished run is read (every worker's ``done.json`` says finished);
+every matrix is played before anything is written, and ``RUN/dynamics/`` is replaced whole, so a refusal or a
+stop leaves the run as it was.
 """
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from coevo.console import ProgressBar, count_arg, seed_arg
-from coevo.errors import ConfigError
+from coevo.errors import ConfigError, RunDirError
+from coevo.replicates.flags import add_backend_flags, check_backend_flags
 
 __all__ = ["configure_dynamics"]
 
 
 def configure_dynamics(p: argparse.ArgumentParser) -> None:
-    p.add_argument("run", metavar="RUN_DIR", help="a finished coevo run directory")
+    p.add_argument("run", metavar="RUN_DIR", help="a finished coevo run directory, or a folder of them (a comparison, "
+                   "a study): each run's dynamics and a summary across them in DIR/dynamics")
     p.add_argument("--episodes", type=count_arg(1, 100_000), default=60,
                    help="fresh episodes per cell, the same for every cell (default 60)")
     p.add_argument("--seed", type=seed_arg, default=1, help="the seed of those episodes (default 1)")
+    p.add_argument("--generations", type=generation_range, metavar="A:B",
+                   help="only the versions published at generations A to B (and each side's in play at A); "
+                        "default the whole run")
     p.add_argument("--quiet", action="store_true", help="no progress display")
+    add_backend_flags(p, jobs_help="with a folder of runs: runs played at a time on this machine (default 2)")
     p.set_defaults(func=cmd_dynamics)
 
 
-def cmd_dynamics(args: argparse.Namespace) -> int:
-    from coevo.experiments.dynamics.matrix import pairs_of, play_matrix, read_run, versions_of
-    from coevo.rundir.layout import ensure_dir
+def generation_range(text: str) -> tuple[int, int]:
+    """``A:B``, whole numbers with 0 <= A <= B (whether the run has them is checked against the run)."""
+    shown = text if len(text) <= 40 else text[:40] + "..."
+    parts = text.strip().split(":")
+    if len(parts) != 2 or not all(x.strip().isdigit() for x in parts):
+        raise argparse.ArgumentTypeError(f"invalid generation range {shown!r}: give A:B, whole numbers, e.g. 0:50")
+    a, b = int(parts[0]), int(parts[1])
+    if a > b:
+        raise argparse.ArgumentTypeError(f"invalid generation range {shown!r}: A must not exceed B")
+    return a, b
 
-    settings, task, world, ga, paths = read_run(Path(args.run))
+
+def _readable(run: Path, generations: tuple[int, int] | None) -> tuple[Any, Any, Any, Any, Any, list[tuple[str, str]],
+                                                                      tuple[int, int]]:
+    """A run dynamics can play: (settings, task, world, GA settings, paths, pairs, generation span); else the one-line
+    refusal that names what is wrong."""
+    from coevo.experiments.dynamics.matrix import check_finished, pairs_of, read_run
+
+    settings, task, world, ga, paths = read_run(run)
     pairs = pairs_of(task, settings.regime)
     if not pairs:
-        raise ConfigError(f"{args.run}: in the {settings.regime} regime no behaviour of task {task.name!r} learns "
-                          "against another's policies: there is no matrix to play")
-    versions = {b: versions_of(paths, b) for b in {x for pair in pairs for x in pair}}
+        raise ConfigError(f"{run}: in the {settings.regime} regime no behaviour of task {task.name!r} learns "
+                          f"against another's policies (behaviours: {', '.join(task.behaviours)}): there is no "
+                          "matrix to play")
+    check_finished(paths, task, settings.ga.generations)
+    span = generations or (0, settings.ga.generations)
+    if span[1] > settings.ga.generations:
+        raise ConfigError(f"--generations {span[0]}:{span[1]}: run {settings.run} has generations 0 to "
+                          f"{settings.ga.generations}")
+    return settings, task, world, ga, paths, pairs, span
+
+
+def cmd_dynamics(args: argparse.Namespace) -> int:
+    check_backend_flags(args)
+    if not (Path(args.run) / "run.json").exists() and Path(args.run).is_dir():
+        return _many(args)
+    if args.jobs is not None or args.cluster is not None:
+        raise ConfigError(f"--jobs and --cluster are for a folder of runs; {args.run} is one run")
+    return _one(args)
+
+
+def _one(args: argparse.Namespace) -> int:
+    from coevo.experiments.dynamics.matrix import DONE, adopted_versions, play_matrix, versions_of, within
+    from coevo.rundir.layout import write_json
+
+    settings, task, world, ga, paths, pairs, span = _readable(Path(args.run), args.generations)
+    generational = settings.model in ("current", "hall")  # the partners met every generation's best: play those
+
+    def played(b: str) -> Any:
+        return adopted_versions(paths, b, task, settings.regime) if generational else versions_of(paths, b)
+
+    versions = {b: within(played(b), *span) for b in {x for pair in pairs for x in pair}}
     final = {b: v.rules[-1] for b, v in versions.items()}
-    out = ensure_dir(paths.dir / "dynamics", what="the dynamics' directory")
+    matrices = []
     with ProgressBar("dynamics", total=sum(len(versions[b].rules) for _, b in pairs), unit="columns",
                      quiet=args.quiet) as bar:
         done = 0
@@ -51,18 +110,67 @@ def cmd_dynamics(args: argparse.Namespace) -> int:
             def tick(j: int, n: int, first: int = done, what: str = f"{a} with {b}") -> None:
                 bar.update(first + j, info=what)
 
-            m = play_matrix(task, world, ga, versions[a], versions[b], others, episodes=args.episodes, seed=args.seed,
-                            tick=tick)
+            matrices.append(play_matrix(task, world, ga, versions[a], versions[b], others, episodes=args.episodes,
+                                        seed=args.seed, tick=tick))
             done += len(versions[b].rules)
+    with replaced_dir(paths.dir / "dynamics") as out:
+        for m in matrices:
             written = _write(out, m)
-            print(f"{a} with {b}: {m.fitness.shape[0]} x {m.fitness.shape[1]} versions: {', '.join(written)}")
+            print(f"{m.learner.behaviour} with {m.partner.behaviour}: {m.fitness.shape[0]} x {m.fitness.shape[1]} "
+                  f"versions: {', '.join(written)}")
+        write_json(out / DONE, {"episodes": args.episodes, "seed": args.seed, "generations": list(span),
+                                "pairs": [list(p) for p in pairs]})
     return 0
+
+
+def _many(args: argparse.Namespace) -> int:
+    """Every run under the folder ``args.run``, each checked before any is played; then the summary."""
+    from coevo.experiments.dynamics.across import find_runs, replicates, summarise
+    from coevo.replicates.flags import backend_of
+    from coevo.replicates.runner import run_replicates
+
+    root = Path(args.run).resolve()
+    runs = [r for r in find_runs(root) if r != root]
+    read = {r: _readable(r, args.generations) for r in runs}
+    spans = {r: read[r][6] for r in runs}
+    groups = {r: f"{read[r][0].regime}, model {read[r][0].model}" for r in runs}
+    reps = replicates(root, runs, lambda r: {"episodes": args.episodes, "seed": args.seed,
+                                             "generations": list(spans[r])})
+    with ProgressBar("dynamics", total=len(reps), unit="runs", quiet=args.quiet) as bar:
+        prog = run_replicates(reps, root, backend_of(args, default_jobs=2),
+                              on_progress=lambda p: bar.update(p.runs_done, info=f"{len(p.failed)} failed"))
+    if prog.failed:
+        name, why = next(iter(prog.failed.items()))
+        raise RunDirError(f"{len(prog.failed)} of {len(reps)} runs' dynamics failed, {name} first: {why} (its log: "
+                          f"{root / 'logs' / (name + '.log')}); nothing summarised")
+    with replaced_dir(root / "dynamics") as out:
+        written = summarise(root, runs, groups, spans, out)
+    print(f"{len(runs)} runs ({', '.join(sorted(set(groups.values())))}): {', '.join(written)} in {root / 'dynamics'}")
+    return 0
+
+
+@contextmanager
+def replaced_dir(final: Path) -> Iterator[Path]:
+    """A staged directory that takes the place of ``final`` (and of whatever it held) only when the block succeeds."""
+    import shutil
+
+    from coevo.rundir.layout import staged_dir
+
+    aside = final.with_name(f".{final.name}.old")
+    shutil.rmtree(aside, ignore_errors=True)
+    with staged_dir(aside) as tmp:
+        yield tmp
+    if final.exists():
+        final.rename(final.with_name(f".{final.name}.older"))
+    aside.rename(final)
+    shutil.rmtree(final.with_name(f".{final.name}.older"), ignore_errors=True)
 
 
 def _write(out: Path, m: Any) -> list[str]:
     """The matrix and its master tournament, as CSV and PNG; the files' names."""
     import numpy as np
 
+    from coevo.experiments.dynamics.matrix import interval
     from coevo.rundir.layout import write_csv
 
     a, b = m.learner.behaviour, m.partner.behaviour
@@ -72,7 +180,7 @@ def _write(out: Path, m: Any) -> list[str]:
     write_csv(out / f"ciao-{a}-{b}.csv", rows)
     master = []
     for i, (v, g) in enumerate(zip(m.learner.version, m.learner.generation, strict=True)):
-        lo, hi = _interval(m.fitness[i])
+        lo, hi = interval(m.fitness[i])
         ancestors = [j for j, gb in enumerate(m.partner.generation) if gb <= g]
         master.append({"version": v, "generation": g, "mean": round(float(m.fitness[i].mean()), 6),
                        "low95": lo, "high95": hi, "partner_versions": len(m.fitness[i]),
@@ -80,17 +188,6 @@ def _write(out: Path, m: Any) -> list[str]:
     write_csv(out / f"master-{a}-{b}.csv", master)
     _draw(out, m, master)
     return [f"ciao-{a}-{b}.csv", f"ciao-{a}-{b}.png", f"master-{a}-{b}.csv", f"master-{a}-{b}.png"]
-
-
-def _interval(x: Any) -> tuple[float | None, float | None]:
-    """A 95 % t interval of the mean of ``x``; none below three values (too few for one to hold)."""
-    import numpy as np
-    from scipy import stats
-
-    if len(x) < 3:
-        return None, None
-    half = float(stats.t.ppf(0.975, len(x) - 1) * np.std(x, ddof=1) / np.sqrt(len(x)))
-    return round(float(np.mean(x)) - half, 6), round(float(np.mean(x)) + half, 6)
 
 
 def _draw(out: Path, m: Any, master: list[dict[str, Any]]) -> None:

@@ -24,7 +24,21 @@ from coevo.errors import RunDirError
 from coevo.policy.rules import RuleSet
 from coevo.rundir.layout import RunPaths, read_store
 
-__all__ = ["Versions", "Matrix", "versions_of", "pairs_of", "play_matrix"]
+__all__ = ["DONE", "interval", "Versions", "Matrix", "versions_of", "adopted_versions", "within", "pairs_of", "play_matrix", "read_run",
+           "check_finished"]
+
+#: What a run's dynamics/ says it was played with, written last (a folder of runs' summary reads it).
+DONE = "dynamics.json"
+
+
+def interval(x: Any) -> tuple[float | None, float | None]:
+    """A 95 % t interval of the mean of ``x``; none below three values (too few for one to hold)."""
+    from scipy import stats
+
+    if len(x) < 3:
+        return None, None
+    half = float(stats.t.ppf(0.975, len(x) - 1) * np.std(x, ddof=1) / np.sqrt(len(x)))
+    return round(float(np.mean(x)) - half, 6), round(float(np.mean(x)) + half, 6)
 
 
 @dataclass(frozen=True)
@@ -62,6 +76,37 @@ def versions_of(run: RunPaths, behaviour: str) -> Versions:
                     tuple(u.ruleset() for u in ordered))
 
 
+def adopted_versions(run: RunPaths, behaviour: str, task: Any, regime: str) -> Versions:
+    """The versions of ``behaviour`` its partners adopted (their adoption logs hold the rules): under a model by each
+    generation's best (``current``, ``hall``) every generation's best they met, by generation (the version is the
+    generation), which the store does not hold."""
+    from coevo.rundir.layout import read_jsonl
+    from coevo.rundir.records import AdoptionLine
+
+    met: dict[int, RuleSet] = {}
+    for a in task.behaviours:
+        if behaviour in task.partners_needed(a, regime):
+            for row in read_jsonl(run.worker(a).adoptions, schema=AdoptionLine):
+                if row["partner"] == behaviour and row.get("rules") is not None:
+                    met.setdefault(int(row["version"]), RuleSet.from_dict(row["rules"]))
+    if not met:
+        raise RunDirError(f"{run.dir}: no partner of {behaviour} adopted any of its generations' bests")
+    order = sorted(met)
+    return Versions(behaviour, tuple(order), tuple(order), tuple(met[v] for v in order))
+
+
+def within(v: Versions, first: int, last: int) -> Versions:
+    """The versions of ``v`` published at generations ``first`` to ``last``, and the one in play at ``first`` (the
+    last published by then) ahead of them."""
+    keep = [i for i, g in enumerate(v.generation) if first <= g <= last]
+    before = [i for i, g in enumerate(v.generation) if g < first]
+    keep = before[-1:] + keep
+    if not keep:
+        raise RunDirError(f"no {v.behaviour} version was published by generation {last}: choose a later --generations")
+    return Versions(v.behaviour, tuple(v.version[i] for i in keep), tuple(v.generation[i] for i in keep),
+                    tuple(v.rules[i] for i in keep))
+
+
 def pairs_of(task: Any, regime: str) -> list[tuple[str, str]]:
     """(learner, partner) for every partner a behaviour learned against in ``regime``."""
     return [(a, b) for a in task.behaviours for b in task.partners_needed(a, regime)]
@@ -91,3 +136,21 @@ def read_run(run_dir: Path) -> tuple[Any, Any, Any, Any, RunPaths]:
         raise RunDirError(f"{str(run_dir)!r} is not a run directory (no run.json)")
     settings = RunSettings.load(paths.run_json)
     return settings, settings.the_task, settings.world_config(), settings.ga, paths
+
+
+def check_finished(paths: RunPaths, task: Any, generations: int) -> None:
+    """A RunDirError naming the first worker of the run whose ``done.json`` does not say it finished (a run still
+    going, or stopped and not yet resumed)."""
+    from coevo.rundir.layout import read_json
+
+    run_dir = paths.dir
+    for b in task.behaviours:
+        w = paths.worker(b)
+        if not w.done.is_file():
+            raise RunDirError(f"{str(run_dir)!r} is not finished: its {b} worker has no {w.done.name} (still going, "
+                              f"or stopped: continue it with coevo run --resume {run_dir})")
+        done = read_json(w.done, what=f"{b} worker's done.json")
+        if done.get("finished") is not True:
+            raise RunDirError(f"{str(run_dir)!r} is not finished: its {b} worker stopped after "
+                              f"{done.get('generations')!r} of {generations} generations (continue it with coevo "
+                              f"run --resume {run_dir})")

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from coevo.console import ProgressBar, add_max_lead, add_settings, count_arg, pairs, seed_arg
+from coevo.config import MODELS
 from coevo.errors import ConfigError, RunDirError
 from coevo.replicates.flags import add_backend_flags, backend_of, check_backend_flags
 
@@ -169,7 +170,7 @@ def configure_study(p: argparse.ArgumentParser) -> None:
                         "names are then its task's; regime, rate, max_lead and model are refused")
     p.add_argument("--runs", type=count_arg(1, 1000), help="runs per regime in every cell (default 10; with --learn: "
                    "seeds per cell)")
-    p.add_argument("--model", choices=["best", "current", "recent"], help="partner model of every cell (default best)")
+    p.add_argument("--model", choices=MODELS, help="partner model of every cell (default best)")
     p.add_argument("--measure-epochs", type=count_arg(1, 100_000), help="fresh epochs measuring each final robot "
                    "(default 100)")
     p.add_argument("--seed", type=seed_arg, help="base seed: each cell's seeds derive from it and the cell "
