@@ -30,7 +30,7 @@ CODE_SPAN = re.compile(r"(`+)(coevo [^`]+?)\1")
 FENCE = re.compile(r"^\s*(`{3,}|~{3,})")
 
 #: What a placeholder stands for, by its kind: a value the parser takes (a path is any text to it).
-PLACEHOLDERS = {"S": "7", "SEED": "7", "CELL_SEED": "7", "R": "0.5", "B": "docking", "NAME": "cel", "ID": "r1",
+PLACEHOLDERS = {"N": "2", "S": "7", "SEED": "7", "CELL_SEED": "7", "R": "0.5", "B": "docking", "NAME": "cel", "ID": "r1",
                 "PORT": "7447"}
 #: The pages' examples of bad input: refused, with one line naming the bad value (docs/faults.md, docs/trust.md,
 #: docs/commands.md).
