@@ -355,3 +355,17 @@ def test_a_learn_killed_mid_run_leaves_a_staged_copy_that_the_next_one_removes(t
     assert r.returncode == 0, r.stderr
     assert not killed.exists() and live.exists() and away.exists()
     assert (out / "measures.json").exists() and not (out / ".owner").exists()
+
+
+def test_a_reader_that_goes_away_ends_the_command_without_a_traceback() -> None:
+    """``coevo run --ga help | head -0``: the reader is gone before the listing is written, and the command ends
+    quietly with a shell's status for it (141: 128 + SIGPIPE), not in a BrokenPipeError or an "Exception ignored"."""
+    import subprocess
+    import sys
+
+    p = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--ga", "help"], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE)
+    assert p.stdout is not None and p.stderr is not None
+    p.stdout.close()  # before the interpreter has started: its first write finds no reader
+    err = p.stderr.read().decode()
+    assert p.wait(timeout=60) == 141 and "Traceback" not in err and "Exception" not in err, err
