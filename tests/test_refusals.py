@@ -306,11 +306,17 @@ class TestRefusals:
         code = run / "code.json"
         assert json.loads(code.read_text()) == {**code_version(), "earlier": []}
         code.unlink()  # a run made before code.json existed
+        res = coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet")  # complete: it says so, no more
+        assert res.returncode == 0 and "is complete" in res.stdout, res.stdout + res.stderr
+        assert not code.exists()
+        workers = run / "workers" / "tracking"
+        (workers / "done.json").unlink()  # its last generation not done: there is something to continue
         res = coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet")
-        assert res.returncode == 0, res.stdout + res.stderr
+        assert res.returncode == 0 and "is complete" not in res.stdout, res.stdout + res.stderr
         assert json.loads(code.read_text()) == {**code_version(), "earlier": []}
         other = {"package": "0.0.9", "source": "0123456789abcdef"}
         code.write_text(json.dumps({**other, "earlier": []}))
+        (workers / "done.json").unlink()
         before = digest(run)
         err = refused_in_one_line(coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet"), run)
         assert "coevo 0.0.9 (source 0123456789abcdef)" in err and code_version()["source"] in err and "--force" in err

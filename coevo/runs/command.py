@@ -110,6 +110,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from coevo.runs.kinds import COEVOLUTION, kind_of_settings
     from coevo.runs.local import LocalRun, check_listen, default_run_id, run_local
     from coevo.rundir.settings import RunSettings
+    from coevo.rundir.code import refuse_other_code
     from coevo.tasks import DEFAULT_TASK
 
     listen = check_listen(args.listen) if args.listen else None
@@ -120,6 +121,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         lr = LocalRun.resumable(Path(args.resume), log_level=args.log_level, listen=listen)
         if (kind := kind_of_settings(lr.settings)) is not COEVOLUTION:
             raise ConfigError(f"{args.resume} is {kind.label}: continue it with {kind.run().COMMAND} --resume {args.resume}")
+        refuse_other_code(lr.dir, force=args.force, what="curves")  # a damaged code.json too, before anything
         if (done := _complete(lr)) is not None:  # nothing to continue: say so, start nothing, change nothing
             print(f"run {lr.run} is complete: every worker finished its generations; nothing to continue")
             _say_end(lr, done)
@@ -162,14 +164,19 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def _complete(lr: Any) -> dict[str, Any] | None:
-    """A finished run's summary.json when there is nothing to continue: every worker finished its generations and
-    the run ended complete (not interrupted, every version stored); else None."""
+    """A finished run's summary.json when there is nothing to continue: every worker finished its generations, the
+    run ended complete (not interrupted, every version stored) and its files are whole (a resume would read them
+    without a problem, and ``coevo check`` without its replay finds none: a torn or damaged file is the resume's to
+    refuse or repair); else None."""
     from coevo.rundir.layout import read_json
+    from coevo.runs.check import check_run
 
-    if lr.unfinished() or not lr.paths.summary.exists():
+    if lr.unfinished() or not lr.paths.summary.exists() or lr.problems():
         return None
     summary: dict[str, Any] = read_json(lr.paths.summary, what="run directory (its summary.json)")
-    return None if summary.get("interrupted") or summary.get("unstored") else summary
+    if summary.get("interrupted") or summary.get("unstored") or not check_run(lr.dir, replay=False).ok:
+        return None
+    return summary
 
 
 def _say_end(lr: Any, summary: dict[str, Any], *, measure_epochs: int | None = None, complete: bool = True) -> None:
