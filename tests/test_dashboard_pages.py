@@ -76,6 +76,9 @@ def test_a_closed_tab_leaves_no_warnings_in_the_terminal_and_other_warnings_stay
     handler = logging.Handler()
     handler.emit = lambda record: seen.append(record.getMessage())  # type: ignore[method-assign]
     ws.log.addHandler(handler)
+    level, disabled = ws.log.level, logging.root.manager.disable
+    ws.log.setLevel(logging.WARNING)  # whatever an earlier test of the session left it at
+    logging.disable(logging.NOTSET)
     try:
         quiet_closed_tabs()
         quiet_closed_tabs()  # once is enough, twice adds nothing
@@ -83,6 +86,8 @@ def test_a_closed_tab_leaves_no_warnings_in_the_terminal_and_other_warnings_stay
         ws.log.warning("WebSocket connection opened")
     finally:
         ws.log.removeHandler(handler)
+        ws.log.setLevel(level)
+        logging.disable(disabled)
     assert seen == ["WebSocket connection opened"]
     assert len(ws.log.filters) == 1
     import inspect

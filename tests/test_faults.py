@@ -676,7 +676,7 @@ def test_sigterm_to_a_worker_restarts_it_and_to_the_whole_group_stops_in_order(t
         assert not [k for k in kids if Path(f"/proc/{k}").exists()]  # nothing is left running
     finally:
         stop(p)
-    _stopped_in_order_and_resumes_exact(run_dir, out)
+    _stopped_in_order_and_resumes_exact(run_dir, out, one_killed=True)
 
 
 def test_sigterm_to_a_comparisons_process_group_stops_its_runs_in_order_and_it_resumes(tmp_path: Path) -> None:
@@ -717,7 +717,7 @@ def _run_of_12(tmp_path: Path, preexec: Any) -> tuple[subprocess.Popen, Path, Pa
     return p, out, tmp_path / "ci"
 
 
-def _stopped_in_order_and_resumes_exact(run_dir: Path, out: Path) -> None:
+def _stopped_in_order_and_resumes_exact(run_dir: Path, out: Path, *, one_killed: bool = False) -> None:
     """Every worker wrote its done.json, the summary has the final measures and says who stopped early (the output
     too), and --resume completes the run, replay exact."""
     summary = json.loads((run_dir / "summary.json").read_text())
@@ -730,7 +730,8 @@ def _stopped_in_order_and_resumes_exact(run_dir: Path, out: Path) -> None:
     assert all(f"{b} after {n}" in out.read_text() for b, n in summary["stopped_early"].items())
     # The status lines (plain, into a file) read true: a worker that stopped is "stopped", never "dead".
     lines = out.read_text().splitlines()
-    assert not [x for x in lines if x.endswith(" dead")], lines
+    if not one_killed:  # (a worker killed on purpose reads dead until its supervisor has started it again)
+        assert not [x for x in lines if x.endswith(" dead")], lines
     for b in summary["stopped_early"]:
         assert re.search(r" stopped(, restarted \d+x)?$", [x for x in lines if f" {b}-" in x][-1]), lines
     r = subprocess.run([sys.executable, "-m", "coevo", "run", "--resume", str(run_dir), "--quiet"], capture_output=True,
