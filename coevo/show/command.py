@@ -146,15 +146,14 @@ def _typical(display: Any, robot: Any) -> tuple[int, Any, str]:
 
 
 DESCRIPTION = (
-    "Play a robot from a seed and draw its episodes as its task draws them. The fuel task: the arena,\n"
-    "walls and dock, the robot's path coloured by the Executive's choice (Track/Dock), the Target's path,\n"
-    "the tracking range around the Target, where each episode began and how it ended (tracking, docked,\n"
-    "collided, ran dry, time up); a Tracking or Docking rule set alone is driven by the trivial Executive\n"
-    "that always picks it. The door task: the room, the wall and its opening, the goal line, the robot's\n"
-    "path and its sonars at the start (failed ones red). The corridor: the walker's cells, episode by\n"
-    "episode. The task is the one the run directory (run.json, config.json) or rule file names. Bad\n"
-    "input (a missing or unreadable file, a run directory without policies or of another task or\n"
-    "version, a bad option) prints one line 'ErrorType: message' and exits with status 2, writing nothing.")
+    "Play a robot from a seed and draw its episodes as its task draws them (what each task draws:\n"
+    "docs/show.md; coevo plugins lists the installed tasks and their behaviours): the world, the robot's\n"
+    "path, where each episode began and how it ended. A rule set of a behaviour that learns with partners\n"
+    "is played with the partners given (--BEHAVIOUR FILE) or those of its run directory; one that learns\n"
+    "alone, with its task's trivial stand-ins. The task is the one the run directory (run.json,\n"
+    "config.json) or rule file names. Bad input (a missing or unreadable file, a run directory without\n"
+    "policies or of another task or version, a bad option) prints one line 'ErrorType: message' and exits\n"
+    "with status 2, writing nothing.")
 EPILOG = (
     "examples:\n"
     "  coevo show --default tracking                 # default-tracking-episodes3-seed0.png\n"
@@ -165,8 +164,8 @@ EPILOG = (
     "  coevo show runs/ID --animate --out epoch.gif\n"
     "  coevo show exec.rules --tracking t.rules --docking d.rules --epoch\n"
     "\n"
-    "a partner's rule file is --BEHAVIOUR FILE, for any behaviour of the rule file's task (the Executive's\n"
-    "partners: --tracking and --docking).")
+    "a partner's rule file is --BEHAVIOUR FILE, for any behaviour of the rule file's task (e.g. the fuel\n"
+    "task's Executive's partners: --tracking and --docking).")
 
 
 def configure_show(p: argparse.ArgumentParser) -> None:
@@ -178,11 +177,13 @@ def configure_show(p: argparse.ArgumentParser) -> None:
                    help="a rule file, a 'coevo run' or 'coevo cel' directory (its workers' final best.rules: the "
                         "whole robot) or a 'coevo learn' directory (its best.rules)")
     p.add_argument("--default", metavar="BEHAVIOUR",
-                   help="show a behaviour's shipped default rules instead (tracking, docking, door)")
+                   help="show a behaviour's shipped default rules instead (any behaviour whose task ships them, e.g. "
+                        "tracking; coevo plugins lists the behaviours)")
     p.add_argument("--episodes", type=count_arg(1, MAX_EPISODES), metavar="N",
-                   help=f"play N episodes (door: trials) in a row, starting a new epoch when one ends (default: the "
-                        f"task's; {DEFAULT_EPISODES} for a Tracking or Docking rule set)")
-    p.add_argument("--epoch", action="store_true", help="play one epoch (default for a combined fuel robot)")
+                   help=f"play N episodes (or trials, as the task calls them) in a row, starting a new epoch when one "
+                        f"ends (default: the task's; {DEFAULT_EPISODES} for a rule set of a behaviour that learns "
+                        "alone)")
+    p.add_argument("--epoch", action="store_true", help="play one epoch (default for a whole robot of a task that scores epochs)")
     p.add_argument("--seed", type=seed_arg,
                    help="where the robot and Target start, the Target's walk (default: for one epoch of a whole "
                         "robot whose task scores epochs, the median of 9 epochs by that score, its seed said; else 0)")
