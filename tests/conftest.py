@@ -1,3 +1,27 @@
+"""The suite's shared set-up.
+
+**What tests share** (issue 53: the whole suite is bound by the processes its runs start; docs/development.md).  Each
+of these session fixtures is made once per test session, by the first test (of any xdist worker) that asks, under a
+file lock (tests/procs.py: ``made_once``), and is read-only: a test that damages, resumes or otherwise changes one
+works on ``copy_of(it, tmp_path)``; the session fails at its end if a test changed a shared one.  Asking for any of
+them makes a test a ``service`` test (the whole suite's, ``--all``).
+
+- ``finished_mutual``: a finished Mutual run of the fuel task, 3 generations, population 6, episodes 4, seed 0
+  (``procs.FINISHED_MUTUAL``; the run directory ``.../small``).
+- ``finished_independent``: a finished Independent run, 4 generations at ``procs.SMALL`` (``.../hist``), the history
+  an offline Executive learns from.
+- ``finished_comparison``: a finished ``coevo compare`` of both regimes, one run each (``runs/mutual-00``,
+  ``runs/independent-00``), 3 generations of population 4, episodes 4 (``procs.FINISHED_COMPARISON``).
+- ``finished_study``: a finished ``coevo study`` of one cell, ``regime=independent`` (``cells/00-all``), a comparison
+  of one run at the same sizes (``procs.FINISHED_STUDY``).
+- ``three_run_comparison``: a finished ``coevo compare`` of both regimes, 3 runs each (the fewest that give a 95 %
+  interval and the dashboard's band), 3 generations of population 4, episodes 4 (``procs.THREE_RUN_COMPARISON``);
+  what the command printed making it: ``procs.said_when_made(it)``.
+- ``broker``: not shared, a ``coevo broker`` of the test's own on a free loopback port.
+
+A new one: a ``FINISHED_...`` command and a session fixture calling ``made_once`` in tests/procs.py, imported here.
+"""
+
 from __future__ import annotations
 
 import os
@@ -6,7 +30,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from procs import broker, finished_independent, finished_mutual  # noqa: F401  (fixtures for every test module)
+from procs import (  # noqa: F401  (fixtures for every test module)
+    broker,
+    finished_comparison,
+    finished_independent,
+    finished_mutual,
+    finished_study,
+    three_run_comparison,
+)
 
 from coevo.config import GAConfig
 from coevo.tasks.fuel.settings import WorldConfig
@@ -56,6 +87,12 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 # ---------------------------------------------------------------- the two test sets
+#: The fixtures that start processes (the broker, and the shared finished run, comparison and study): a test that
+#: asks for one is a service test.
+SHARED_PROCESSES = {"broker", "finished_mutual", "finished_independent", "finished_comparison", "finished_study",
+                    "three_run_comparison"}
+
+
 def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addoption("--all", action="store_true",
                      help="also run the tests that start processes (service, faults, trust, deploy, whole comparisons): "
@@ -68,7 +105,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     left out, and say so in the summary.  With it, the slow tests first, then the other service tests, then the rest
     (each in file order), for the scheduler below: the longest start first and short ones fill in at the end."""
     for item in items:
-        if {"broker", "finished_mutual", "finished_independent"} & set(getattr(item, "fixturenames", ())):
+        if SHARED_PROCESSES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.service)
     if config.getoption("--all"):
         items.sort(key=lambda i: 0 if i.get_closest_marker("slow") else 1 if i.get_closest_marker("service") else 2)

@@ -18,7 +18,8 @@ from coevo.bus.session import make_config, open_session
 from coevo.runs.local import end_processes, free_port, wait_until
 
 __all__ = ["SMALL", "poll", "coevo_proc", "coevo_main", "stop", "broker", "ctrl_c_heard", "made_once", "copy_of", "finished_mutual",
-           "finished_independent", "FINISHED_MUTUAL", "FINISHED_INDEPENDENT"]
+           "finished_independent", "finished_comparison", "finished_study", "three_run_comparison", "said_when_made",
+           "FINISHED_MUTUAL", "FINISHED_INDEPENDENT", "FINISHED_COMPARISON", "FINISHED_STUDY", "THREE_RUN_COMPARISON"]
 
 SMALL = ["--population", "6", "--episodes", "10", "--ga", "best_episodes=10", "--ga", "initial_rules=8"]
 
@@ -130,9 +131,12 @@ def copy_of(shared: Path, where: Path) -> Path:
     return out
 
 
-def _coevo_ok(*args: str) -> None:
+def _coevo_ok(*args: str, said: Path | None = None) -> None:
+    """``coevo ARGS`` as a process, which must end with status 0; what it printed kept in ``said``, if given."""
     r = subprocess.run([sys.executable, "-m", "coevo", *args], capture_output=True, text=True, timeout=600, check=False)
     assert r.returncode == 0, r.stdout + r.stderr
+    if said is not None:
+        said.write_text(r.stdout)
 
 
 #: A finished Mutual run, as small as a run can be while each worker has a few generations: 3 generations of 6
@@ -158,3 +162,46 @@ def finished_independent(tmp_path_factory: pytest.TempPathFactory) -> Path:
     root = made_once(tmp_path_factory, "independent-run",
                      lambda out: _coevo_ok(*FINISHED_INDEPENDENT, "--root", str(out)))
     return root / "hist"
+
+
+#: A finished comparison, the smallest with both regimes: one run each, 3 generations of 4 episodes-4 policies.
+#: tests/test_refusals.py damages copies of it, tests/test_replicates.py compares it with the same comparison on Dask.
+FINISHED_COMPARISON = ["compare", "--runs", "1", "--generations", "3", "--population", "4", "--episodes", "4",
+                       "--measure-epochs", "1", "--quiet"]
+#: A finished study of one cell (regime=independent), a comparison of one run at FINISHED_COMPARISON's sizes.
+FINISHED_STUDY = ["study", "--factor", "regime=independent", "--runs", "1", "--generations", "3", "--population", "4",
+                  "--episodes", "4", "--measure-epochs", "1", "--quiet"]
+
+
+@pytest.fixture(scope="session")
+def finished_comparison(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The comparison directory of FINISHED_COMPARISON (its runs under runs/mutual-00 and runs/independent-00), made
+    once per session (read-only: change a :func:`copy_of` it)."""
+    return made_once(tmp_path_factory, "comparison", lambda out: _coevo_ok(*FINISHED_COMPARISON, "--out", str(out)))
+
+
+@pytest.fixture(scope="session")
+def finished_study(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The study directory of FINISHED_STUDY (its one cell under cells/00-all), made once per session (read-only)."""
+    return made_once(tmp_path_factory, "study", lambda out: _coevo_ok(*FINISHED_STUDY, "--out", str(out)))
+
+
+#: A finished comparison of both regimes, 3 runs each, the fewest that give a regime a 95 % interval and the
+#: dashboard a band (3 generations of population 4, episodes 4): tests/test_compare.py reads its report and resumes a
+#: copy, tests/test_dashboard.py opens it in a browser.
+THREE_RUN_COMPARISON = ["compare", "--runs", "3", "--generations", "3", "--population", "4", "--episodes", "4", "--ga",
+                        "best_episodes=4", "--ga", "initial_rules=8", "--measure-epochs", "2", "--jobs", "2", "--quiet"]
+
+
+def said_when_made(shared: Path) -> str:
+    """What the command that made a shared directory printed (kept beside it by the fixtures that keep it)."""
+    return (shared.parent / f"{shared.name}.stdout").read_text()
+
+
+@pytest.fixture(scope="session")
+def three_run_comparison(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The comparison directory of THREE_RUN_COMPARISON (runs/mutual-00 ... runs/independent-02), made once per
+    session (read-only); what ``coevo compare`` printed making it: :func:`said_when_made`."""
+    return made_once(tmp_path_factory, "three-run-comparison",
+                     lambda out: _coevo_ok(*THREE_RUN_COMPARISON, "--out", str(out),
+                                           said=out.parent / f"{out.name}.stdout"))

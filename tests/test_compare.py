@@ -14,16 +14,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from procs import coevo_main
+from procs import THREE_RUN_COMPARISON, coevo_main, copy_of, said_when_made
 from scipy import stats
 
 from coevo.experiments.compare.stats import compare_groups, compare_samples, magnitude, mean_interval, mean_intervals
 from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS, classify, count
 from coevo.rundir.settings import RunSettings
 
-TINY = ["--runs", "2", "--generations", "3", "--population", "6", "--episodes", "10", "--ga", "best_episodes=10",
-        "--ga", "initial_rules=8", "--measure-epochs", "5", "--jobs", "2", "--quiet"]
-RUNS = ("mutual-00", "independent-00", "mutual-01", "independent-01")
+TINY = THREE_RUN_COMPARISON[1:]  # the session's shared comparison's settings (tests/procs.py): 3 runs a regime
+RUNS = tuple(f"{regime}-0{i}" for i in range(3) for regime in ("mutual", "independent"))
 
 
 def coevo(*args: str, timeout: float = 600) -> subprocess.CompletedProcess[str]:
@@ -32,12 +31,10 @@ def coevo(*args: str, timeout: float = 600) -> subprocess.CompletedProcess[str]:
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("cmp") / "tiny"
-    r = coevo("compare", "--out", str(out), *TINY)
-    assert r.returncode == 0, r.stdout + r.stderr
-    assert "0 of 4 runs already done, 4 to run, 2 at a time" in r.stdout
-    return out
+def tiny(three_run_comparison: Path) -> Path:
+    """The session's comparison of 3 runs a regime (tests/procs.py), read-only: the resume test works on a copy, and
+    the offline comparison starts from a copy of one of its Independent runs; tests/test_dashboard.py opens it."""
+    return three_run_comparison
 
 
 def _csv(path: Path) -> list[dict[str, str]]:
@@ -48,11 +45,10 @@ def _csv(path: Path) -> list[dict[str, str]]:
 @pytest.mark.service
 @pytest.mark.slow
 class TestTinyComparison:
-    """The two tests on the module's comparison (half a minute to make): a class, so that the whole suite's scheduler
-    (tests/conftest.py) gives both to one xdist worker, which makes it once; the second changes it, after the first
-    has read it."""
+    """The two tests on the session's comparison: the first reads it, the second resumes a copy of it."""
 
     def test_tiny_comparison_writes_a_consistent_report(self, tiny: Path) -> None:
+        assert "0 of 6 runs already done, 6 to run, 2 at a time" in said_when_made(tiny)
         for name in ("compare.json", "report.md", "results.json", "runs.csv", "curves.csv",
                      "figure-mutual.png", "figure-independent.png", "regimes.png"):
             assert (tiny / name).is_file(), name
@@ -60,7 +56,7 @@ class TestTinyComparison:
             assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
 
         res = json.loads((tiny / "results.json").read_text())
-        assert res["runs_expected"] == res["runs_finished"] == 4
+        assert res["runs_expected"] == res["runs_finished"] == 6
         assert sorted(x["run"] for x in res["runs"]) == sorted(RUNS)
 
         # Every run's measures are its own summary's, and its class follows from them.
@@ -79,13 +75,14 @@ class TestTinyComparison:
             curves = [[json.loads(r)["best_fitness"] for r in (tiny / "runs" / x["run"] / "workers" / "executive" /
                                                                  "curve.jsonl").read_text().splitlines()]
                       for x in res["runs"] if x["regime"] == regime]
-            assert ec["end"]["n"] == len(curves) == 2
+            assert ec["end"]["n"] == len(curves) == 3
+            assert ec["end"] == pytest.approx(mean_interval([c[-1] for c in curves]).as_dict())  # 3 runs: an interval
+            assert not np.isnan(ec["end"]["low"]) and not np.isnan(ec["end"]["high"])
             assert ec["end"]["mean"] == pytest.approx(np.mean([c[-1] for c in curves]))
             assert ec["last_generations"]["mean"] == pytest.approx(np.mean([np.mean(c[-10:]) for c in curves]))
             assert ec["tail_generations"] == 3  # a 3-generation run's "last 10 generations" are its 3
-            assert np.isnan(ec["end"]["low"]) and np.isnan(ec["end"]["high"])  # two runs: no interval
         md = (tiny / "report.md").read_text()
-        assert "## The Executive's curve" in md and "(n = 2: too few runs for an interval)" in md
+        assert "## The Executive's curve" in md and "(n = 3)" in md and "too few runs for an interval" not in md
         assert "last 10 generations" not in md and "mean of its last 3 generations" in md
 
         # Table 1 counts are the classes of the runs, nine columns per regime, beside the report's own.
@@ -93,7 +90,7 @@ class TestTinyComparison:
             counts = res["table1"][regime]
             assert set(counts) == set(CLASSES)  # results.json keeps keys sorted
             assert counts == count(x["class"] for x in res["runs"] if x["regime"] == regime)
-            assert sum(counts.values()) == 2
+            assert sum(counts.values()) == 3
         assert res["table1_report"] == REPORT_COUNTS
 
         # The rank tests are recomputable from the per-run numbers.
@@ -105,12 +102,12 @@ class TestTinyComparison:
                                 "independent", [x["final_best_so_far"]["executive"] for x in by["independent"]])
         assert tests["final_executive_fitness"] == pytest.approx(again.as_dict())
         for t in tests.values():
-            assert t["min_p"] == pytest.approx(1 / 3) and 1 / 3 - 1e-12 <= t["p_value"] <= 1.0
+            assert t["min_p"] == pytest.approx(1 / 10) and 1 / 10 - 1e-12 <= t["p_value"] <= 1.0  # 2 of C(6, 3)
             assert 0.0 <= t["a12"] <= 1.0
-        assert res["verdict"].count("with 2 and 2 runs no p below 0.33 is possible") == 2
+        assert res["verdict"].count("with 3 and 3 runs no p below 0.1 is possible") == 2
         # A verdict at settings far below the report's says so first, printed and in the report.
         assert res["verdict"].startswith("These settings are below the report's: generations 3 (the report's 50)")
-        assert "runs a regime 2 (the report's 10)" in res["verdict"]
+        assert "runs a regime 3 (the report's 10)" in res["verdict"]
 
         # The CSVs say what results.json says.
         rows = {r["run"]: r for r in _csv(tiny / "runs.csv")}
@@ -120,8 +117,8 @@ class TestTinyComparison:
             assert float(rows[x["run"]]["docking_from_random_starts"]) == pytest.approx(x["docking_from_random_starts"])
             assert float(rows[x["run"]]["successful_docking"]) == pytest.approx(x["measures"]["successful_docking"])
         curves = _csv(tiny / "curves.csv")
-        assert len(curves) == 4 * 3 * 3  # runs x behaviours x generations
-        assert Counter(r["behaviour"] for r in curves) == {"tracking": 12, "docking": 12, "executive": 12}
+        assert len(curves) == 6 * 3 * 3  # runs x behaviours x generations
+        assert Counter(r["behaviour"] for r in curves) == {"tracking": 18, "docking": 18, "executive": 18}
 
         md = (tiny / "report.md").read_text()
         for part in ("## Verdict", "## Table 1", "| mutual (ours) |", "| mutual (report) |", "| independent (report) |",
@@ -141,7 +138,8 @@ class TestTinyComparison:
                 assert f"![{name}]({name})" in md
 
 
-    def test_resume_reruns_only_what_is_unfinished(self, tiny: Path) -> None:
+    def test_resume_reruns_only_what_is_unfinished(self, tiny: Path, tmp_path: Path) -> None:
+        tiny = copy_of(tiny, tmp_path)
         kept = {r: (tiny / "runs" / r / "summary.json").read_bytes() for r in RUNS if r != "mutual-01"}
         (tiny / "runs" / "mutual-01" / "summary.json").unlink()  # as if killed before the end
         curve = (tiny / "runs" / "mutual-01" / "workers" / "docking" / "curve.jsonl").read_bytes()
@@ -150,13 +148,13 @@ class TestTinyComparison:
         assert again.returncode == 2 and "add --resume" in again.stderr
         r = coevo("compare", "--out", str(tiny), "--resume", *TINY)
         assert r.returncode == 0, r.stdout + r.stderr
-        assert "3 of 4 runs already done, 1 to run" in r.stdout
+        assert "5 of 6 runs already done, 1 to run" in r.stdout
         for run, body in kept.items():
             assert (tiny / "runs" / run / "summary.json").read_bytes() == body, run
         assert json.loads((tiny / "runs" / "mutual-01" / "summary.json").read_text())["resumed"] is True
         # continued, not redone
         assert (tiny / "runs" / "mutual-01" / "workers" / "docking" / "curve.jsonl").read_bytes() == curve
-        assert json.loads((tiny / "results.json").read_text())["runs_finished"] == 4
+        assert json.loads((tiny / "results.json").read_text())["runs_finished"] == 6
 
         other = coevo_main("compare", "--out", str(tiny), "--resume", *TINY, "--seed", "7")
         assert other.returncode == 2 and "different comparison" in other.stderr and "seed" in other.stderr
@@ -353,16 +351,29 @@ def test_kruskal_wallis_across_groups_and_its_effect_size() -> None:
 
 
 OFFLINE_TINY = ["--regimes", "independent", "independent-offline", "--rates", "0.5", "2", "--runs", "2",
-                "--generations", "3", "--population", "6", "--episodes", "10", "--ga", "best_episodes=10",
-                "--ga", "initial_rules=8", "--measure-epochs", "5", "--jobs", "2", "--quiet"]
+                "--generations", "3", "--population", "4", "--episodes", "4", "--ga", "best_episodes=4",
+                "--ga", "initial_rules=8", "--measure-epochs", "2", "--jobs", "2", "--quiet"]  # TINY's, 2 runs
 
 
 @pytest.mark.slow
-def test_independent_offline_learns_the_executive_on_the_live_histories_at_each_rate(tmp_path: Path) -> None:
+def test_independent_offline_learns_the_executive_on_the_live_histories_at_each_rate(tiny: Path,
+                                                                                     tmp_path: Path) -> None:
+    """Its live Independent runs are the tiny comparison's (the same settings and seeds: a paired design), so the
+    first is taken from it, as a resume finds it, and the second is run here: an offline run learns on a history
+    that was finished before it started, and on one it has to wait for."""
+    import shutil
+
+    from coevo.experiments.compare.experiment import CompareSpec, held_spec, prepare
+
     out = tmp_path / "offline"
-    r = coevo("compare", "--out", str(out), *OFFLINE_TINY)
+    held = held_spec(tiny)
+    assert held is not None
+    prepare(out, CompareSpec.make(**{**held.model_dump(mode="json"), "regimes": ["independent", "independent-offline"],
+                                     "rates": [0.5, 2.0], "runs": 2}), resume=False)
+    shutil.copytree(tiny / "runs" / "independent-00", out / "runs" / "independent-00")
+    r = coevo("compare", "--out", str(out), "--resume", *OFFLINE_TINY)  # its settings must be the ones prepared
     assert r.returncode == 0, r.stdout + r.stderr
-    assert "0 of 6 runs already done, 6 to run" in r.stdout
+    assert "1 of 6 runs already done, 5 to run" in r.stdout
     res = json.loads((out / "results.json").read_text())
     assert res["runs_finished"] == 6
     assert set(res["table1"]) == {"independent", "independent-offline rate 0.5", "independent-offline rate 2"}
@@ -380,9 +391,8 @@ def test_independent_offline_learns_the_executive_on_the_live_histories_at_each_
             assert cfg["seed"] == live["seed"] + 2
     report = (out / "report.md").read_text()
     assert "## Rates of asynchrony (independent-offline)" in report
+    assert "(n = 2: too few runs for an interval)" in report  # the Executive's curve of 2 runs a group
     # Resume: an offline run removed is the only one run again.
-    import shutil
-
     shutil.rmtree(out / "runs" / "offline-rate2-01")
     again = coevo("compare", "--out", str(out), "--resume", *OFFLINE_TINY)
     assert again.returncode == 0, again.stdout + again.stderr

@@ -610,13 +610,12 @@ for (const m of doc ? doc.all_models : []) {
 return out;
 """
 
+# The comparison opened is the session's (tests/procs.py: THREE_RUN_COMPARISON, which tests/test_compare.py reads too):
 # 3 runs a regime, the fewest that draw a band (stats.MIN_RUNS), each as small as a run can be while its curves have 3
 # points: the page's layout is what is tested, and nothing on the first screen grows with the runs (Table 1 has a row
 # per class, the verdict scrolls in its box, the run selector starts empty).  Its cost is mostly start-ups: about
 # 5 CPU-s a run, half of it its five processes starting; 10 a regime, as the report's Table 1, cost 14 runs more.
 TINY_RUNS = 3
-TINY_COMPARISON = ["--runs", str(TINY_RUNS), "--generations", "3", "--population", "4", "--episodes", "4", "--ga",
-                   "best_episodes=4", "--ga", "initial_rules=8", "--measure-epochs", "2", "--jobs", "2", "--quiet"]
 
 
 def _dashboard_proc(*args: str, log: Path) -> tuple[subprocess.Popen, int]:
@@ -665,21 +664,19 @@ def _above_the_fold(box: list[float], viewport: list[int]) -> bool:
 
 @pytest.mark.service
 @pytest.mark.slow
-def test_a_comparison_opens_with_its_headline_above_the_fold_in_headless_chromium(tmp_path: Path) -> None:
-    """A real Table 1 comparison (coevo compare, 3 tiny runs a regime: under a minute on 2 cores) opened at a laptop's
+def test_a_comparison_opens_with_its_headline_above_the_fold_in_headless_chromium(three_run_comparison: Path,
+                                                                                  tmp_path: Path) -> None:
+    """A real Table 1 comparison (the session's, tests/procs.py: 3 tiny runs a regime) opened at a laptop's
     1280 x 800: the legend, a band per regime and Table 1 with the report's counts are drawn inside the first screen,
     Table 1's counts are the report's (REPORT_COUNTS) and the runs' (results.json), and the verdict is the report's."""
     from procs import stop
 
     from coevo.experiments.compare.table1 import CLASSES, REPORT_COUNTS
 
-    browser = _browser(tmp_path)  # before the comparison: no browser, no comparison made
+    browser = _browser(tmp_path)
     dash = None
     try:
-        out = tmp_path / "cmp"
-        made = subprocess.run([sys.executable, "-m", "coevo", "compare", "--out", str(out), *TINY_COMPARISON],
-                              capture_output=True, text=True, timeout=1800, check=False)
-        assert made.returncode == 0, made.stdout + made.stderr
+        out = three_run_comparison  # read-only: the dashboard only reads it
         results = json.loads((out / "results.json").read_text())
         assert results["runs_finished"] == 2 * TINY_RUNS
         dash, port = _dashboard_proc(str(out), log=tmp_path / "dashboard.log")

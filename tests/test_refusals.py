@@ -10,9 +10,9 @@ anything starts, so a process of its own would add only an interpreter's start-u
 A damage that a command is built to take is not refused: a log's bytes after what the checkpoint saw (a crash's
 leftovers, cut aside by the resume), a store file (a replica of the workers' published.jsonl, set aside and refilled),
 a done.json or summary.json (written again).  For those the matrix asks, in process, that the command's verification
-finds nothing (their real resumes are run in tests/test_damaged_files.py and tests/test_faults.py); one finished run
-(the session's shared ``finished_mutual``), comparison, study, seeds folder and CEL run are made and copied for every
-case, so the matrix costs little CPU.
+finds nothing (their real resumes are run in tests/test_damaged_files.py and tests/test_faults.py); one finished run,
+comparison and study (the session's shared ones, tests/conftest.py), a seeds folder and a CEL run (made for this
+module) are copied for every case, so the matrix costs little CPU.
 """
 
 from __future__ import annotations
@@ -160,38 +160,34 @@ def finished(finished_mutual: Path) -> Path:
 
 
 @pytest.fixture(scope="module")
-def comparison(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("compare") / "cmp"
-    res = coevo("compare", "--regimes", "independent", "--runs", "1", "--generations", "3", "--population", "6",
-                "--episodes", "4", "--measure-epochs", "1", "--out", str(out), "--quiet")
-    assert res.returncode == 0, res.stdout + res.stderr
-    return out
+def comparison(finished_comparison: Path) -> Path:
+    """A finished comparison (one run a regime): the session's shared one, read-only."""
+    return finished_comparison
 
 
 @pytest.fixture(scope="module")
-def study(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("study") / "st"
-    res = coevo("study", "--factor", "regime=independent", "--runs", "1", "--generations", "3", "--population", "6",
-                "--episodes", "4", "--measure-epochs", "1", "--out", str(out), "--quiet")
+def study(finished_study: Path) -> Path:
+    """A finished study of one cell: the session's shared one, read-only."""
+    return finished_study
+
+
+def made(factory: pytest.TempPathFactory, name: str, *argv: str) -> Path:
+    """What ``coevo ARGV --out DIR`` (or ``--root``, for a CEL run) makes, for this module's cases to copy."""
+    out = factory.mktemp(name) / name
+    res = coevo(*argv, str(out))
     assert res.returncode == 0, res.stdout + res.stderr
     return out
 
 
 @pytest.fixture(scope="module")
 def seeds(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("seeds") / "sd"
-    res = coevo(*SEEDS, "--out", str(out))
-    assert res.returncode == 0, res.stdout + res.stderr
-    return out
+    return made(tmp_path_factory, "sd", *SEEDS, "--out")
 
 
 @pytest.fixture(scope="module")
 def cel_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    root = tmp_path_factory.mktemp("cel")
-    res = coevo("cel", "--root", str(root), "--run", "c", "--generations", "3", "--fail", "2:front", "--population", "6",
-                "--episodes", "4", "--quiet")
-    assert res.returncode == 0, res.stdout + res.stderr
-    return root / "c"
+    return made(tmp_path_factory, "cel", "cel", "--run", "c", "--generations", "3", "--fail", "2:front", "--population",
+                "6", "--episodes", "4", "--quiet", "--root") / "c"
 
 
 class TestRefusals:
@@ -238,7 +234,7 @@ class TestRefusals:
             res = coevo_main("compare", command, "--out", str(out), "--quiet")
             assert res.returncode == 0 and "Traceback" not in res.stderr, res.stdout + res.stderr
             assert "differs" not in res.stderr
-        assert "1 of 1 runs already done, 0 to run" in coevo_main("compare", "--resume", "--out", str(out),
+        assert "2 of 2 runs already done, 0 to run" in coevo_main("compare", "--resume", "--out", str(out),
                                                                   "--quiet").stdout
         # a setting given that is not the comparison's is still refused, naming it
         res = coevo_main("compare", "--resume", "--out", str(out), "--runs", "2", "--quiet")
@@ -306,7 +302,7 @@ class TestRefusals:
         code = run / "code.json"
         assert json.loads(code.read_text()) == {**code_version(), "earlier": []}
         code.unlink()  # a run made before code.json existed
-        res = coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet")  # complete: it says so, no more
+        res = coevo_main("run", "--resume", str(run), "--measure-epochs", "1", "--quiet")  # complete: says so, no more
         assert res.returncode == 0 and "is complete" in res.stdout, res.stdout + res.stderr
         assert not code.exists()
         workers = run / "workers" / "tracking"
@@ -318,7 +314,7 @@ class TestRefusals:
         code.write_text(json.dumps({**other, "earlier": []}))
         (workers / "done.json").unlink()
         before = digest(run)
-        err = refused_in_one_line(coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet"), run)
+        err = refused_in_one_line(coevo_main("run", "--resume", str(run), "--measure-epochs", "1", "--quiet"), run)
         assert "coevo 0.0.9 (source 0123456789abcdef)" in err and code_version()["source"] in err and "--force" in err
         assert digest(run) == before
         res = coevo("run", "--resume", str(run), "--measure-epochs", "1", "--quiet", "--force")
@@ -338,10 +334,10 @@ class TestRefusals:
         other = {"package": "0.0.9", "source": "0123456789abcdef"}
         code.write_text(json.dumps({**other, "earlier": []}))
         before = digest(out)
-        err = refused_in_one_line(coevo(command, "--resume", "--out", str(out), "--quiet"), code.parent)
+        err = refused_in_one_line(coevo_main(command, "--resume", "--out", str(out), "--quiet"), code.parent)
         assert "coevo 0.0.9 (source 0123456789abcdef)" in err and code_version()["source"] in err and "--force" in err
         assert digest(out) == before
-        res = coevo(command, "--resume", "--force", "--out", str(out), "--quiet")  # nothing left to run: a report
+        res = coevo_main(command, "--resume", "--force", "--out", str(out), "--quiet")  # nothing left to run: a report
         assert res.returncode == 0, res.stdout + res.stderr
         assert json.loads(code.read_text()) == {**code_version(), "earlier": [other]}
 
@@ -412,18 +408,20 @@ class TestHistory:
 
 def test_cluster_says_at_once_where_it_connects_and_gives_up_after_its_timeout(tmp_path: Path) -> None:
     """``--cluster ADDRESS`` with nothing listening: a line naming the scheduler first, then one error after
-    ``--cluster-timeout`` (it was 30 s of silence)."""
+    ``--cluster-timeout`` (it was 30 s of silence).  "First" is measured from the line to the error, the wait it
+    announces (a timeout only grows under load), not from the start: under load 40 its interpreter took 20 s to
+    print anything."""
     import time
 
-    t0 = time.monotonic()
     p = subprocess.Popen([sys.executable, "-m", "coevo", "seeds", "--cluster", "tcp://127.0.0.1:1", "--cluster-timeout",
                           "8", "--out", str(tmp_path / "seeds"), "--quiet"], stderr=subprocess.PIPE, text=True)
     assert p.stderr is not None
     first = p.stderr.readline()
-    said = time.monotonic() - t0
+    t0 = time.monotonic()
     rest = p.stderr.read()
-    p.wait(timeout=60)
-    assert "connecting to the Dask scheduler at tcp://127.0.0.1:1" in first and said < 8, (first, said)
+    waited = time.monotonic() - t0
+    p.wait(timeout=120)
+    assert "connecting to the Dask scheduler at tcp://127.0.0.1:1" in first and waited > 4, (first, waited)
     assert p.returncode != 0 and "Traceback" not in rest and len(rest.strip().splitlines()) == 1, rest
     assert "cannot reach the Dask scheduler tcp://127.0.0.1:1 within 8 s" in rest
 

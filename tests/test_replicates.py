@@ -15,7 +15,7 @@ from functools import partial
 from pathlib import Path
 
 import pytest
-from procs import coevo_main
+from procs import FINISHED_COMPARISON, coevo_main
 
 from coevo.errors import ConfigError
 from coevo.replicates.backends import ClusterLost, LocalBackend, parse_cluster
@@ -184,7 +184,7 @@ def test_a_dead_scheduler_ends_the_experiment_and_resume_continues_it(tmp_path: 
 
 
 # ---------------------------------------------------------------- a tiny comparison on Dask
-TINY = ["--runs", "1", "--generations", "2", "--population", "4", "--episodes", "4", "--measure-epochs", "2", "--quiet"]
+TINY = FINISHED_COMPARISON[1:]  # the session's shared comparison's settings: it is the one made here
 
 
 def coevo(*args: str, timeout: float = 600) -> subprocess.CompletedProcess[str]:
@@ -201,10 +201,9 @@ def _form(out: Path) -> tuple[set[str], set[str], list[str]]:
 
 @pytest.mark.service
 @pytest.mark.slow
-def test_a_tiny_comparison_on_a_local_dask_cluster_writes_the_report_it_writes_here(tmp_path: Path) -> None:
-    here, dask = tmp_path / "here", tmp_path / "dask"
-    r = coevo("compare", "--out", str(here), "--jobs", "2", *TINY)
-    assert r.returncode == 0, r.stdout + r.stderr
+def test_a_tiny_comparison_on_a_local_dask_cluster_writes_the_report_it_writes_here(finished_comparison: Path,
+                                                                                   tmp_path: Path) -> None:
+    here, dask = finished_comparison, tmp_path / "dask"  # here: the session's, made by `coevo compare` on this machine
     r = coevo("compare", "--out", str(dask), "--cluster", "local:2", *TINY)
     assert r.returncode == 0, r.stdout + r.stderr
     assert "on the Dask cluster local:2" in r.stdout
@@ -245,7 +244,7 @@ def test_coevo_seeds_on_a_local_dask_cluster_writes_its_report(tmp_path: Path) -
     res = json.loads((out / "summary.json").read_text())
     assert res["runs_finished"] == res["runs_expected"] == 2
     assert "docking: median docking_from_random_starts" in r.stdout
-    again = coevo("seeds", "--seeds", "1", "--out", str(out), *tiny)
+    again = coevo_main("seeds", "--seeds", "1", "--out", str(out), *tiny)  # a refusal: in this process
     assert again.returncode == 2 and "--resume" in again.stderr
 
 

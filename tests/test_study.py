@@ -373,7 +373,7 @@ def test_a_tiny_study_killed_with_a_signal_resumes_and_reports(tmp_path: Path) -
         assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
     # --report-only rewrites the report and keeps the study complete.
-    r = coevo("study", "--out", str(out), "--report-only", "--quiet")
+    r = coevo_main("study", "--out", str(out), "--report-only", "--quiet")  # a reader of files: in this process
     assert r.returncode == 0, r.stdout + r.stderr
     assert study_progress(out).complete
 
