@@ -9,7 +9,6 @@ import json
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from coevo.bus import keys
 from coevo.bus.auth import RunKey

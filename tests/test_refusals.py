@@ -411,7 +411,7 @@ class TestHistory:
 
 
 def test_cluster_says_at_once_where_it_connects_and_gives_up_after_its_timeout(tmp_path: Path) -> None:
-    """``--cluster ADDRESS`` with nothing listening: a line naming the scheduler first, a line every 2 s while it
+    """``--cluster ADDRESS`` with nothing listening: a line naming the scheduler first, a line every 1.5 s while it
     waits, then one error after ``--cluster-timeout`` (it was 30 s of silence)."""
     import time
 
@@ -429,12 +429,12 @@ def test_cluster_says_at_once_where_it_connects_and_gives_up_after_its_timeout(t
     assert lines[-1].startswith("ClusterLost: cannot reach the Dask scheduler tcp://127.0.0.1:1 within 8 s"), lines
     waits = lines[1:-1]
     assert len(waits) >= 3 and all(x.startswith("still connecting to the Dask scheduler at tcp://127.0.0.1:1") for x in waits)
-    assert max(b - a for a, b in zip(times, times[1:])) < 4.0, times  # 2 s apart (a busy machine delays a wake-up)
+    assert max(b - a for a, b in zip(times, times[1:])) < 3.5, times  # 1.5 s apart (a busy machine delays a wake-up)
 
 
 def test_a_router_that_cannot_be_reached_is_said_while_it_is_waited_for() -> None:
     """``coevo status --connect`` to a port nobody listens on waits up to ``--connect-timeout`` (zenoh retries): a line
-    every 2 s names what it reaches and how long it waits, then one error line (it was 30 s of silence, then a path
+    every 1.5 s names what it reaches and how long it waits, then one error line (it was 30 s of silence, then a path
     of zenoh's Rust sources)."""
     r = coevo_main("status", "--run", "x", "--connect", "tcp/127.0.0.1:1", "--connect-timeout", "5", "--duration", "1")
     lines = r.stderr.strip().splitlines()

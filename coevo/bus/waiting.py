@@ -12,7 +12,7 @@ __all__ = ["still_waiting"]
 
 
 @contextmanager
-def still_waiting(what: str, *, after: float = 1.5, every: float = 2.0) -> Iterator[None]:
+def still_waiting(what: str, *, after: float = 1.0, every: float = 1.5) -> Iterator[None]:
     """While the block waits on something outside this process (a router, a scheduler), say so on stderr, first after
     ``after`` seconds and then every ``every``: ``still opening the zenoh status session (connecting to ...): 4 s``,
     so that no wait is silent for longer (nothing is said of a wait that ends sooner)."""
