@@ -1,4 +1,4 @@
-"""Waits on something outside this process (a router, a scheduler) are never silent (issue 54)."""
+"""Waits on something outside this process (a router, a scheduler) are never silent: they say so while they last."""
 
 from __future__ import annotations
 
