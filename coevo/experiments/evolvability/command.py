@@ -25,11 +25,11 @@ def cmd_evolvability(args: argparse.Namespace) -> int:
     from coevo.replicates.backends import ClusterLost
 
     if args.report_only:
-        from coevo.experiments.evolvability.report import write_report  # scipy.stats: not before a refusal
-
         if not args.out:
             raise ConfigError("--report-only needs --out DIR (a finished grid)")
         res = GridResults.load(Path(args.out))
+        from coevo.experiments.evolvability.report import write_report  # scipy.stats: not before a refusal
+
         write_report(res, Path(args.out), elapsed=res.seconds)
         print(f"report: {Path(args.out) / 'report.md'}")
         return 0
