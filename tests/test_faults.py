@@ -706,6 +706,94 @@ def test_sigterm_to_a_comparisons_process_group_stops_its_runs_in_order_and_it_r
     assert check.ok, check.problems
 
 
+
+def _sigterm_group_when(p: subprocess.Popen, ready: Any, what: str) -> str:
+    """SIGTERM to ``p``'s process group once ``ready()``; its stderr (it must end 130 saying it was interrupted)."""
+    try:
+        poll(lambda: ready() or p.poll() is not None, 180, what)
+        assert p.poll() is None, p.communicate()
+        os.killpg(p.pid, signal.SIGTERM)
+        _, err = p.communicate(timeout=120)
+    finally:
+        stop(p)
+    assert p.returncode == 130 and "Traceback" not in err, err
+    return str(err)
+
+
+@pytest.mark.slow
+def test_sigterm_to_a_studys_process_group_stops_its_run_in_order_and_it_resumes(tmp_path: Path) -> None:
+    """coevo study under a scheduler's SIGTERM to its group: the run under it stops in order (every done.json, the
+    summary saying who stopped early), the study exits 130, and --resume completes the study and the run, exact."""
+    out = tmp_path / "study"
+    tiny = ["--factor", "regime=independent", "--runs", "1", "--generations", "8", "--population", "6", "--episodes",
+            "4", "--ga", "best_episodes=4", "--ga", "initial_rules=8", "--measure-epochs", "1", "--quiet"]
+    p = subprocess.Popen([sys.executable, "-m", "coevo", "study", "--out", str(out), *tiny], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+    run_dir = out / "cells" / "00-all" / "runs" / "independent-00"
+    err = _sigterm_group_when(p, lambda: _lines(run_dir / "workers" / "tracking" / "curve.jsonl") >= 2,
+                              "two tracking generations")
+    assert "interrupted; finished runs are kept" in err, err
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["stopped_here"] and summary["stopped_early"], summary
+    for b in ("tracking", "docking", "executive"):
+        done = json.loads((run_dir / "workers" / b / "done.json").read_text())
+        assert done["generations"] == _lines(run_dir / "workers" / b / "curve.jsonl") == \
+            summary["stopped_early"].get(b, 8)
+    assert not (out / "complete.json").exists()
+    r = subprocess.run([sys.executable, "-m", "coevo", "study", "--out", str(out), "--resume", "--quiet"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0 and (out / "complete.json").exists(), r.stdout + r.stderr
+    check = check_run(run_dir)
+    assert check.ok, check.problems
+
+
+@pytest.mark.slow
+def test_sigterm_to_a_cel_runs_process_group_stops_it_in_order_and_it_resumes(tmp_path: Path) -> None:
+    """coevo cel under a SIGTERM to its group: the learner and the robot stop in order (each its done.json), coevo cel
+    exits 130 naming the resume, and --resume completes the run, the learner's replay exact."""
+    p = subprocess.Popen([sys.executable, "-m", "coevo", "cel", "--root", str(tmp_path), "--run", "cel", "--generations",
+                          "8", "--population", "16", "--episodes", "20", "--ga", "best_episodes=20", "--fail",
+                          "3:front", "--seed", "2", "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True, start_new_session=True)
+    run_dir = tmp_path / "cel"
+    err = _sigterm_group_when(p, lambda: _lines(run_dir / "execution" / "performance.jsonl") >= 3,
+                              "three generations of the robot's trials")
+    assert f"coevo cel --resume {run_dir}" in err, err
+    for done in (run_dir / "workers" / "door" / "done.json", run_dir / "execution" / "done.json"):
+        assert not json.loads(done.read_text())["finished"], done
+    r = subprocess.run([sys.executable, "-m", "coevo", "cel", "--resume", str(run_dir), "--quiet"], capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert json.loads((run_dir / "execution" / "done.json").read_text())["finished"]
+    check = check_run(run_dir)
+    assert check.ok, check.problems
+
+
+@pytest.mark.slow
+def test_sigterm_while_coevo_run_starts_leaves_nothing_half_made_and_it_resumes(tmp_path: Path) -> None:
+    """A SIGTERM to coevo run's group while it makes its directory, and another once its processes are starting (no
+    worker has a generation yet): each an interrupted stop (130), never a half-made directory: the first leaves no run
+    directory or a whole one (made beside it and renamed), and nothing beside it; the second resumes to complete."""
+    def start(run: str) -> subprocess.Popen:
+        return subprocess.Popen([sys.executable, "-m", "coevo", "run", "--run", run, "--root", str(tmp_path), *SMALL,
+                                 "--generations", "3", "--measure-epochs", "1", "--quiet"], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True, start_new_session=True)
+
+    made = lambda run: (tmp_path / run).exists() or any(tmp_path.glob(f".{run}.*.partial"))  # noqa: E731
+    _sigterm_group_when(start("early"), lambda: made("early"), "the run directory begun")
+    assert not list(tmp_path.glob(".early.*")), "a staged run directory was left behind"
+    if (tmp_path / "early").exists():  # the signal came after the directory was made: it is whole
+        assert {"run.json", "secret.key", "code.json"} <= {f.name for f in (tmp_path / "early").iterdir()}
+
+    run_dir = tmp_path / "starting"
+    _sigterm_group_when(start("starting"), lambda: (run_dir / "logs" / "broker.log").exists(), "the broker starting")
+    assert not any(_lines(f) for f in run_dir.glob("workers/*/curve.jsonl"))  # before any worker's generation
+    r = subprocess.run([sys.executable, "-m", "coevo", "run", "--resume", str(run_dir), "--quiet"], capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    check = check_run(run_dir)
+    assert check.ok, check.problems
+
 def _run_of_12(tmp_path: Path, preexec: Any) -> tuple[subprocess.Popen, Path, Path]:
     """A 12-generation coevo run in a session of its own (its group id is its pid), its output (the status lines,
     plain into a file) in run.out."""

@@ -34,6 +34,7 @@ from __future__ import annotations
 import itertools
 import json
 import logging
+import os
 import secrets
 import threading
 import time
@@ -115,32 +116,78 @@ class KeptSeen(Seen):
     replay of what it took before as ``replayed`` or ``stale``.  A line that does not parse (a torn last one) is
     skipped; a file that cannot be read or written is said once in the log, and the memory goes on in the process.
     The lines are appended without fsync: a killed process loses none (the kernel holds them), a lost machine
-    perhaps the last few."""
+    perhaps the last few.
 
-    def __init__(self, path: Path) -> None:
+    The file is bounded: what a :class:`Seen` remembers of a key is its newest sender and at most ``2 * WINDOW``
+    sequence numbers, so once the file holds more than ``limit`` lines (and twice what the memory needs) it is
+    written again with only those (:meth:`compact`), on making and while taking.  Written beside it, fsynced and
+    renamed over it: a crash leaves either the old file or the new one, each refusing what the other does."""
+
+    def __init__(self, path: Path, limit: int = 4096) -> None:
         super().__init__()
         self.path = path
+        self.limit = limit
         self._warned = False
+        self._write = threading.Lock()
         try:
             text = path.read_bytes().decode("utf-8", "replace") if path.is_file() else ""
         except OSError as exc:
             self._warn(exc)
             text = ""
+        self._lines = 0
         for line in text.splitlines():
+            self._lines += 1
             try:
                 key, epoch, born, inc, seq = json.loads(line)
                 super().admit(str(key), (int(epoch), float(born), str(inc)), int(seq))
             except (ValueError, TypeError, MessageError):
                 continue
+        self._maybe_compact()
 
     def admit(self, key: str, sender: tuple[int, float, str], seq: int) -> None:
         super().admit(key, sender, seq)
-        try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            with open(self.path, "a", encoding="utf-8") as f:
-                f.write(json.dumps([key, *sender, seq]) + "\n")
-        except OSError as exc:
-            self._warn(exc)
+        with self._write:
+            try:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                with open(self.path, "a", encoding="utf-8") as f:
+                    f.write(json.dumps([key, *sender, seq]) + "\n")
+                self._lines += 1
+            except OSError as exc:
+                self._warn(exc)
+        self._maybe_compact()
+
+    def lines(self) -> list[list[Any]]:
+        """What the memory holds, as the file's lines: replayed in order they make the same memory."""
+        with self._lock:
+            return [[key, *k.sender, seq] for key, k in sorted(self._keys.items()) for seq in sorted(k.recent)]
+
+    def _maybe_compact(self) -> None:
+        if self._lines > self.limit:
+            with self._lock:
+                needed = sum(len(k.recent) for k in self._keys.values())
+            if self._lines > 2 * needed:
+                self.compact()
+
+    def compact(self) -> None:
+        """Write the file again with only what the memory holds: beside it, fsynced, renamed over it."""
+        with self._write:
+            lines = self.lines()
+            tmp = self.path.with_name(self.path.name + ".new")
+            try:
+                with open(tmp, "w", encoding="utf-8") as f:
+                    f.write("".join(json.dumps(line) + "\n" for line in lines))
+                    f.flush()
+                    os.fsync(f.fileno())
+                os.replace(tmp, self.path)
+                dir_fd = os.open(self.path.parent, os.O_RDONLY)
+                try:
+                    os.fsync(dir_fd)
+                finally:
+                    os.close(dir_fd)
+                self._lines = len(lines)
+            except OSError as exc:
+                log.warning("%s: cannot write it again shorter (%s); it keeps growing", self.path, exc.strerror or exc)
+                self._lines = 0  # not again at once: after another limit's worth of lines
 
     def _warn(self, exc: OSError) -> None:
         if not self._warned:

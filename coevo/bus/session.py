@@ -19,6 +19,7 @@ import argparse
 import json
 import logging
 import os
+import re
 import signal
 import threading
 from collections.abc import Callable, Iterator
@@ -33,11 +34,12 @@ import zenoh
 from coevo.bus.flags import DEFAULT_ENDPOINT, DEFAULT_LEASE_S, DEFAULT_TLS_ENDPOINT, PASSWORD_ENV, add_connection_args
 from coevo.bus.messages import Message, PolicyUpdate
 from coevo.bus.trust import OPEN, Gate
+from coevo.bus.waiting import still_waiting
 from coevo.errors import ConfigError, MessageError, ServiceError
 
 __all__ = ["Session", "Sample", "Query", "Config", "Publisher", "LivelinessToken", "CallbackSubscriber", "ChannelSubscriber", "SessionGone", "fetch_latest", "DEFAULT_ENDPOINT", "DEFAULT_TLS_ENDPOINT", "PASSWORD_ENV", "Security", "add_connection_args", "config_from_args",
            "drain", "drain_messages", "is_put", "make_config", "open_session", "put_control", "query", "ring_subscriber", "sigterm_as_exit",
-           "GatedSession", "Ring", "query_messages"]
+           "GatedSession", "Ring", "query_messages", "zenoh_text"]
 
 log = logging.getLogger(__name__)
 
@@ -211,6 +213,15 @@ def check_config(conf: zenoh.Config, *, source: str = "flags") -> None:
                               f"{'listen' if mode == 'router' else 'connect'} endpoint must be tls/ or the run is open (or unreachable)")
 
 
+_RUST_PLACE = re.compile(r"\s*\bat\s+\S+\.rs:\d+(?::\d+)?\.?")
+
+
+def zenoh_text(exc: BaseException) -> str:
+    """A zenoh error's words without the places in zenoh's Rust sources it names (``at /root/.cargo/.../x.rs:388``):
+    a user's message says what went wrong, not where inside zenoh."""
+    return _RUST_PLACE.sub("", str(exc)).strip().rstrip(".!").strip() or type(exc).__name__
+
+
 def make_config(
     *,
     mode: str = "client",
@@ -226,7 +237,7 @@ def make_config(
     try:
         conf = zenoh.Config.from_file(config_file) if config_file else zenoh.Config()
     except zenoh.ZError as exc:  # with the parser's message
-        raise ConfigError(f"zenoh config {config_file!r}: {exc}") from exc
+        raise ConfigError(f"zenoh config {config_file!r}: {zenoh_text(exc)}") from exc
     if mode not in ("client", "peer", "router"):
         raise ConfigError(f"zenoh mode {mode!r} is not client, peer or router")
     if mode == "client" and not connect and not config_file:
@@ -248,7 +259,7 @@ def make_config(
         if security is not None:
             security.apply(conf, mode)
     except (zenoh.ZError, ValueError, TypeError) as exc:
-        raise ConfigError(f"bad zenoh setting: {exc}") from exc
+        raise ConfigError(f"bad zenoh setting: {zenoh_text(exc)}") from exc
     check_config(conf, source=f"--zenoh-config {config_file}" if config_file else "flags")
     return conf
 
@@ -289,6 +300,20 @@ class GatedSession:
         return getattr(self._session, name)
 
 
+def _reaching(conf: zenoh.Config) -> str:
+    """`` (connecting to ENDPOINTS, giving up after N s: --connect-timeout)``, as far as ``conf`` says."""
+    try:
+        endpoints = json.loads(conf.get_json("connect/endpoints"))
+        ms = json.loads(conf.get_json("connect/timeout_ms"))
+    except (zenoh.ZError, ValueError, TypeError):
+        return ""
+    if not endpoints:
+        return ""
+    limit = "" if not isinstance(ms, (int, float)) else (", waiting for ever: --connect-timeout -1" if ms < 0 else
+                                                         f", giving up after {ms / 1000:g} s: --connect-timeout")
+    return f" (connecting to {', '.join(map(str, endpoints))}{limit})"
+
+
 def _open(conf: zenoh.Config) -> Session:
     """``zenoh.open`` on a helper thread, waited for here in short steps: a SIGTERM or Ctrl-C while the router is
     still being reached (up to ``--connect-timeout``, 30 s) stops this process at once instead of after the wait,
@@ -318,9 +343,10 @@ def open_session(conf: zenoh.Config, *, what: str = "session", gate: Gate | None
     With ``gate``, the session's ring subscribers decode through it (see :func:`drain_messages`).
     """
     try:
-        session = _open(conf)
+        with still_waiting(f"opening the zenoh {what}{_reaching(conf)}"):
+            session = _open(conf)
     except zenoh.ZError as exc:
-        raise ServiceError(f"cannot open the zenoh {what}: {exc} (is 'coevo broker' running and reachable, "
+        raise ServiceError(f"cannot open the zenoh {what}: {zenoh_text(exc)} (is 'coevo broker' running and reachable, "
                            "and does it accept this process's certificate or password?)") from exc
     try:
         yield session if gate is None else cast(Session, GatedSession(session, gate))
@@ -341,7 +367,7 @@ def query(session: Session, key: str, *, timeout: float, what: str) -> list[tupl
         return [(str(r.ok.key_expr), bytes(r.ok.payload.to_bytes()))
                 for r in session.get(key, timeout=timeout, consolidation=zenoh.ConsolidationMode.NONE) if r.ok is not None]
     except zenoh.ZError as exc:
-        raise ServiceError(f"query for {what} on {key!r} failed: {exc}") from exc
+        raise ServiceError(f"query for {what} on {key!r} failed: {zenoh_text(exc)}") from exc
 
 
 def query_messages(session: Session, key: str, *, timeout: float, what: str, gate: Gate | None = None) -> list[Message]:

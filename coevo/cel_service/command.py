@@ -7,6 +7,7 @@ Registered by :mod:`coevo.cli`; the run is :mod:`coevo.cel_service.run`, the pro
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
 from pathlib import Path
 from typing import Any
@@ -83,6 +84,15 @@ def _given_settings(args: argparse.Namespace) -> Any:
 
 
 def cmd_cel(args: argparse.Namespace) -> int:
+    """A SIGTERM from the first line to the last is a stop, as Ctrl-C is (interrupted, 130): while the CEL run is made or
+    readied it leaves nothing half-made, while it runs it stops it in order (its workers' done.json, its measures)."""
+    from coevo.rundir.layout import sigterm_stops
+
+    with sigterm_stops():
+        return _cmd_cel(args)
+
+
+def _cmd_cel(args: argparse.Namespace) -> int:
     from coevo.bus.status import StatusDisplay
     from coevo.cel_service.run import CelRun, cases_of_run, import_cases
     from coevo.cel_service.status import CelPlain, cel_table
@@ -108,7 +118,11 @@ def cmd_cel(args: argparse.Namespace) -> int:
         cases = cases_of_run(Path(args.cases_from)) if args.cases_from else None  # checked before anything is made
         lr.create()
         if cases is not None:
-            import_cases(lr.paths, cases, worker=lr.settings.roster["door"])  # type: ignore[index]
+            try:
+                import_cases(lr.paths, cases, worker=lr.settings.roster["door"])  # type: ignore[index]
+            except BaseException:  # stopped (or failed) before it started: no run without its case base is left
+                shutil.rmtree(lr.dir, ignore_errors=True)
+                raise
             print(f"case base: {len(cases)} cases from {args.cases_from}")
     cel = lr.settings.block("cel")
     if cel is None:  # refused above for a resume and made for a new run

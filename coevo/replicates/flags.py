@@ -50,6 +50,7 @@ def check_backend_flags(args: argparse.Namespace) -> None:
 def backend_of(args: argparse.Namespace, *, default_jobs: int) -> Any:
     """The backend the flags ask for (imports Dask only for ``--cluster``).  With ``--cluster``, says at once on
     stderr where it goes: reaching a scheduler, or starting a cluster, may take a while."""
+    from coevo.bus.waiting import still_waiting
     from coevo.replicates.backends import DEFAULT_CONNECT_TIMEOUT, open_backend, parse_cluster
 
     timeout = DEFAULT_CONNECT_TIMEOUT if args.cluster_timeout is None else args.cluster_timeout
@@ -59,6 +60,7 @@ def backend_of(args: argparse.Namespace, *, default_jobs: int) -> Any:
                             "--cluster-timeout)",
                  "local": "starting a local Dask cluster"}.get(kind, f"submitting {n or 1} {kind} batch jobs")
         print(f"--cluster: {where}", file=sys.stderr, flush=True)
-    return open_backend(jobs=default_jobs if args.jobs is None else args.jobs, cluster=args.cluster,
-                        cluster_config=args.cluster_config, connect_timeout=timeout,
-                        shared_dir=None if args.shared_dir is None else args.shared_dir.resolve())
+    with still_waiting(f"{where}" if args.cluster is not None else "starting the local processes"):
+        return open_backend(jobs=default_jobs if args.jobs is None else args.jobs, cluster=args.cluster,
+                            cluster_config=args.cluster_config, connect_timeout=timeout,
+                            shared_dir=None if args.shared_dir is None else args.shared_dir.resolve())

@@ -418,6 +418,18 @@ def staged_dir(final: Path) -> Iterator[Path]:
 
 
 
+_sigterm_depth = 0  # how many sigterm_stops blocks this process's main thread is inside
+
+
+def _sigterm_stop(signum: int, frame: object) -> None:
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def _sigterm_settle() -> None:
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+
+
 @contextmanager
 def sigterm_stops() -> Iterator[Callable[[], None]]:
     """SIGTERM as a stop (KeyboardInterrupt), as Ctrl-C is, while inside: a staged directory is removed, a run or an
@@ -426,22 +438,25 @@ def sigterm_stops() -> Iterator[Callable[[], None]]:
     ``settle()``: SIGTERM ignored from then on to the block's end (what is left is an orderly end, nothing to stop).
     Only where SIGTERM has its default action (a command's own handler is kept, and ``settle`` does nothing) and in
     the main thread (the only one that may set a handler); by default SIGTERM ends the process at once (and a staged
-    ``.NAME.*.partial`` stays behind until the next command there)."""
-    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGTERM) != signal.SIG_DFL:
+    ``.NAME.*.partial`` stays behind until the next command there).  A block inside another is the outer one's: its
+    ``settle()`` holds to the outer block's end, which alone gives SIGTERM its default action back (so a command
+    that stops from its first line to its last leaves no moment in between to a plain SIGTERM)."""
+    global _sigterm_depth
+    if threading.current_thread() is not threading.main_thread():
         yield lambda: None
         return
-
-    def _stop(signum: int, frame: object) -> None:
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
-        raise KeyboardInterrupt(f"signal {signum}")
-
-    def _settle() -> None:
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
-
-    signal.signal(signal.SIGTERM, _stop)
+    if _sigterm_depth:
+        yield _sigterm_settle
+        return
+    if signal.getsignal(signal.SIGTERM) != signal.SIG_DFL:
+        yield lambda: None
+        return
+    signal.signal(signal.SIGTERM, _sigterm_stop)
+    _sigterm_depth += 1
     try:
-        yield _settle
+        yield _sigterm_settle
     finally:
+        _sigterm_depth -= 1
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 

@@ -105,6 +105,15 @@ def configure_run(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    """A SIGTERM from the first line to the last is a stop, as Ctrl-C is (interrupted, 130): while the run is made or
+    readied it leaves nothing half-made, while it runs it stops it in order (its workers' done.json, its measures)."""
+    from coevo.rundir.layout import sigterm_stops
+
+    with sigterm_stops():
+        return _cmd_run(args)
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
     from coevo.bus.status import StatusDisplay
     from coevo.runs.discover import follow_hint
     from coevo.runs.kinds import COEVOLUTION, kind_of_settings

@@ -62,7 +62,7 @@ from coevo.bus.status import StatusBoard
 from coevo.bus.trust import Gate
 from coevo.errors import CoevoError, ConfigError, RunDirError, ServiceError
 from coevo.rundir.layout import (RunPaths, cut_back, not_a_file, read_cases, read_json, read_jsonl, read_store,
-                                 sigterm_stops, write_csv, write_json)
+                                 sigterm_stops, staged_dir, write_csv, write_json)
 from coevo.rundir.code import record_code, refuse_other_code
 from coevo.rundir.settings import RunSettings
 
@@ -211,21 +211,21 @@ class LocalRun:
         if self.dir.exists() and any(self.dir.iterdir()):
             raise RunDirError(f"run directory {str(self.dir)!r} already exists; choose another --run or --root, "
                               f"or continue it with {self.resume_command}")
-        try:
-            self.dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise RunDirError(f"cannot create the run directory {str(self.dir)!r}: {exc.strerror or exc}") from None
         self.settings = self.settings.model_copy(update={"incarnation": 1})
         if self.open:
             self.settings = self.settings.model_copy(update={"key_file": None})
             log.warning("run %s is OPEN (--open): no key, its messages are not authenticated; anyone who reaches its "
                         "bus can steer it", self.run)
-        else:
-            self.key = RunKey.create(self.run)
-            self.key.save(self.paths.key_file)  # mode 0600; run.json names it, the workers read it from there
-            self.settings = self.settings.model_copy(update={"key_file": RunPaths.KEY_FILE})
-        self.settings.save(self.paths.run_json)
-        record_code(self.dir)
+        # Made beside it and renamed whole: a stop signal (or a kill) while it is made leaves no run directory that
+        # neither resumes (no run.json) nor can be made again (not empty).
+        with staged_dir(self.dir) as tmp:
+            staged = RunPaths(tmp)
+            if not self.open:
+                self.key = RunKey.create(self.run)
+                self.key.save(staged.key_file)  # mode 0600; run.json names it, the workers read it from there
+                self.settings = self.settings.model_copy(update={"key_file": RunPaths.KEY_FILE})
+            self.settings.save(staged.run_json)
+            record_code(tmp)
 
     def _spawn(self, name: str, args: list[str], env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
         self.paths.logs_dir.mkdir(parents=True, exist_ok=True)

@@ -42,6 +42,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("runs") / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"
     held = held_spec(out) if (args.resume or args.report_only) and out.is_dir() else None
     # the settings as given, checked once, by the comparison's own model (its task's world and GA rules)
+    if args.resume and held is None and not _given(args) and given_settings(args, args.task or DEFAULT_TASK) == ({}, {}):
+        raise ConfigError(f"--resume: {out} holds no comparison (no compare.json) and no settings were given, so "
+                          "there is nothing to continue; to start a comparison there, drop --resume")
     if held is not None:  # its own settings, as it ran, but for those given: a resume need not repeat them
         world, ga = given_settings(args, held.task)
         spec = CompareSpec.make(**{**held.model_dump(mode="json"), **_given(args),

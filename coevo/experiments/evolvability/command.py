@@ -22,13 +22,14 @@ __all__ = ["configure_evolvability", "cmd_evolvability"]
 def cmd_evolvability(args: argparse.Namespace) -> int:
     """Run the grid (or only rewrite the report of a finished one) and print the claims' verdicts."""
     from coevo.experiments.evolvability.experiment import GridResults, GridSpec, run_grid
-    from coevo.experiments.evolvability.report import write_report
     from coevo.replicates.backends import ClusterLost
 
     if args.report_only:
         if not args.out:
             raise ConfigError("--report-only needs --out DIR (a finished grid)")
         res = GridResults.load(Path(args.out))
+        from coevo.experiments.evolvability.report import write_report  # scipy.stats: not before a refusal
+
         write_report(res, Path(args.out), elapsed=res.seconds)
         print(f"report: {Path(args.out) / 'report.md'}")
         return 0
@@ -48,6 +49,8 @@ def cmd_evolvability(args: argparse.Namespace) -> int:
             print(f"{exc}; finished landscapes are kept: continue with the same command and --resume --out {out}",
                   file=sys.stderr)
             return 3
+    from coevo.experiments.evolvability.report import write_report
+
     results = write_report(res, out, elapsed=res.seconds)
     print(f"{res.seconds:.1f} s; report: {out / 'report.md'}")
     for c in results["claims"]:

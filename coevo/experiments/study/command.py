@@ -67,8 +67,6 @@ def cmd_study(args: argparse.Namespace) -> int:
     from coevo.experiments.compare.experiment import default_jobs
     from coevo.experiments.study.declaration import study_cells
     from coevo.experiments.study.experiment import SEP, check_cells, held_declaration, mark_complete, prepare_study, run_study
-    from coevo.experiments.study.learn_report import write_learn_report
-    from coevo.experiments.study.report import write_report
     from coevo.replicates.backends import ClusterLost
 
     given_out = Path(args.out) if args.out else None
@@ -130,6 +128,9 @@ def cmd_study(args: argparse.Namespace) -> int:
                   "retry them.", file=sys.stderr)
             for name, why in prog.failed.items():
                 print(f"  {name}: {why}", file=sys.stderr)
+    from coevo.experiments.study.learn_report import write_learn_report  # scipy.stats: imported once it is needed,
+    from coevo.experiments.study.report import write_report  # not before a bad flag is refused (1 CPU-s)
+
     report = write_report if spec.learn is None else write_learn_report  # a study of learning runs: its own report
     results = report(out, spec, elapsed=None if args.report_only else time.time() - t0)
     complete = results["runs_finished"] == results["runs_expected"]
