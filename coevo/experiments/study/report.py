@@ -15,7 +15,8 @@ levels, pooled over the other factors' levels (on a 0/1 measure it is the χ² t
 (N − 1)/N; exact for small designs, with the smallest p its design can give), its ε², and the largest difference
 between two levels that the data allow (:mod:`.intervals`).  The p-values of every test in the study are corrected
 together with Holm's method; the verdict reads the corrected ones, and never calls an effect absent beside a large
-effect size or two levels whose intervals do not overlap: that is "not established", with the reason.
+effect size or a pair of levels whose 95 % interval of their difference excludes 0: that is "not established", with
+the reason (decided on the pairs' differences, not on whether the levels' own intervals overlap).
 
 Files: ``results.json`` (everything), ``report.md``, ``effect-FACTOR.png``, ``cells.png``.
 """
@@ -43,7 +44,8 @@ from coevo.experiments.study.intervals import Difference, difference_interval, s
 from coevo.rundir.layout import write_json, write_text
 
 __all__ = ["MEASURES", "collect_cell", "collect_study", "cell_rows", "analyse", "factor_test", "adjust", "write_report",
-           "strict_json", "format_mean", "difference_unit", "verdict_lines", "undecided"]
+           "strict_json", "format_mean", "difference_unit", "verdict_lines", "undecided", "excluding_zero",
+           "difference_text"]
 
 #: The measures every factor is tested on: name -> (title, value of a run record, is it a 0/1 share?).
 MEASURES: dict[str, tuple[str, Callable[[dict[str, Any]], float], bool]] = {
@@ -182,25 +184,39 @@ def format_mean(row: dict[str, Any], share: bool) -> str:
     return MeanInterval(int(row["n"]), float(row["mean"]), low, high).text(runs=False)
 
 
-def _apart(levels: list[dict[str, Any]]) -> list[tuple[str, str]]:
-    """The pairs of levels whose 95 % intervals do not overlap."""
-    have = [r for r in levels if r["n"] and r["low"] is not None and r["high"] is not None
-            and not (math.isnan(r["low"]) or math.isnan(r["high"]))]
-    return [(a["level"], b["level"]) for i, a in enumerate(have) for b in have[i + 1:]
-            if a["high"] < b["low"] or b["high"] < a["low"]]
+def _nan(x: Any) -> float:
+    """A number of results.json (null for NaN) as a float."""
+    return float("nan") if x is None else float(x)
+
+
+def excluding_zero(test: dict[str, Any]) -> list[dict[str, Any]]:
+    """The pairs of levels whose 95 % interval of their difference (Welch's for means, Newcombe's for shares:
+    :mod:`.intervals`) lies wholly above or below 0; a pair without an interval (too few runs) is none of them."""
+    return [d for d in test.get("differences", []) if _nan(d["low"]) > 0 or _nan(d["high"]) < 0]
+
+
+def difference_text(d: dict[str, Any], share: bool) -> str:
+    """'off − 2 = -0.06 [-0.11, -0.01]'; of shares in percentage points: 'current − best = +18 percentage points
+    [+3, +32]'."""
+    scale, digits, unit = (100, 0, " percentage points") if share else (1, 2, "")
+    low, diff, high = (f"{scale * _nan(d[k]):+.{digits}f}" for k in ("low", "diff", "high"))
+    return f"{d['b']} − {d['a']} = {diff}{unit} [{low}, {high}]"
 
 
 def undecided(test: dict[str, Any]) -> str:
-    """Why a test that detected nothing cannot be read as "no effect" ('' when it can): a large effect size, or two
-    levels whose intervals do not overlap."""
+    """Why a test that detected nothing cannot be read as "no effect" ('' when it can): a large effect size, or a
+    pair of levels whose 95 % interval of their difference excludes 0 (decided on the difference, never on whether
+    the levels' own intervals overlap: two intervals can overlap while their difference's excludes 0)."""
     if test["detected"]:
         return ""
     why = []
     if test["magnitude"] == "large":
         why.append(f"the effect size is large (ε² = {test['epsilon2']:.2f})")
-    apart = _apart(test["levels"])
-    if apart:
-        why.append("the 95 % intervals of " + ", ".join(f"{a} and {b}" for a, b in apart) + " do not overlap")
+    apart = [difference_text(d, bool(test.get("share", False))) for d in excluding_zero(test)]
+    if len(apart) == 1:
+        why.append(f"the 95 % interval of the difference {apart[0]} excludes 0")
+    elif apart:
+        why.append("the 95 % intervals of the differences " + ", ".join(apart[:-1]) + f" and {apart[-1]} exclude 0")
     return " and ".join(why)
 
 
