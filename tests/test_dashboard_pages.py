@@ -93,3 +93,50 @@ def test_a_closed_tab_leaves_no_warnings_in_the_terminal_and_other_warnings_stay
     import inspect
 
     assert f'log.warning("{CLOSED_TAB}")' in inspect.getsource(ws)  # Bokeh still says it so: the filter still bites
+
+
+def test_a_band_of_a_rate_is_cut_at_its_range_and_its_legend_says_so() -> None:
+    """Three runs at 0, 0 and 100 % give a t interval of 33 % [−110, 177]: the band is cut at 0 and 100 (its measure's
+    range, the panel's 0 to its top) and the legend says so; a band inside the range is not marked."""
+    from coevo.dashboard.compare import ComparisonFiles
+    from coevo.experiments.compare.table1 import PANELS
+
+    rate = next(p for p in PANELS if p.column == "dock_choice")
+    assert rate.bounds == (0.0, 100.0) and PANELS[0].bounds == (0.0, 1.0)
+    lines = [{"run": f"r{i}", "state": "done", "generation": [1, 2], "value": [v, 5.0 + i]}
+             for i, v in enumerate((0.0, 0.0, 100.0))]
+    whole = ComparisonFiles._band(lines)
+    cut = ComparisonFiles._band(lines, rate.bounds)
+    assert whole is not None and cut is not None
+    assert whole["low"][0] < -100 and whole["high"][0] > 170 and whole["clipped"] == []
+    assert (cut["low"][0], cut["high"][0]) == (0.0, 100.0) and cut["mean"] == whole["mean"]
+    assert (cut["low"][1], cut["high"][1]) == (whole["low"][1], whole["high"][1])  # inside the range: untouched
+    assert cut["clipped"] == [0.0, 100.0]
+    assert render.legend_label("mutual", 3, 0, cut["clipped"]) == "mutual, 3 runs, band clipped at 0 and 100"
+    assert render.legend_label("mutual", 3, 1, []) == "mutual, 3 runs (+1 going)"
+    assert render.legend_label("mutual", 2, 0, [0.0]) == "mutual, 2 runs, no band (needs 3)"
+
+
+def test_regimes_png_draws_the_dashboards_colour_blind_safe_colours_not_red_and_green(tmp_path: Any) -> None:
+    """The report's regimes.png drew Mutual in matplotlib's red and Independent in its green (one colour to a
+    deuteranope); it draws them in the dashboard's colours now: each mean line's colour is in the picture, and
+    neither the old red nor the old green is."""
+    import numpy as np
+    from matplotlib.image import imread
+
+    from coevo.experiments.compare.plots import figure_regimes
+    from coevo.experiments.compare.table1 import PANELS
+
+    def runs(level: float) -> dict[str, Any]:
+        return {f"r{i}": {"executive": {"best_fitness": [level, level + 0.1 * i, level + 0.05]}} for i in range(3)}
+
+    path = tmp_path / "regimes.png"
+    figure_regimes({"mutual": runs(0.2), "independent": runs(0.6)}, path, PANELS[:1])
+    pixels = (imread(path)[..., :3] * 255).round().astype(int).reshape(-1, 3)
+    seen = {tuple(p) for p in np.unique(pixels, axis=0)}
+
+    def rgb(hex_colour: str) -> tuple[int, int, int]:
+        return tuple(int(hex_colour[i:i + 2], 16) for i in (1, 3, 5))  # type: ignore[return-value]
+
+    assert rgb(render.REGIME_COLOURS[0]) in seen and rgb(render.REGIME_COLOURS[1]) in seen
+    assert rgb("#d62728") not in seen and rgb("#2ca02c") not in seen

@@ -336,6 +336,23 @@ def test_the_verdict_decides_on_the_pairs_differences_not_on_whether_the_levels_
     assert f"a difference between two levels beyond {big:.2f} is excluded by every pair's 95 % interval" in line
 
 
+def test_a_levels_fitness_interval_is_cut_at_0_and_the_report_says_so() -> None:
+    """The Executive's end is a payoff, 0 to 1: three runs at 0, 0 and 0.3 give a t interval reaching to -0.33; the
+    level's summary is cut at 0, and its text in the verdict and the tables says "clipped at 0"."""
+    from coevo.experiments.glossary import bounds_of
+    from coevo.experiments.study.report import factor_test, format_mean
+
+    assert bounds_of("executive_end") == (0.0, 1.0) and bounds_of("average_epoch_length") is None
+    t = factor_test("max_lead", "mutual", "executive_end", {"1": [0.0, 0.0, 0.3], "off": [0.3, 0.35, 0.4]},
+                    share=False, bounds=bounds_of("executive_end"))
+    assert t is not None
+    one, off = t["levels"]
+    assert one["low"] == 0.0 and one["clipped"] == (0.0,) and 0 < off["low"] and off["clipped"] == ()
+    assert format_mean(one, False) == f"0.10 [0.00, {one['high']:.2f}] (clipped at 0)"
+    assert format_mean(off, False) == f"0.35 [{off['low']:.2f}, {off['high']:.2f}]"
+    assert format_mean({**one, "clipped": [0.0]}, False) == format_mean(one, False)  # as read from results.json
+
+
 def test_shares_are_decided_on_newcombes_interval_of_their_difference() -> None:
     """A share (Good Docking) at 2 of 20 and 9 of 20 runs: the Wilson intervals [3-30 %] and [26-66 %] overlap,
     Newcombe's interval of the difference lies above 0, so among many tests it is "not established", in points."""

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from coevo.dashboard.model import View
+from coevo.experiments.compare import plots
 from coevo.experiments.glossary import TERMS, with_unit
 
 __all__ = ["PALETTE", "REGIME_COLOURS", "problems_html", "runs_html", "workers_html", "comparison_html",
@@ -26,12 +27,9 @@ __all__ = ["PALETTE", "REGIME_COLOURS", "problems_html", "runs_html", "workers_h
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf",
            "#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#c49c94", "#f7b6d2", "#c7c7c7", "#dbdb8d", "#9edae5")
 DASHES = ("solid", "dashed", "dotted", "dotdash")
-#: A comparison's regimes in the colours of its report's regimes.png (matplotlib's tab:red, tab:green, ...)
-#: A comparison's groups: Okabe and Ito's colour-blind-safe colours (vermillion, blue, bluish green, orange, reddish
-#: purple, sky blue), none two of which a colour-blind reader confuses or whose overlap reads as a third.
-REGIME_COLOURS = ("#D55E00", "#0072B2", "#009E73", "#E69F00", "#CC79A7", "#56B4E9")
-#: Each group's band hatching, in the same order: overlapping bands cross-hatch.
-REGIME_HATCHES = ("/", "\\", "|", "-", "x", ".")
+#: A comparison's groups in the colours and band hatchings of its report's regimes.png (Okabe and Ito's
+#: colour-blind-safe colours: :data:`coevo.experiments.compare.plots.REGIME_COLOURS`).
+REGIME_COLOURS, REGIME_HATCHES = plots.REGIME_COLOURS, plots.REGIME_HATCHES
 _STATE_COLOUR = {"alive": "#2ca02c", "running": "#2ca02c", "done": "#1f77b4", "stalled": "#b8860b", "dead": "#d62728",
                  "failed": "#d62728", "stopped": "#7f7f7f", "up": "#2ca02c", "down": "#d62728", "degraded": "#b8860b",
                  "waiting": "#7f7f7f", "files": "#7f7f7f", "starting": "#7f7f7f"}
@@ -182,13 +180,15 @@ def verdict_html(view: View) -> str:
     return f"<h3 class='coevo'>Verdict</h3><div class='verdict' style='{box}'>{body}</div>"
 
 
-def legend_label(group: str, done: int, going: int) -> str:
+def legend_label(group: str, done: int, going: int, clipped: Sequence[float] = ()) -> str:
     """A regime's legend on the comparison's panels: its finished runs (in the mean and the band), those going, and,
-    below the runs an interval needs, that there is no band: 'mutual, 2 runs, no band (needs 3) (+1 going)'."""
+    below the runs an interval needs, that there is no band: 'mutual, 2 runs, no band (needs 3) (+1 going)'; a band
+    cut at its measure's range says so (``clipped``, the ends it was cut at): 'mutual, 3 runs, band clipped at 0'."""
     from coevo.experiments.common import plural
-    from coevo.experiments.compare.stats import MIN_RUNS
+    from coevo.experiments.compare.stats import MIN_RUNS, clip_words
 
-    band = f", no band (needs {MIN_RUNS})" if 0 < done < MIN_RUNS else ""
+    band = (f", no band (needs {MIN_RUNS})" if 0 < done < MIN_RUNS else
+            f", band {clip_words(clipped)}" if clipped and done else "")
     return f"{group}, {plural(done, 'run')}{band}" + (f" (+{going} going)" if going else "")
 
 

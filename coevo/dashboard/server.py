@@ -229,7 +229,8 @@ class _Regimes:
         self.picker.on_change("value", self._picked)
         key = Div(text=("<p style='font:13px sans-serif;color:#333;margin:22px 0 0 12px'>Per regime: "
                         "<b>thick line</b> the mean of its finished runs, <b>band</b> the 95 % interval of that mean "
-                        "(Student t; none below 3 runs; as in the report's regimes.png), <b>thin lines</b> its runs "
+                        "(Student t; none below 3 runs; cut at the measure's range, 0–100 % or 0–1, where it would reach "
+                        "beyond, and its legend says so; as in the report's regimes.png), <b>thin lines</b> its runs "
                         "(<b>dotted</b>: not finished). Hover for values.</p>"),
                   sizing_mode="stretch_width")
         self.controls = row(self.picker, key, sizing_mode="stretch_width")
@@ -351,9 +352,10 @@ class _Regimes:
                 src_band, src_lines = self.sources[(i, g)]
                 src_band.data, src_lines.data = band, lines
         for i, g, item in self.items:
-            lines = c["panels"][i]["groups"].get(g, {"lines": []})["lines"]
+            mine = c["panels"][i]["groups"].get(g) or {"lines": [], "band": None}
+            lines = mine["lines"]
             done = sum(ln["state"] == "done" for ln in lines)
-            label = render.legend_label(g, done, len(lines) - done)
+            label = render.legend_label(g, done, len(lines) - done, (mine.get("band") or {}).get("clipped", ()))
             if self.labels.get((i, g)) != label:  # a legend redrawn only when its text changes
                 self.labels[(i, g)] = label
                 item.label = value(label)
