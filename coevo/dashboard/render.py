@@ -30,6 +30,8 @@ DASHES = ("solid", "dashed", "dotted", "dotdash")
 #: A comparison's groups in the colours and band hatchings of its report's regimes.png (Okabe and Ito's
 #: colour-blind-safe colours: :data:`coevo.experiments.compare.plots.REGIME_COLOURS`).
 REGIME_COLOURS, REGIME_HATCHES = plots.REGIME_COLOURS, plots.REGIME_HATCHES
+#: The width of a study's progress and cells table, in pixels (its verdict takes the rest of the row).
+STUDY_PROGRESS_WIDTH = 840
 _STATE_COLOUR = {"alive": "#2ca02c", "running": "#2ca02c", "done": "#1f77b4", "stalled": "#b8860b", "dead": "#d62728",
                  "failed": "#d62728", "stopped": "#7f7f7f", "up": "#2ca02c", "down": "#d62728", "degraded": "#b8860b",
                  "waiting": "#7f7f7f", "files": "#7f7f7f", "starting": "#7f7f7f"}
@@ -457,7 +459,10 @@ def study_progress_html(view: View) -> str:
                                        "Executive end", "AEL"], rows, numeric={2, 6, 7})
     style = "<style>table.study-cells td,table.study-cells th{white-space:nowrap;padding:1px 8px}</style>"
     # a study of many cells scrolls in its box: the cell selector below stays on the first screen
-    return head + style + f"<div class='study-cells-box' style='max-height:440px;overflow:auto'>{table}</div>"
+    # its own box, scrolled both ways: a wide table (a study of learning runs has two columns a measure) stays in the
+    # box's width instead of running on under the verdict beside it
+    return head + style + (f"<div class='study-cells-box' style='max-height:440px;max-width:{STUDY_PROGRESS_WIDTH}px;"
+                           f"overflow:auto'>{table}</div>")
 
 
 def study_verdict_html(view: View) -> str:

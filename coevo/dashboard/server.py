@@ -376,7 +376,7 @@ class _Study:
         view = dash.current()[1]
         s = view.study or {}
         self.cell: str = s.get("default", "")
-        self.progress = Div(text="", name="study", width=840)
+        self.progress = Div(text="", name="study", width=render.STUDY_PROGRESS_WIDTH)
         self.verdict = Div(text="", name="study-verdict", sizing_mode="stretch_width")
         self.headline = row(self.progress, self.verdict, sizing_mode="stretch_width")
         self.tables = Div(text="", name="study-tables", sizing_mode="stretch_width")
