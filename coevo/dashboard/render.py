@@ -182,16 +182,23 @@ def verdict_html(view: View) -> str:
     return f"<h3 class='coevo'>Verdict</h3><div class='verdict' style='{box}'>{body}</div>"
 
 
-def legend_label(group: str, done: int, going: int, clipped: Sequence[float] = ()) -> str:
+def legend_label(group: str, done: int, going: int) -> str:
     """A regime's legend on the comparison's panels: its finished runs (in the mean and the band), those going, and,
-    below the runs an interval needs, that there is no band: 'mutual, 2 runs, no band (needs 3) (+1 going)'; a band
-    cut at its measure's range says so (``clipped``, the ends it was cut at): 'mutual, 3 runs, band clipped at 0'."""
+    below the runs an interval needs, that there is no band: 'mutual, 2 runs, no band (needs 3) (+1 going)'."""
     from coevo.experiments.common import plural
-    from coevo.experiments.compare.stats import MIN_RUNS, clip_words
+    from coevo.experiments.compare.stats import MIN_RUNS
 
-    band = (f", no band (needs {MIN_RUNS})" if 0 < done < MIN_RUNS else
-            f", band {clip_words(clipped)}" if clipped and done else "")
+    band = f", no band (needs {MIN_RUNS})" if 0 < done < MIN_RUNS else ""
     return f"{group}, {plural(done, 'run')}{band}" + (f" (+{going} going)" if going else "")
+
+
+def panel_title(title: str, panel: dict[str, Any]) -> str:
+    """A comparison panel's title, saying when a band on it was cut at its measure's range (the legends, one entry a
+    regime, have no room for it at 1280 px): 'Executive learning curve (bands clipped at 0 and 1)'."""
+    from coevo.experiments.compare.stats import clip_words
+
+    cut = sorted({b for g in panel["groups"].values() for b in ((g.get("band") or {}).get("clipped") or ())})
+    return f"{title} (bands {clip_words(cut)})" if cut else title
 
 
 def regime_colour(view: View, group: str) -> str:

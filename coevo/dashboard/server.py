@@ -230,7 +230,7 @@ class _Regimes:
         key = Div(text=("<p style='font:13px sans-serif;color:#333;margin:22px 0 0 12px'>Per regime: "
                         "<b>thick line</b> the mean of its finished runs, <b>band</b> the 95 % interval of that mean "
                         "(Student t; none below 3 runs; cut at the measure's range, 0–100 % or 0–1, where it would reach "
-                        "beyond, and its legend says so; as in the report's regimes.png), <b>thin lines</b> its runs "
+                        "beyond, and the panel's title says so; as in the report's regimes.png), <b>thin lines</b> its runs "
                         "(<b>dotted</b>: not finished). Hover for values.</p>"),
                   sizing_mode="stretch_width")
         self.controls = row(self.picker, key, sizing_mode="stretch_width")
@@ -341,21 +341,24 @@ class _Regimes:
 
     def _redraw(self) -> None:
         from bokeh.core.properties import value
+        from bokeh.models.annotations import Title
 
         c = self.view.comparison if self.view is not None else None
         if not c:
             return
         picked = set(self.picker.value)
         for i, panel in enumerate(c["panels"]):
+            title, shown = render.panel_title(self.panels[i][0], panel), self.figures[i].title
+            if isinstance(shown, Title) and shown.text != title:  # (always a Title: _plain_figure gives it one)
+                shown.text = title
             for g in self.groups:
                 band, lines = render.regime_columns(panel, g, picked)
                 src_band, src_lines = self.sources[(i, g)]
                 src_band.data, src_lines.data = band, lines
         for i, g, item in self.items:
-            mine = c["panels"][i]["groups"].get(g) or {"lines": [], "band": None}
-            lines = mine["lines"]
+            lines = c["panels"][i]["groups"].get(g, {"lines": []})["lines"]
             done = sum(ln["state"] == "done" for ln in lines)
-            label = render.legend_label(g, done, len(lines) - done, (mine.get("band") or {}).get("clipped", ()))
+            label = render.legend_label(g, done, len(lines) - done)
             if self.labels.get((i, g)) != label:  # a legend redrawn only when its text changes
                 self.labels[(i, g)] = label
                 item.label = value(label)
