@@ -561,6 +561,12 @@ def test_the_page_in_headless_chromium_follows_a_real_run(tmp_path: Path) -> Non
         assert shot.stat().st_size > 10_000
         if os.environ.get("COEVO_DASHBOARD_SCREENSHOT"):  # docs/dashboard.png is made this way
             shutil.copy(shot, os.environ["COEVO_DASHBOARD_SCREENSHOT"])
+        from pages import check_page, open_page  # the page again at 1280 x 800, as every page (tests/pages.py)
+
+        open_page(browser, port)
+        title = "coevo dashboard: run watched (unverified: no --key-file)"
+        check_page(browser, tmp_path / "live.png", picture="dashboard.png", title=title, heading=title,
+                   headline=re.compile(r"executive-2 executive \d+/30"))
         page = browser.page_source
         assert "cdn.bokeh.org" not in page and "https://" not in page.split("<body")[0]  # nothing from the internet
     finally:
@@ -686,6 +692,10 @@ def test_a_comparison_opens_with_its_headline_above_the_fold_in_headless_chromiu
                              "Table 1, the legends and the bands drawn", shot,
                              "COEVO_DASHBOARD_COMPARE_SCREENSHOT")  # docs/dashboard-compare.png is made this way
         viewport = page["viewport"]
+        from pages import check_page  # what a screenshot of every page is checked for (tests/pages.py)
+
+        check_page(browser, shot, picture="dashboard-compare.png", title=f"coevo dashboard: comparison {out}",
+                   heading=f"coevo dashboard: comparison {out}", headline="Table 1")
 
         # Table 1: inside the first screen, a column of the runs' counts and one of the report's per regime
         assert _above_the_fold(page["table1"], viewport), page["table1"]
@@ -912,6 +922,11 @@ class TestAStudyOnThePage:
                                  "the study's headline drawn", tmp_path / "study.png",
                                  "COEVO_DASHBOARD_STUDY_SCREENSHOT")  # docs/dashboard-study.png is made this way
             viewport = page["viewport"]
+            from pages import check_page  # what a screenshot of every page is checked for (tests/pages.py)
+
+            check_page(browser, tmp_path / "study.png", picture="dashboard-study.png",
+                       title=f"coevo dashboard: study {study['out']}", heading="A study declared on the command line",
+                       headline="4 of 4 runs finished")
             for what in ("progress", "table", "selector"):  # the headline, and the way to a cell, on the first screen
                 assert _above_the_fold(page[what], viewport), (what, page[what])
             assert "4 of 4 runs finished" in page["progress_text"] and "the study: finished" in page["progress_text"]

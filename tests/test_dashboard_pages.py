@@ -6,8 +6,12 @@ their bands' hatching and edges, not only by two colours whose overlap blends in
 from __future__ import annotations
 
 import math
+import re
+from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
+
+import pytest
 
 from coevo.dashboard import render
 
@@ -93,3 +97,147 @@ def test_a_closed_tab_leaves_no_warnings_in_the_terminal_and_other_warnings_stay
     import inspect
 
     assert f'log.warning("{CLOSED_TAB}")' in inspect.getsource(ws)  # Bokeh still says it so: the filter still bites
+
+
+def test_a_band_of_a_rate_is_cut_at_its_range_and_its_panel_says_so() -> None:
+    """Three runs at 0, 0 and 100 % give a t interval of 33 % [−110, 177]: the band is cut at 0 and 100 (its measure's
+    range, the panel's 0 to its top) and the panel's title says so (its legends have no room at 1280 px); a band
+    inside the range is not marked."""
+    from coevo.dashboard.compare import ComparisonFiles
+    from coevo.experiments.compare.table1 import PANELS
+
+    rate = next(p for p in PANELS if p.column == "dock_choice")
+    assert rate.bounds == (0.0, 100.0) and PANELS[0].bounds == (0.0, 1.0)
+    lines = [{"run": f"r{i}", "state": "done", "generation": [1, 2], "value": [v, 5.0 + i]}
+             for i, v in enumerate((0.0, 0.0, 100.0))]
+    whole = ComparisonFiles._band(lines)
+    cut = ComparisonFiles._band(lines, rate.bounds)
+    assert whole is not None and cut is not None
+    assert whole["low"][0] < -100 and whole["high"][0] > 170 and whole["clipped"] == []
+    assert (cut["low"][0], cut["high"][0]) == (0.0, 100.0) and cut["mean"] == whole["mean"]
+    assert (cut["low"][1], cut["high"][1]) == (whole["low"][1], whole["high"][1])  # inside the range: untouched
+    assert cut["clipped"] == [0.0, 100.0]
+    panel = {"groups": {"mutual": {"lines": lines, "band": cut}, "independent": {"lines": [], "band": None}}}
+    assert render.panel_title("Docking picked", panel) == "Docking picked (bands clipped at 0 and 100)"
+    panel["groups"]["mutual"]["band"] = whole
+    assert render.panel_title("Docking picked", panel) == "Docking picked"
+
+
+def test_regimes_png_draws_the_dashboards_colour_blind_safe_colours_not_red_and_green(tmp_path: Any) -> None:
+    """The report's regimes.png drew Mutual in matplotlib's red and Independent in its green (one colour to a
+    deuteranope); it draws them in the dashboard's colours now: each mean line's colour is in the picture, and
+    neither the old red nor the old green is."""
+    import numpy as np
+    from matplotlib.image import imread
+
+    from coevo.experiments.compare.plots import figure_regimes
+    from coevo.experiments.compare.table1 import PANELS
+
+    def runs(level: float) -> dict[str, Any]:
+        return {f"r{i}": {"executive": {"best_fitness": [level, level + 0.1 * i, level + 0.05]}} for i in range(3)}
+
+    path = tmp_path / "regimes.png"
+    figure_regimes({"mutual": runs(0.2), "independent": runs(0.6)}, path, PANELS[:1])
+    pixels = (imread(path)[..., :3] * 255).round().astype(int).reshape(-1, 3)
+    seen = {tuple(p) for p in np.unique(pixels, axis=0)}
+
+    def rgb(hex_colour: str) -> tuple[int, int, int]:
+        return tuple(int(hex_colour[i:i + 2], 16) for i in (1, 3, 5))  # type: ignore[return-value]
+
+    assert rgb(render.REGIME_COLOURS[0]) in seen and rgb(render.REGIME_COLOURS[1]) in seen
+    assert rgb("#d62728") not in seen and rgb("#2ca02c") not in seen
+
+
+# ---------------------------------------------------------------- every page in headless Chromium at 1280 x 800
+# The comparison's and the study's pages are checked by their own browser tests in tests/test_dashboard.py (on the
+# comparison and the study they make: each calls pages.check_page); here the pages of a finished run, of a directory
+# of runs and of a study of learning runs, on the session's shared finished run and one tiny learning study.
+TINY_LEARN_STUDY = ["--learn", "tracking", "--factor", "world.target_speed=2,3", "--runs", "1", "--generations", "2",
+                    "--population", "4", "--episodes", "4", "--measure-epochs", "2", "--jobs", "2", "--quiet"]
+
+
+@pytest.mark.service
+@pytest.mark.slow
+class TestEveryPageInChromium:
+    """One browser and three dashboards for the three pages (tests/conftest.py keeps a class on one xdist worker)."""
+
+    @pytest.fixture(scope="class")
+    @classmethod
+    def served(cls, finished_mutual: Path, tmp_path_factory: pytest.TempPathFactory) -> Any:
+        import subprocess
+        import sys
+
+        from procs import copy_of, stop
+        from test_dashboard import _browser, _dashboard_proc
+
+        tmp = tmp_path_factory.mktemp("pages")
+        (tmp / "runs").mkdir()
+        run = copy_of(finished_mutual, tmp / "runs")  # the dashboard reads it; a copy all the same
+        study = tmp / "learn-study"
+        made = subprocess.run([sys.executable, "-m", "coevo", "study", "--out", str(study), *TINY_LEARN_STUDY],
+                              capture_output=True, text=True, timeout=900, check=False)
+        assert made.returncode == 0, made.stdout + made.stderr
+        browser = _browser(tmp)
+        dashes = []
+        try:
+            ports = {}
+            for name, target in (("run", run), ("runs", tmp / "runs"), ("learn-study", study)):
+                dash, ports[name] = _dashboard_proc(str(target), log=tmp / f"dashboard-{name}.log")
+                dashes.append(dash)
+            yield {"browser": browser, "ports": ports, "run": run, "runs": tmp / "runs", "study": study, "tmp": tmp}
+        finally:
+            browser.quit()
+            for dash in dashes:
+                stop(dash)
+        for name in ("run", "runs", "learn-study"):
+            said = (tmp / f"dashboard-{name}.log").read_text()
+            assert "Traceback" not in said, said[-3000:]
+
+    def test_a_finished_runs_page(self, served: dict[str, Any]) -> None:
+        from pages import check_page, open_page
+
+        browser, run = served["browser"], served["run"]
+        open_page(browser, served["ports"]["run"])
+        title = f"coevo dashboard: run {run}"
+        facts = check_page(browser, served["tmp"] / "run.png", picture="dashboard-run.png", title=title, heading=title,
+                           headline=re.compile(r"executive-\d+ executive 3/3"))
+        assert "Quality Tracking" in facts["text"] and "read-only" in facts["text"]
+
+    def test_a_directory_of_runs_page(self, served: dict[str, Any]) -> None:
+        from pages import check_page, open_page
+
+        browser = served["browser"]
+        open_page(browser, served["ports"]["runs"])
+        title = f"coevo dashboard: runs {served['runs']}"
+        check_page(browser, served["tmp"] / "runs.png", picture="dashboard-runs.png", title=title, heading=title,
+                   headline=re.compile(r"tracking-\d+ tracking 3/3"))
+
+    def test_a_study_of_learning_runs_page(self, served: dict[str, Any]) -> None:
+        from pages import check_page, open_page
+
+        browser, study = served["browser"], served["study"]
+        open_page(browser, served["ports"]["learn-study"])
+        facts = check_page(browser, served["tmp"] / "learn-study.png", picture="dashboard-learn-study.png",
+                           title=f"coevo dashboard: study {study}", heading="A study declared on the command line",
+                           headline="2 of 2 runs finished")
+        assert "Quality Tracking (%): mean [95 %] · median" in facts["text"], facts["text"][:2000]
+        # its wide table (two columns a measure) scrolls in its box instead of running on under the verdict
+        table, verdict = (browser.execute_script(BOX, cls) for cls in ("study-cells-box", "study-verdict"))
+        assert table and verdict and table[2] <= verdict[0], (table, verdict)
+
+
+# An element's box in the viewport, by its class (in Bokeh's shadow roots too): [left, top, right, bottom]
+BOX = """
+function find(n, cls) {
+  if (n.shadowRoot) { const r = find(n.shadowRoot, cls); if (r) return r; }
+  for (const c of n.children || []) {
+    if (c.classList && c.classList.contains(cls)) return c;
+    const r = find(c, cls); if (r) return r;
+  }
+  return null;
+}
+const e = find(document.body, arguments[0]);
+if (!e) return null;
+const r = e.getBoundingClientRect();
+return [r.left, r.top, r.right, r.bottom];
+"""

@@ -9,6 +9,7 @@ import contextlib
 import itertools
 import re
 import shlex
+import time
 from pathlib import Path
 
 from procs import coevo_main, copy_of, poll, tree_digest
@@ -100,6 +101,94 @@ def test_a_worker_shows_the_runs_generations_before_its_first_heartbeat_and_a_st
             assert states() == {"tracking-0": ("dead", "0/50"), "docking-1": ("stopped", "0/50")}
         finally:
             board.close()
+
+
+def test_a_worker_whose_last_heartbeat_says_it_stops_reads_stopped_on_a_board_not_told(broker) -> None:
+    """Real sessions on the bus, a board in "another terminal" (never told the run stops): a worker's last heartbeat
+    says it stops in order (Status.stopped), so its token's going reads *stopped*, whichever arrives first; a worker
+    whose token goes without it reads *dead*; a worker started again under the same id is not stopped by the first's
+    words."""
+    from coevo.bus.messages import Status, encode
+
+    endpoint, _ = broker
+    conf = make_config(mode="client", connect=[endpoint])
+    with open_session(conf) as watcher, open_session(conf) as workers:
+        board = StatusBoard(watcher, "ends", generations=50)
+        pubs = {w: workers.declare_publisher(keys.status("ends", b, w)) for b, w in
+                (("tracking", "tracking-0"), ("docking", "docking-1"), ("executive", "executive-2"))}
+
+        def beat(b: str, w: str, *, stopped: bool) -> None:
+            pubs[w].put(encode(Status(run="ends", behaviour=b, worker=w, regime="mutual", generation=3, generations=50,
+                                      best_fitness=0.1, stopped=stopped, sent_at=time.time())))
+
+        def states() -> dict[str, str]:
+            return {w["worker"]: w["state"] for w in board.snapshot()}
+
+        try:
+            tokens = {w: workers.liveliness().declare_token(keys.alive("ends", b, w))
+                      for b, w in (("tracking", "tracking-0"), ("docking", "docking-1"), ("executive", "executive-2"))}
+            for b, w in (("tracking", "tracking-0"), ("docking", "docking-1"), ("executive", "executive-2")):
+                beat(b, w, stopped=False)
+            poll(lambda: set(states().values()) == {"alive"}, 20, "three workers alive")
+            beat("tracking", "tracking-0", stopped=True)  # its words first, then its token
+            poll(lambda: board.poll() or board.workers["tracking-0"].stopping, 20, "tracking's last heartbeat")
+            tokens["tracking-0"].undeclare()
+            tokens["docking-1"].undeclare()  # its token goes first, then its words
+            poll(lambda: states()["docking-1"] == "dead", 20, "docking's token gone")
+            beat("docking", "docking-1", stopped=True)
+            tokens["executive-2"].undeclare()  # a death: no words
+            poll(lambda: states() == {"tracking-0": "stopped", "docking-1": "stopped", "executive-2": "dead"}, 20,
+                 lambda: f"stopped, stopped, dead: {states()}")
+            again = workers.liveliness().declare_token(keys.alive("ends", "tracking", "tracking-0"))  # restarted
+            poll(lambda: states()["tracking-0"] != "stopped", 20, "tracking started again")
+            again.undeclare()
+            poll(lambda: states()["tracking-0"] == "dead", 20, lambda: f"the restarted tracking dead: {states()}")
+        finally:
+            board.close()
+
+
+def test_ctrl_c_to_a_run_reads_stopped_in_coevo_status_from_another_terminal(tmp_path: Path) -> None:
+    """A real coevo run stopped by a terminal's Ctrl-C (SIGINT to its process group) while ``coevo status`` follows
+    it from another terminal (its board, on its own session, not told of the stop): every worker that stopped short
+    of its generations reads *stopped*, none *dead*."""
+    import json
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    from procs import SMALL, ctrl_c_heard, stop
+
+    out = tmp_path / "run.out"
+    with open(out, "wb") as f:
+        p = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--run", "cc", "--root", str(tmp_path), *SMALL,
+                              "--generations", "30", "--measure-epochs", "1", "--quiet"], stdout=f,
+                             stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=ctrl_c_heard)
+    board = None
+    try:
+        settings = tmp_path / "cc" / "run.json"
+        poll(settings.exists, 120, "the run's run.json")
+        conf = make_config(mode="client", connect=[json.loads(settings.read_text())["endpoint"]])
+        with open_session(conf) as watcher:
+            board = StatusBoard(watcher, "cc")
+
+            def states() -> dict[str, str]:
+                return {w["worker"]: w["state"] for w in board.snapshot()}
+
+            poll(lambda: len(states()) == 3 and set(states().values()) == {"alive"}, 120,
+                 lambda: f"three workers alive: {states()}")
+            os.killpg(p.pid, signal.SIGINT)
+            assert p.wait(timeout=120) == 130, out.read_text()[-3000:]
+            seen = states()
+            early = json.loads((tmp_path / "cc" / "summary.json").read_text())["stopped_early"]
+            assert early, "no worker stopped early: the check would prove nothing"
+            assert {w: s for w, s in seen.items() if w.split("-")[0] in early} == {
+                w: "stopped" for w in seen if w.split("-")[0] in early}, seen
+            assert "dead" not in seen.values(), seen
+            board.close()
+            board = None
+    finally:
+        stop(p)
 
 
 def test_resume_of_no_directory_is_still_one_line(tmp_path: Path) -> None:

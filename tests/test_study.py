@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import signal
 import statistics
 import subprocess
@@ -282,7 +283,7 @@ def _verdict_of(samples: dict[str, list[float]], *, others: int = 0) -> str:
     return line
 
 
-def test_the_verdict_never_calls_an_effect_absent_beside_a_large_one_or_apart_intervals() -> None:
+def test_the_verdict_never_calls_an_effect_absent_beside_a_large_one_or_a_difference_that_excludes_0() -> None:
     # The issue's case: AEL 3.67 [2.85, 4.50] and 4.75 [4.65, 4.85] from two runs a level, ε² 0.80, called
     # "No detectable effect ... a difference beyond 0.06 is excluded by every pair's 95 % interval".
     line = _verdict_of({"1": [3.2, 4.1], "off": [4.7, 4.8]})
@@ -290,10 +291,11 @@ def test_the_verdict_never_calls_an_effect_absent_beside_a_large_one_or_apart_in
     assert "the effect size is large (ε² = 0.80)" in line and "No detectable" not in line
     assert "no p below 0.33 is possible" in line and "too few runs for an interval" in line
     assert "excluded" not in line  # no interval of the difference from two runs, so nothing is excluded
-    # Five runs a level whose intervals do not overlap, tested among many: Holm's correction keeps p above 5 %.
+    # Five runs a level, far apart, tested among many: Holm's correction keeps p above 5 %.
     apart = {"1": [4.0, 4.1, 4.2, 4.3, 4.4], "off": [4.8, 4.9, 5.0, 5.1, 5.2]}
     line = _verdict_of(apart, others=20)
-    assert line.startswith("- **Not established**") and "do not overlap" in line and "No detectable" not in line
+    assert line.startswith("- **Not established**") and "No detectable" not in line
+    assert "the 95 % interval of the difference off − 1 = +0.80 [+0.57, +1.03] excludes 0" in line
     assert "the smallest p possible with 10 runs in 2 levels is 0.0079" in line
     # Two runs a level, levels alike: not "no detectable effect" from a test that can detect none.
     line = _verdict_of({"1": [4.0, 5.0], "off": [4.5, 4.6]})
@@ -304,6 +306,67 @@ def test_the_verdict_never_calls_an_effect_absent_beside_a_large_one_or_apart_in
     same = {"1": list(rng.normal(5, 0.5, 8)), "off": list(rng.normal(5, 0.5, 8))}
     line = _verdict_of(same)
     assert line.startswith("- No detectable effect of max_lead") and "is excluded by every pair's 95 % interval" in line
+
+
+def test_the_verdict_decides_on_the_pairs_differences_not_on_whether_the_levels_intervals_overlap() -> None:
+    """Two levels whose own 95 % intervals overlap while their difference's excludes 0, with a medium effect size,
+    tested among many: the levels' intervals alone said "No detectable effect"; the difference says otherwise."""
+    from coevo.experiments.study.report import excluding_zero, factor_test
+
+    low = [round(4 + 2 * i / 29, 4) for i in range(30)]  # 30 runs a level, evenly spread over 4..6
+    high = [round(x + 0.36, 4) for x in low]
+    t = factor_test("max_lead", "mutual", "average_epoch_length", {"1": low, "off": high}, share=False)
+    assert t is not None and t["magnitude"] == "medium"
+    one, off = t["levels"]
+    assert one["high"] > off["low"]  # the levels' intervals overlap ...
+    (d,) = excluding_zero(t)  # ... and the interval of their difference lies above 0
+    assert 0 < d["low"] < d["diff"] < d["high"] and d["diff"] == pytest.approx(0.36)
+    line = _verdict_of({"1": low, "off": high}, others=20)
+    assert line.startswith("- **Not established**: an effect of max_lead"), line
+    assert "the 95 % interval of the difference off − 1 = +0.36 [+0.05, +0.67] excludes 0" in line
+    assert "No detectable" not in line and "excluded by every pair" not in line
+    # the same levels moved together: the difference's interval holds 0, and "no detectable effect" is said with
+    # the largest difference every pair's interval excludes
+    near = [round(x + 0.05, 4) for x in low]
+    t = factor_test("max_lead", "mutual", "average_epoch_length", {"1": low, "off": near}, share=False)
+    assert t is not None and excluding_zero(t) == []
+    line = _verdict_of({"1": low, "off": near}, others=20)
+    big = max(abs(t["differences"][0]["low"]), abs(t["differences"][0]["high"]))
+    assert line.startswith("- No detectable effect of max_lead"), line
+    assert f"a difference between two levels beyond {big:.2f} is excluded by every pair's 95 % interval" in line
+
+
+def test_a_levels_fitness_interval_is_cut_at_0_and_the_report_says_so() -> None:
+    """The Executive's end is a payoff, 0 to 1: three runs at 0, 0 and 0.3 give a t interval reaching to -0.33; the
+    level's summary is cut at 0, and its text in the verdict and the tables says "clipped at 0"."""
+    from coevo.experiments.glossary import bounds_of
+    from coevo.experiments.study.report import factor_test, format_mean
+
+    assert bounds_of("executive_end") == (0.0, 1.0) and bounds_of("average_epoch_length") is None
+    t = factor_test("max_lead", "mutual", "executive_end", {"1": [0.0, 0.0, 0.3], "off": [0.3, 0.35, 0.4]},
+                    share=False, bounds=bounds_of("executive_end"))
+    assert t is not None
+    one, off = t["levels"]
+    assert one["low"] == 0.0 and one["clipped"] == (0.0,) and 0 < off["low"] and off["clipped"] == ()
+    assert format_mean(one, False) == f"0.10 [0.00, {one['high']:.2f}] (clipped at 0)"
+    assert format_mean(off, False) == f"0.35 [{off['low']:.2f}, {off['high']:.2f}]"
+    assert format_mean({**one, "clipped": [0.0]}, False) == format_mean(one, False)  # as read from results.json
+
+
+def test_shares_are_decided_on_newcombes_interval_of_their_difference() -> None:
+    """A share (Good Docking) at 2 of 20 and 9 of 20 runs: the Wilson intervals [3-30 %] and [26-66 %] overlap,
+    Newcombe's interval of the difference lies above 0, so among many tests it is "not established", in points."""
+    from coevo.experiments.study.report import adjust, factor_test, verdict_lines
+
+    t = factor_test("model", "mutual", "good_docking", {"best": [1.0] * 2 + [0.0] * 18,
+                                                        "current": [1.0] * 9 + [0.0] * 11}, share=True)
+    assert t is not None
+    best, current = t["levels"]
+    assert best["high"] > current["low"]
+    adjust([t, *({"p": 0.01} for _ in range(20))])
+    (line,) = verdict_lines([t], lambda _: ("good docking", " in mutual"), 40, 40)
+    assert line.startswith("- **Not established**"), line
+    assert re.search(r"the difference current − best = \+35 percentage points \[\+\d+, \+\d+\] excludes 0", line), line
 
 
 # ---------------------------------------------------------------- a tiny real study, killed and resumed

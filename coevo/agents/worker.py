@@ -44,7 +44,7 @@ from coevo.bus import keys
 from coevo.bus.auth import RunKey
 from coevo.bus.messages import PolicyUpdate, Status
 from coevo.bus.rejections import Rejections
-from coevo.bus.lifecycle import Lifecycle, main_of
+from coevo.bus.lifecycle import SIGNALLED, Lifecycle, main_of
 from coevo.bus.session import Config, Publisher, Session
 from coevo.errors import ConfigError, MessageError, ServiceError
 from coevo.ga import GA, GenerationReport
@@ -122,6 +122,7 @@ class Worker:
         self._best = 0.0
         self._measures: dict[str, float] = {}  # the task's status_measures of the latest generation, for the heartbeat
         self._last_beat = 0.0
+        self._said_stopped = False  # its last heartbeat said it stops in order (Status.stopped)
         self._status_pub: Publisher | None = None
         self._inbox: Inbox | None = None
         self._outbox: Outbox | None = None
@@ -285,7 +286,7 @@ class Worker:
             finished = self._completed >= self.ga_cfg.generations
             if finished:
                 outbox.final_sync(self.final_sync, inbox.stop, partial(self._heartbeat, done=False))
-            self._heartbeat(done=finished)
+            self._heartbeat(done=finished, stopped=not finished and self._asked_to_stop())
             life.linger()
         rows = read_jsonl(p.curve)
         write_json(p.done, {
@@ -303,7 +304,11 @@ class Worker:
         return curve
 
     def _closing(self) -> None:
-        """As the worker's life ends (before its token and heartbeats' publisher go): nothing more is sent."""
+        """As the worker's life ends (before its token and heartbeats' publisher go): a worker asked to stop (a
+        signal, or the run's stop) short of its last generation says so in a last heartbeat, so that every board
+        reads its token's going as a stop, not a death; then nothing more is sent."""
+        if not self._said_stopped and self._asked_to_stop() and self._completed < self.ga_cfg.generations:
+            self._heartbeat(done=False, stopped=True)  # a signal cut its generation short: no last heartbeat yet
         self._status_pub = None
         self._inbox = None
         self.rejected.flush()
@@ -342,21 +347,26 @@ class Worker:
                             generation=rep.generation, fitness=fitness, episodes=episodes, rules=rules, sent_at=time.time())
 
     # ------------------------------------------------------------ heartbeats
-    def _status(self, *, done: bool) -> Status:
+    def _asked_to_stop(self) -> bool:
+        """A signal (Ctrl-C, SIGTERM) or the run's stop, not a failure of its own."""
+        return SIGNALLED.is_set() or (self._inbox is not None and self._inbox.stop.is_set())
+
+    def _status(self, *, done: bool, stopped: bool = False) -> Status:
         outbox = self._outbox
         return Status(
             run=self.run_id, behaviour=self.behaviour, worker=self.worker_id, regime=self.regime,
             generation=self._completed, generations=self.ga_cfg.generations,
             best_fitness=self._best if self._best > -1e300 else 0.0,
             partner_versions=dict(self.models.versions),
-            rejected=self.rejected.as_dict(), buffered=len(outbox.unconfirmed) if outbox else 0, done=done,
+            rejected=self.rejected.as_dict(), buffered=len(outbox.unconfirmed) if outbox else 0, done=done, stopped=stopped,
             open=self.gate.open, measures=self._measures, sent_at=time.time(),
         )
 
-    def _heartbeat(self, *, done: bool) -> None:
+    def _heartbeat(self, *, done: bool, stopped: bool = False) -> None:
+        self._said_stopped = self._said_stopped or stopped
         if self._status_pub is not None:
-            self._status_pub.put(self.gate.seal(self._status(done=done), keys.status(self.run_id, self.behaviour,
-                                                                                      self.worker_id)))
+            self._status_pub.put(self.gate.seal(self._status(done=done, stopped=stopped),
+                                                keys.status(self.run_id, self.behaviour, self.worker_id)))
         self._last_beat = time.monotonic()
 
     def _tick(self) -> None:

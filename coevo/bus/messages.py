@@ -147,6 +147,10 @@ class Status(_Msg):
     rejected: dict[str, int] = Field(default_factory=dict)
     buffered: int = Field(default=0, ge=0)  # published versions the broker's store has not confirmed yet
     done: bool = False
+    # its last heartbeat: it was asked to stop (a Ctrl-C, SIGTERM or the run's stop) and stops in order short of its
+    # last generation, so its token's going is a stop, not a death (what a board that was not told the run stops
+    # reads: `coevo status` in another terminal)
+    stopped: bool = False
     open: bool = False  # the worker runs without a key: it accepts unauthenticated messages
     # The latest generation's best on the behaviour's own measures, in % (its task's status_measures; the
     # fuel task's: Tracking quality_tracking, Docking docking_from_random, the Executive dock_choice and

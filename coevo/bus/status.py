@@ -7,7 +7,8 @@ heartbeat came for ``stall`` seconds (a token proves the process exists, not tha
 progresses; a worker heartbeats about every second, even in the middle of a generation),
 *dead* when its token is gone (its process died: seen within milliseconds on a LAN, or its
 link stayed silent for a lease), *stopped* when its token went short of its last generation once
-the board was told the run was asked to stop (:meth:`StatusBoard.stopping`: ``coevo run`` on a Ctrl-C),
+the board was told the run was asked to stop (:meth:`StatusBoard.stopping`: ``coevo run`` on a Ctrl-C) or the worker's
+last heartbeat said it stops in order (``stopped``: what a board in another terminal, not told, goes by),
 and *done* when it said so or when its token went after its heartbeats showed it at its last
 generation (a worker that finished its generations and ends: its final heartbeat and its token
 travel apart and may arrive in either order, so a finishing worker is never shown dead, in the
@@ -234,10 +235,14 @@ class StatusBoard:
         v.best_fitness, v.partner_versions, v.measures = msg.best_fitness, msg.partner_versions, dict(msg.measures)
         v.rejected, v.buffered, v.done, v.open = dict(msg.rejected), msg.buffered, msg.done, msg.open
         v.last_heartbeat = time.time()
+        if msg.stopped:  # its last words: it stops in order, before or after its token went
+            v.stopping = True
+            return
         if v.died_at is None:
             v.token = True  # a heartbeat proves the process is there (its token may still be on its way)
         elif msg.sent_at > v.died_at:
             v.token, v.died_at = True, None  # sent after the death: a restarted worker
+            v.stopping = self._stopping
 
     def _take_robot(self, msg: ExecutionStatus) -> None:
         v = self.robots.setdefault(msg.robot, RobotView(msg.robot))
@@ -277,6 +282,8 @@ class StatusBoard:
         alive = is_put(sample)
         with self._lock:
             v = self._view(parts.get("behaviour", "?"), parts["worker"])
+            if alive and not v.token:  # (again: a restarted worker) its stop is not its predecessor's
+                v.stopping = self._stopping
             v.token = alive
             v.died_at = None if alive else time.time()
         self.changed.set()

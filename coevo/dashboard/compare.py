@@ -181,7 +181,8 @@ class ComparisonFiles:
                 by_group.setdefault(rep.group, []).append(rep)
         curves = {rep.run_id: self._curve_rows(rep) for reps in by_group.values() for rep in reps}
         panels = []
-        for i, (title, behaviour, column, ylabel, top) in enumerate(self.reading.panels):
+        for i, the_panel in enumerate(self.reading.panels):
+            title, behaviour, column, ylabel, top = the_panel
             groups: dict[str, dict[str, Any]] = {}
             for group, reps in by_group.items():
                 lines = []
@@ -194,19 +195,21 @@ class ComparisonFiles:
                 finished = tuple(ln["run"] for ln in lines if ln["state"] == "done")
                 held = self._bands.get((i, group))
                 if held is None or held[0] != finished:
-                    held = self._bands[(i, group)] = (finished, self._band([ln for ln in lines if ln["run"] in finished]))
+                    held = self._bands[(i, group)] = (finished, self._band([ln for ln in lines if ln["run"] in finished],
+                                                                           the_panel.bounds))
                 groups[group] = {"lines": lines, "band": held[1]}
             panels.append({"title": title, "behaviour": behaviour, "column": column, "ylabel": ylabel, "top": top,
                            "groups": groups})
         return panels
 
     @staticmethod
-    def _band(lines: list[dict[str, Any]]) -> dict[str, list[float]] | None:
-        """The mean per generation of finished runs' lines and its 95 % interval (NaN ends below three runs); None
-        below two runs."""
+    def _band(lines: list[dict[str, Any]], bounds: tuple[float, float] | None = None) -> dict[str, Any] | None:
+        """The mean per generation of finished runs' lines and its 95 % interval (NaN ends below three runs), cut
+        at ``bounds``, the panel's measure's range (``clipped``: the ends it was cut at, [] for none); None below
+        two runs."""
         import numpy as np
 
-        from coevo.experiments.compare.stats import mean_intervals
+        from coevo.experiments.compare.stats import clip, mean_intervals
 
         if len(lines) < 2:
             return None
@@ -215,9 +218,10 @@ class ComparisonFiles:
         for k, ln in enumerate(lines):
             m[k, np.asarray(ln["generation"]) - 1] = ln["value"]
         mean, low, high = mean_intervals(m)
+        low, high, cut = clip(low, high, bounds)
         keep = ~np.isnan(mean)
         return {"generation": [int(g) for g in np.flatnonzero(keep) + 1], "mean": mean[keep].tolist(),
-                "low": low[keep].tolist(), "high": high[keep].tolist(),
+                "low": low[keep].tolist(), "high": high[keep].tolist(), "clipped": list(cut),
                 "n": (~np.isnan(m)).sum(axis=0)[keep].astype(int).tolist()}
 
     def states(self) -> list[dict[str, Any]]:

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from coevo.dashboard.model import View
+from coevo.experiments.compare import plots
 from coevo.experiments.glossary import TERMS, with_unit
 
 __all__ = ["PALETTE", "REGIME_COLOURS", "problems_html", "runs_html", "workers_html", "comparison_html",
@@ -26,12 +27,11 @@ __all__ = ["PALETTE", "REGIME_COLOURS", "problems_html", "runs_html", "workers_h
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf",
            "#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#c49c94", "#f7b6d2", "#c7c7c7", "#dbdb8d", "#9edae5")
 DASHES = ("solid", "dashed", "dotted", "dotdash")
-#: A comparison's regimes in the colours of its report's regimes.png (matplotlib's tab:red, tab:green, ...)
-#: A comparison's groups: Okabe and Ito's colour-blind-safe colours (vermillion, blue, bluish green, orange, reddish
-#: purple, sky blue), none two of which a colour-blind reader confuses or whose overlap reads as a third.
-REGIME_COLOURS = ("#D55E00", "#0072B2", "#009E73", "#E69F00", "#CC79A7", "#56B4E9")
-#: Each group's band hatching, in the same order: overlapping bands cross-hatch.
-REGIME_HATCHES = ("/", "\\", "|", "-", "x", ".")
+#: A comparison's groups in the colours and band hatchings of its report's regimes.png (Okabe and Ito's
+#: colour-blind-safe colours: :data:`coevo.experiments.compare.plots.REGIME_COLOURS`).
+REGIME_COLOURS, REGIME_HATCHES = plots.REGIME_COLOURS, plots.REGIME_HATCHES
+#: The width of a study's progress and cells table, in pixels (its verdict takes the rest of the row).
+STUDY_PROGRESS_WIDTH = 840
 _STATE_COLOUR = {"alive": "#2ca02c", "running": "#2ca02c", "done": "#1f77b4", "stalled": "#b8860b", "dead": "#d62728",
                  "failed": "#d62728", "stopped": "#7f7f7f", "up": "#2ca02c", "down": "#d62728", "degraded": "#b8860b",
                  "waiting": "#7f7f7f", "files": "#7f7f7f", "starting": "#7f7f7f"}
@@ -190,6 +190,15 @@ def legend_label(group: str, done: int, going: int) -> str:
 
     band = f", no band (needs {MIN_RUNS})" if 0 < done < MIN_RUNS else ""
     return f"{group}, {plural(done, 'run')}{band}" + (f" (+{going} going)" if going else "")
+
+
+def panel_title(title: str, panel: dict[str, Any]) -> str:
+    """A comparison panel's title, saying when a band on it was cut at its measure's range (the legends, one entry a
+    regime, have no room for it at 1280 px): 'Executive learning curve (bands clipped at 0 and 1)'."""
+    from coevo.experiments.compare.stats import clip_words
+
+    cut = sorted({b for g in panel["groups"].values() for b in ((g.get("band") or {}).get("clipped") or ())})
+    return f"{title} (bands {clip_words(cut)})" if cut else title
 
 
 def regime_colour(view: View, group: str) -> str:
@@ -457,7 +466,10 @@ def study_progress_html(view: View) -> str:
                                        "Executive end", "AEL"], rows, numeric={2, 6, 7})
     style = "<style>table.study-cells td,table.study-cells th{white-space:nowrap;padding:1px 8px}</style>"
     # a study of many cells scrolls in its box: the cell selector below stays on the first screen
-    return head + style + f"<div class='study-cells-box' style='max-height:440px;overflow:auto'>{table}</div>"
+    # its own box, scrolled both ways: a wide table (a study of learning runs has two columns a measure) stays in the
+    # box's width instead of running on under the verdict beside it
+    return head + style + (f"<div class='study-cells-box' style='max-height:440px;max-width:{STUDY_PROGRESS_WIDTH}px;"
+                           f"overflow:auto'>{table}</div>")
 
 
 def study_verdict_html(view: View) -> str:

@@ -229,7 +229,8 @@ class _Regimes:
         self.picker.on_change("value", self._picked)
         key = Div(text=("<p style='font:13px sans-serif;color:#333;margin:22px 0 0 12px'>Per regime: "
                         "<b>thick line</b> the mean of its finished runs, <b>band</b> the 95 % interval of that mean "
-                        "(Student t; none below 3 runs; as in the report's regimes.png), <b>thin lines</b> its runs "
+                        "(Student t; none below 3 runs; cut at the measure's range, 0–100 % or 0–1, where it would reach "
+                        "beyond, and the panel's title says so; as in the report's regimes.png), <b>thin lines</b> its runs "
                         "(<b>dotted</b>: not finished). Hover for values.</p>"),
                   sizing_mode="stretch_width")
         self.controls = row(self.picker, key, sizing_mode="stretch_width")
@@ -340,12 +341,16 @@ class _Regimes:
 
     def _redraw(self) -> None:
         from bokeh.core.properties import value
+        from bokeh.models.annotations import Title
 
         c = self.view.comparison if self.view is not None else None
         if not c:
             return
         picked = set(self.picker.value)
         for i, panel in enumerate(c["panels"]):
+            title, shown = render.panel_title(self.panels[i][0], panel), self.figures[i].title
+            if isinstance(shown, Title) and shown.text != title:  # (always a Title: _plain_figure gives it one)
+                shown.text = title
             for g in self.groups:
                 band, lines = render.regime_columns(panel, g, picked)
                 src_band, src_lines = self.sources[(i, g)]
@@ -374,7 +379,7 @@ class _Study:
         view = dash.current()[1]
         s = view.study or {}
         self.cell: str = s.get("default", "")
-        self.progress = Div(text="", name="study", width=840)
+        self.progress = Div(text="", name="study", width=render.STUDY_PROGRESS_WIDTH)
         self.verdict = Div(text="", name="study-verdict", sizing_mode="stretch_width")
         self.headline = row(self.progress, self.verdict, sizing_mode="stretch_width")
         self.tables = Div(text="", name="study-tables", sizing_mode="stretch_width")

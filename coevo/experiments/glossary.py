@@ -14,9 +14,10 @@ the policy the worker publishes, and a maximum over noisy values, so it mostly s
 from __future__ import annotations
 
 from coevo.tasks.base import Term
-from coevo.tasks.fuel.terms import MEASURES
+from coevo.tasks.fuel.terms import MEASURES, UNIT
 
-__all__ = ["Term", "MEASURES", "CLASSES", "FITNESSES", "STATISTICS", "label", "with_unit", "TERMS", "markdown"]
+__all__ = ["Term", "MEASURES", "CLASSES", "FITNESSES", "STATISTICS", "label", "with_unit", "bounds_of", "TERMS",
+           "markdown"]
 
 #: Table 1's docking classes as a study counts them, per cell: the share of its runs in the class.
 CLASSES: dict[str, Term] = {
@@ -35,16 +36,17 @@ FITNESSES: dict[str, Term] = {
                         "re-evaluations, so mostly above the curve; 'final' is its value at the last generation (the "
                         "comparison's tests on Executive fitness use it)."),
     "final_executive_fitness": Term("Executive's final best so far", "", "the Executive's best so far at the "
-                                    "last generation, per run: what a comparison's first rank test compares."),
+                                    "last generation, per run: what a comparison's first rank test compares.", UNIT),
     "executive_end": Term("Executive end", "", "the Executive's generation's best at the last generation (the "
-                          "report's learning curve's end), a study's mean over a cell's runs."),
+                          "report's learning curve's end), a study's mean over a cell's runs.", UNIT),
 }
 
 #: The statistics the reports print beside the measures.
 STATISTICS: dict[str, Term] = {
     "interval": Term("95 % interval", "", "of a mean: Student's t interval, mean ± t(0.975, n − 1) s/√n; none below "
-                     "3 runs. Of a share (k of n runs): Wilson's score interval. Of a difference: Welch's t interval "
-                     "(means), Newcombe's (shares)."),
+                     "3 runs; cut at the measure's range where it reaches beyond it (and said: 'clipped at 0'). Of a "
+                     "share (k of n runs): Wilson's score interval. Of a difference: Welch's t interval (means), "
+                     "Newcombe's (shares)."),
     "p": Term("p", "", "the rank test's p-value (Mann–Whitney for two groups, Kruskal–Wallis for more): exact when "
               "the runs split among the groups in at most 20,000 ways."),
     "min_p": Term("smallest p possible", "", "the lowest p any outcome of a design of this many runs can give: "
@@ -66,6 +68,12 @@ def label(field: str) -> str:
     return term.name if term else field
 
 
+def bounds_of(field: str) -> tuple[float, float] | None:
+    """A field's possible range (what its mean's 95 % interval is cut at), None when it has none or no term."""
+    term = TERMS.get(field)
+    return term.bounds if term else None
+
+
 def with_unit(field: str, value: float, digits: int = 1) -> str:
     """'Quality Tracking 72.2 %', 'Average Epoch Length 7.05 episodes', 'Executive payoff 0.660'."""
     term = TERMS.get(field)
@@ -80,7 +88,8 @@ def markdown() -> str:
     for title, terms in sections:
         lines += [f"## {title}", ""]
         for field, t in terms.items():
-            unit = f" ({t.unit.strip()})" if t.unit.strip() else ""
+            span = f"{t.bounds[0]:g} to {t.bounds[1]:g}" if t.bounds else ""
+            unit = f" ({'; '.join(x for x in (t.unit.strip(), span) if x)})" if t.unit.strip() or span else ""
             where = "" if terms is STATISTICS else f" Field: `{field}`."
             lines.append(f"- **{t.name}**{unit}: {t.definition}{where}")
         lines.append("")

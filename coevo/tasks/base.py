@@ -69,6 +69,9 @@ class Term:
     name: str
     unit: str
     definition: str
+    #: Its possible range, (lowest, highest), or None when it has none to speak of: what a 95 % interval of its mean
+    #: is cut at (a rate of episodes 0 to 100 %, a payoff 0 to 1).
+    bounds: tuple[float, float] | None = None
 
     def text(self, value: float, digits: int = 1) -> str:
         """'Quality Tracking 72.2 %'; a value without a unit (a payoff, a fitness) to 3 places: 'Executive payoff

@@ -137,8 +137,10 @@ def write_report(out: Path, spec: CompareSpec, *, elapsed: float | None = None) 
     reading = reading_of(spec.the_task)
     measures = _measures(spec, records)
     names = dict(measures)
+    terms = spec.the_task.measure_terms
     summary = {g: {k: mean_interval([v for v in (_values(x, k) for x in records if x["group"] == g)
-                                      if not math.isnan(v)]).as_dict() for k, _ in measures}
+                                      if not math.isnan(v)], bounds=terms[k].bounds if k in terms else None).as_dict()
+                   for k, _ in measures}
                for g in spec.regimes}
     tests = _tests(spec, records, measures)
     verdict = "; ".join(test_sentence(t, names[t.measure], p) for t, p in tests) + "." if tests else (

@@ -15,9 +15,16 @@ import numpy as np
 
 from coevo.experiments.common import plural
 from coevo.experiments.compare.reading import Panel
-from coevo.experiments.compare.stats import MIN_RUNS, mean_intervals
+from coevo.experiments.compare.stats import MIN_RUNS, clip, clip_words, mean_intervals
 
-__all__ = ["figure_for_regime", "figure_regimes", "figure_rates"]
+__all__ = ["figure_for_regime", "figure_regimes", "figure_rates", "REGIME_COLOURS", "REGIME_HATCHES"]
+
+#: A comparison's groups: Okabe and Ito's colour-blind-safe colours (vermillion, blue, bluish green, orange, reddish
+#: purple, sky blue), none two of which a colour-blind reader confuses or whose overlap reads as a third; the
+#: dashboard's comparison page draws its regimes in them too.
+REGIME_COLOURS = ("#D55E00", "#0072B2", "#009E73", "#E69F00", "#CC79A7", "#56B4E9")
+#: Each group's band hatching, in the same order: overlapping bands cross-hatch.
+REGIME_HATCHES = ("/", "\\", "|", "-", "x", ".")
 
 Curves = Mapping[str, Mapping[str, Mapping[str, Sequence[float]]]]  # run -> behaviour -> column -> per generation
 
@@ -90,17 +97,22 @@ def figure_regimes(by_regime: Mapping[str, Curves], path: Path, panels: Sequence
     """The regimes' mean curves side by side on the same panels."""
     plt = _pyplot()
     fig, axes = _grid(plt, panels)
-    colours = ("tab:red", "tab:green", "tab:blue", "tab:orange")
-    for ax, (title, beh, col, ylabel, top) in zip(axes, panels, strict=True):
-        for colour, (regime, curves) in zip(colours, by_regime.items(), strict=False):
+    for ax, panel in zip(axes, panels, strict=True):
+        title, beh, col, ylabel, top = panel
+        for i, (regime, curves) in enumerate(by_regime.items()):
+            colour, hatch = (x[i % len(x)] for x in (REGIME_COLOURS, REGIME_HATCHES))
             m = _matrix(curves, beh, col)
             if not m.size or np.isnan(m).all():
                 continue
             g = np.arange(1, m.shape[1] + 1)
             mean, low, high = mean_intervals(m)
-            ax.fill_between(g, low, high, color=colour, alpha=0.15)
-            band = ("band: 95 % interval of the mean" if m.shape[0] >= MIN_RUNS
-                    else f"no band: an interval needs {MIN_RUNS} runs")
+            low, high, cut = clip(low, high, panel.bounds)
+            # hatched and edged, as on the dashboard: two overlapping bands stay two, not one blended colour
+            ax.fill_between(g, low, high, facecolor=colour, alpha=0.15, edgecolor="none")
+            ax.fill_between(g, low, high, facecolor="none", edgecolor=colour, hatch=hatch * 2, linewidth=0.8,
+                            alpha=0.5)
+            band = ("band: 95 % interval of the mean" + (f", {clip_words(cut)}" if cut else "")
+                    if m.shape[0] >= MIN_RUNS else f"no band: an interval needs {MIN_RUNS} runs")
             ax.plot(g, mean, color=colour, linewidth=2, label=f"{regime}: mean of {plural(m.shape[0], 'run')} ({band})")
         _axis(ax, title, ylabel, top)
         ax.legend(loc="upper left", fontsize=8)

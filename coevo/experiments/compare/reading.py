@@ -22,13 +22,19 @@ __all__ = ["Panel", "Reading", "reading_of", "write_report"]
 
 class Panel(NamedTuple):
     """One panel of curves: its title, the behaviour and curve column it draws, its y label and the top of its axis
-    (None: as high as the curves go)."""
+    (None: as high as the curves go).  A panel with a top draws a measure whose range is 0 to that top (a rate in %,
+    a payoff): its axis starts at 0 and its bands are cut at that range."""
 
     title: str
     behaviour: str
     column: str
     ylabel: str
     top: float | None
+
+    @property
+    def bounds(self) -> tuple[float, float] | None:
+        """The range of the measure it draws, what its bands are cut at: 0 to its top; None without a top."""
+        return None if self.top is None else (0.0, float(self.top))
 
 
 @dataclass(frozen=True)

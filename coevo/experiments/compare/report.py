@@ -46,7 +46,7 @@ from coevo.experiments.compare.stats import (
     mean_interval,
 )
 from coevo.experiments.compare.table1 import CLASSES, PANELS, REPORT_COUNTS, classify, count
-from coevo.experiments.glossary import TERMS, label
+from coevo.experiments.glossary import TERMS, bounds_of, label
 from coevo.policy.text import parse_ruleset
 from coevo.rundir.layout import (
     LearnPaths,
@@ -168,8 +168,9 @@ def executive_curve(curves: list[list[float]]) -> dict[str, Any]:
     shorter run: ``tail_generations`` says how many were averaged), each with a 95 % interval over the runs."""
     curves = [c for c in curves if c]
     tail = min(TAIL_GENERATIONS, max((len(c) for c in curves), default=TAIL_GENERATIONS))
-    return {"end": mean_interval([float(c[-1]) for c in curves]).as_dict(),
-            "last_generations": mean_interval([statistics.fmean(c[-tail:]) for c in curves]).as_dict(),
+    fitness = bounds_of("executive_end")  # a payoff: 0 to 1
+    return {"end": mean_interval([float(c[-1]) for c in curves], bounds=fitness).as_dict(),
+            "last_generations": mean_interval([statistics.fmean(c[-tail:]) for c in curves], bounds=fitness).as_dict(),
             "tail_generations": tail}
 
 

@@ -30,6 +30,15 @@ the bounded, roughly symmetric shapes of the measures (normal, uniform, beta(2, 
 for strongly skewed or zero-heavy ones.  With two runs its one degree of freedom makes it
 ±12.7 times half their gap, which says nothing a reader can use: below three runs no interval is given, and the text
 says why.
+
+**A bounded measure's interval is cut at its range.**  A t interval is symmetric about the mean, so for a measure that
+cannot leave a range (a rate of episodes in 0–100 %, a payoff or fitness in 0–1) and whose runs sit near an end it
+can reach outside: three runs at 0, 0 and 100 % give 33 % with [−110, 177].  Such an end is cut at the range, and
+the text says so ("clipped at 0").  Cutting keeps the coverage exactly: the true mean lies in the range, so it lies
+in the cut interval whenever it lay in the whole one (tests/test_interval_coverage.py measures both).  The other
+choices were worse here: Wilson's interval is for k successes of n trials, not for a mean of runs' rates; the
+bootstrap intervals, which stay inside the range by construction, cover far less than 95 % at these n (above);
+a logit transform is undefined at the runs that score exactly 0 or 100 %, which are common (a starved Docking).
 """
 
 from __future__ import annotations
@@ -37,6 +46,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
+from typing import Any
 from itertools import combinations
 
 import numpy as np
@@ -44,10 +54,12 @@ from scipy import stats
 
 __all__ = ["RankComparison", "compare_samples", "magnitude", "GroupComparison", "compare_groups", "MeanInterval",
            "mean_interval", "mean_intervals", "holm", "format_p", "MIN_RUNS", "EXACT_ARRANGEMENTS", "rank_p",
-           "smallest_p", "too_few_text", "design_floor"]
+           "smallest_p", "too_few_text", "design_floor", "Bounds", "clip", "clip_words"]
 
 #: Fewest values a mean's 95 % interval is given for (module docstring: the coverage measured by n).
 MIN_RUNS = 3
+#: A measure's possible range, (lowest, highest): what its interval is cut at (module docstring).
+Bounds = tuple[float, float]
 #: Most ways of splitting the runs among the groups for which a rank test's p is exact (an enumeration).
 EXACT_ARRANGEMENTS = 20_000
 
@@ -237,9 +249,15 @@ class MeanInterval:
     mean: float
     low: float
     high: float
+    #: The ends of the measure's range the t interval reached beyond and was cut at (module docstring), in order.
+    clipped: tuple[float, ...] | list[float] = ()
 
-    def as_dict(self) -> dict[str, float | int]:
+    def as_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+    def clip_text(self) -> str:
+        """'clipped at 0', 'clipped at 0 and 100', '' when the interval lies inside the measure's range."""
+        return clip_words(self.clipped)
 
     def text(self, digits: int = 2, *, runs: bool = True) -> str:
         """'0.42 [0.31, 0.53] (n = 10)'; '0.07 (n = 2: too few runs for an interval)'; '0.00 (all 10 runs equal)'.
@@ -252,17 +270,34 @@ class MeanInterval:
                 f"{m} ({too_few_text(self.n) or 'no interval'})"
         if self.low == self.high == self.mean:
             return f"{m} (all {self.n} runs equal)"
-        return f"{m} [{self.low:.{digits}f}, {self.high:.{digits}f}]" + (f" (n = {self.n})" if runs else "")
+        notes = [f"n = {self.n}"] * runs + [self.clip_text()] * bool(self.clipped)
+        return f"{m} [{self.low:.{digits}f}, {self.high:.{digits}f}]" + (f" ({'; '.join(notes)})" if notes else "")
 
 
 def _t_half_widths(sd: np.ndarray, n: int) -> np.ndarray:
     return np.asarray(stats.t.ppf(0.975, n - 1) * sd / math.sqrt(n), dtype=np.float64)
 
 
-def mean_interval(values: Sequence[float] | np.ndarray, *, seed: int = 0) -> MeanInterval:
+def clip(low: np.ndarray, high: np.ndarray, bounds: Bounds | None) -> tuple[np.ndarray, np.ndarray, tuple[float, ...]]:
+    """Intervals' ends cut at ``bounds`` (module docstring; NaN stays NaN), and the bounds any end was cut at."""
+    low, high = np.asarray(low, dtype=np.float64), np.asarray(high, dtype=np.float64)
+    if bounds is None:
+        return low, high, ()
+    lo, hi = bounds
+    cut = tuple(float(b) for b, out in ((lo, low < lo), (hi, high > hi)) if np.any(out))
+    return np.where(low < lo, lo, low), np.where(high > hi, hi, high), cut
+
+
+def clip_words(cut: Sequence[float]) -> str:
+    """What :func:`clip` did, in words: 'clipped at 0', 'clipped at 0 and 100'; '' when it cut nothing."""
+    return "clipped at " + " and ".join(f"{b:g}" for b in cut) if cut else ""
+
+
+def mean_interval(values: Sequence[float] | np.ndarray, *, seed: int = 0, bounds: Bounds | None = None) -> MeanInterval:
     """The mean of ``values`` (NaNs left out) and its 95 % Student t interval, mean ± t(0.975, n − 1) s / √n; NaN
-    below MIN_RUNS values (module docstring: why, measured).  ``seed`` is not used (the interval is not drawn);
-    kept for the callers written when it was a bootstrap."""
+    below MIN_RUNS values (module docstring: why, measured); cut at ``bounds``, the measure's possible range, where
+    it reaches beyond (``clipped`` says which).  ``seed`` is not used (the interval is not drawn); kept for the
+    callers written when it was a bootstrap."""
     x = np.asarray([v for v in values if not np.isnan(v)], dtype=np.float64)
     if x.size == 0:
         return MeanInterval(0, float("nan"), float("nan"), float("nan"))
@@ -272,13 +307,14 @@ def mean_interval(values: Sequence[float] | np.ndarray, *, seed: int = 0) -> Mea
         return MeanInterval(int(x.size), float(x[0]), float(x[0]), float(x[0]))
     half = float(_t_half_widths(np.asarray(x.std(ddof=1)), x.size))
     m = float(x.mean())
-    return MeanInterval(int(x.size), m, m - half, m + half)
+    low, high, cut = clip(np.asarray(m - half), np.asarray(m + half), bounds)
+    return MeanInterval(int(x.size), m, float(low), float(high), cut)
 
 
 def mean_intervals(runs: np.ndarray, *, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per column of ``runs`` (runs x generations, NaN where a run has no value): the mean and the 95 % interval of
     :func:`mean_interval`, (mean, low, high) arrays; column j equals ``mean_interval(runs[:, j])``, so a band ends
-    where the report's interval at the last generation is."""
+    where the report's interval at the last generation is (a bounded measure's band: :func:`clip` it)."""
     x = np.asarray(runs, dtype=np.float64)
     if x.ndim != 2:
         raise ValueError(f"runs x generations expected, got shape {x.shape}")

@@ -28,6 +28,7 @@ from typing import Any
 from coevo.errors import RunDirError
 from coevo.experiments.common import below_report, plural
 from coevo.experiments.compare.stats import format_p, mean_interval
+from coevo.experiments.glossary import bounds_of
 from coevo.experiments.seeds.experiment import TARGETS
 from coevo.experiments.study import plots
 from coevo.experiments.study.declaration import LearnCell, StudySpec, learn_cells, level_text
@@ -84,9 +85,9 @@ def collect_learn_cell(out: Path, cell: LearnCell) -> list[dict[str, Any]]:
     return records
 
 
-def _summary(values: list[float]) -> dict[str, Any]:
+def _summary(values: list[float], key: str) -> dict[str, Any]:
     v = [x for x in values if not math.isnan(x)]
-    return {**mean_interval(v).as_dict(), "median": statistics.median(v) if v else float("nan")}
+    return {**mean_interval(v, bounds=bounds_of(key)).as_dict(), "median": statistics.median(v) if v else float("nan")}
 
 
 def learn_cell_rows(the_cells: list[LearnCell], records: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -97,7 +98,7 @@ def learn_cell_rows(the_cells: list[LearnCell], records: list[dict[str, Any]]) -
         xs = [x for x in records if x["cell"] == c.id]
         rows.append({"cell": c.id, "levels": dict(c.levels), "label": c.label, "seed": c.spec.seed,
                      "seeds": c.spec.seeds, "runs_expected": c.spec.runs, "n": len(xs),
-                     "measures": {k: _summary([_value(x, k) for x in xs])
+                     "measures": {k: _summary([_value(x, k) for x in xs], k)
                                   for k, _ in learn_measures(c.spec.behaviour)}})
     return rows
 
@@ -112,7 +113,7 @@ def analyse_learning(spec: StudySpec, records: list[dict[str, Any]]) -> list[dic
         for measure, _ in learn_measures(behaviour):
             samples = {k: [v for v in (_value(x, measure) for x in rs) if not math.isnan(v)]
                        for k, rs in by_level.items()}
-            t = factor_test(factor, behaviour, measure, samples, share=False)
+            t = factor_test(factor, behaviour, measure, samples, share=False, bounds=bounds_of(measure))
             if t is not None:
                 for row in t["levels"]:
                     got = samples[row["level"]]

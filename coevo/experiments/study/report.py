@@ -15,7 +15,8 @@ levels, pooled over the other factors' levels (on a 0/1 measure it is the χ² t
 (N − 1)/N; exact for small designs, with the smallest p its design can give), its ε², and the largest difference
 between two levels that the data allow (:mod:`.intervals`).  The p-values of every test in the study are corrected
 together with Holm's method; the verdict reads the corrected ones, and never calls an effect absent beside a large
-effect size or two levels whose intervals do not overlap: that is "not established", with the reason.
+effect size or a pair of levels whose 95 % interval of their difference excludes 0: that is "not established", with
+the reason (decided on the pairs' differences, not on whether the levels' own intervals overlap).
 
 Files: ``results.json`` (everything), ``report.md``, ``effect-FACTOR.png``, ``cells.png``.
 """
@@ -35,7 +36,7 @@ from coevo.experiments.compare.report import collect
 from coevo.experiments.compare.stats import (MeanInterval, compare_groups, design_floor, format_p, holm,
                                              mean_interval)
 from coevo.experiments.compare.table1 import CLASSES, DOCKING, REPORT_COUNTS
-from coevo.experiments.glossary import TERMS, label
+from coevo.experiments.glossary import TERMS, bounds_of, label
 from coevo.experiments.study import plots
 from coevo.experiments.study.declaration import Cell, StudySpec, cells, level_text
 from coevo.experiments.study.experiment import cell_dir
@@ -43,7 +44,8 @@ from coevo.experiments.study.intervals import Difference, difference_interval, s
 from coevo.rundir.layout import write_json, write_text
 
 __all__ = ["MEASURES", "collect_cell", "collect_study", "cell_rows", "analyse", "factor_test", "adjust", "write_report",
-           "strict_json", "format_mean", "difference_unit", "verdict_lines", "undecided"]
+           "strict_json", "format_mean", "difference_unit", "verdict_lines", "undecided", "excluding_zero",
+           "difference_text"]
 
 #: The measures every factor is tested on: name -> (title, value of a run record, is it a 0/1 share?).
 MEASURES: dict[str, tuple[str, Callable[[dict[str, Any]], float], bool]] = {
@@ -75,13 +77,14 @@ def collect_study(out: Path, spec: StudySpec) -> tuple[list[Cell], list[dict[str
     return the_cells, [x for c in the_cells for x in collect_cell(out, c)]
 
 
-def _summary(values: Sequence[float], share: bool) -> dict[str, Any]:
-    """Mean with its interval: Wilson for a 0/1 share, Student t for the rest."""
+def _summary(values: Sequence[float], share: bool, bounds: tuple[float, float] | None = None) -> dict[str, Any]:
+    """Mean with its interval: Wilson for a 0/1 share, Student t for the rest (cut at ``bounds``, the measure's
+    range)."""
     v = [x for x in values if not math.isnan(x)]
     if share:
         p = wilson(int(sum(v)), len(v))
         return {"n": p.n, "mean": p.p, "low": p.low, "high": p.high}
-    return mean_interval(v).as_dict()
+    return mean_interval(v, bounds=bounds).as_dict()
 
 
 def cell_rows(the_cells: list[Cell], records: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -100,7 +103,7 @@ def cell_rows(the_cells: list[Cell], records: list[dict[str, Any]]) -> list[dict
                 "docking": {d: wilson(sum(1 for k in classes if k.startswith(d)), len(xs)).as_dict() for d in DOCKING},
                 "good_docking": wilson(sum(1 for k in classes if k.startswith("Good Docking")), len(xs)).as_dict(),
                 "no_docking": wilson(sum(1 for k in classes if k.startswith("No Docking")), len(xs)).as_dict(),
-                "executive_end": mean_interval([_executive_end(x) for x in xs]).as_dict(),
+                "executive_end": mean_interval([_executive_end(x) for x in xs], bounds=bounds_of("executive_end")).as_dict(),
                 "average_epoch_length": mean_interval([x["measures"]["average_epoch_length"] for x in xs]).as_dict(),
             })
     return rows
@@ -129,30 +132,32 @@ def analyse(spec: StudySpec, records: list[dict[str, Any]]) -> list[dict[str, An
         by_level = {level_text(factor, lv): [x for x in xs if x["levels"].get(factor) == lv] for lv in levels}
         for measure, (_, value, share) in MEASURES.items():
             samples = {k: [v for v in (value(x) for x in rs) if not math.isnan(v)] for k, rs in by_level.items()}
-            t = factor_test(factor, stratum, measure, samples, share=share)
+            t = factor_test(factor, stratum, measure, samples, share=share, bounds=bounds_of(measure))
             if t is not None:
                 tests.append(t)
     return adjust(tests)
 
 
 def factor_test(factor: str, stratum: str, measure: str, samples: dict[str, list[float]], *,
-                share: bool) -> dict[str, Any] | None:
+                share: bool, bounds: tuple[float, float] | None = None) -> dict[str, Any] | None:
     """One factor's test on one measure in one stratum (``samples``: each level's values, NaN left out, in the
-    factor's order): Kruskal–Wallis across the levels with runs, its ε², each level's summary and every two levels'
-    difference; None when fewer than two levels have runs."""
+    factor's order): Kruskal–Wallis across the levels with runs, its ε², each level's summary (a mean's interval cut
+    at ``bounds``, the measure's range) and every two levels' difference; None when fewer than two levels have
+    runs."""
     present: dict[str, Sequence[float]] = {k: v for k, v in samples.items() if v}
     if len(present) < 2:
         return None
     g = compare_groups(measure, present)
     names = list(present)
     diffs = [_difference(a, present[a], b, present[b], share) for i, a in enumerate(names) for b in names[i + 1:]]
-    bounds = [d.bound for d in diffs]
+    farthest = [d.bound for d in diffs]
     return {
         "factor": factor, "stratum": stratum, "measure": measure, "share": share,
-        "levels": [{"level": k, **_summary(samples[k], share)} for k in samples],
+        "levels": [{"level": k, **_summary(samples[k], share, bounds)} for k in samples],
         "h": g.h, "p": g.p_value, "min_p": g.min_p, "epsilon2": g.epsilon2, "magnitude": g.magnitude, "n": g.n,
         # only when every pair has an interval: "excluded by every pair's interval" is then true
-        "largest_difference": max(bounds) if bounds and not any(math.isnan(b) for b in bounds) else float("nan"),
+        "largest_difference": (max(farthest) if farthest and not any(math.isnan(b) for b in farthest)
+                               else float("nan")),
         "differences": [d.as_dict() for d in diffs],
     }
 
@@ -179,28 +184,42 @@ def format_mean(row: dict[str, Any], share: bool) -> str:
     if share:
         return f"{100 * row['mean']:.0f} % [{100 * row['low']:.0f}–{100 * row['high']:.0f}]"
     low, high = (float("nan") if row[k] is None else float(row[k]) for k in ("low", "high"))  # null in results.json
-    return MeanInterval(int(row["n"]), float(row["mean"]), low, high).text(runs=False)
+    return MeanInterval(int(row["n"]), float(row["mean"]), low, high, tuple(row.get("clipped") or ())).text(runs=False)
 
 
-def _apart(levels: list[dict[str, Any]]) -> list[tuple[str, str]]:
-    """The pairs of levels whose 95 % intervals do not overlap."""
-    have = [r for r in levels if r["n"] and r["low"] is not None and r["high"] is not None
-            and not (math.isnan(r["low"]) or math.isnan(r["high"]))]
-    return [(a["level"], b["level"]) for i, a in enumerate(have) for b in have[i + 1:]
-            if a["high"] < b["low"] or b["high"] < a["low"]]
+def _nan(x: Any) -> float:
+    """A number of results.json (null for NaN) as a float."""
+    return float("nan") if x is None else float(x)
+
+
+def excluding_zero(test: dict[str, Any]) -> list[dict[str, Any]]:
+    """The pairs of levels whose 95 % interval of their difference (Welch's for means, Newcombe's for shares:
+    :mod:`.intervals`) lies wholly above or below 0; a pair without an interval (too few runs) is none of them."""
+    return [d for d in test.get("differences", []) if _nan(d["low"]) > 0 or _nan(d["high"]) < 0]
+
+
+def difference_text(d: dict[str, Any], share: bool) -> str:
+    """'off − 2 = -0.06 [-0.11, -0.01]'; of shares in percentage points: 'current − best = +18 percentage points
+    [+3, +32]'."""
+    scale, digits, unit = (100, 0, " percentage points") if share else (1, 2, "")
+    low, diff, high = (f"{scale * _nan(d[k]):+.{digits}f}" for k in ("low", "diff", "high"))
+    return f"{d['b']} − {d['a']} = {diff}{unit} [{low}, {high}]"
 
 
 def undecided(test: dict[str, Any]) -> str:
-    """Why a test that detected nothing cannot be read as "no effect" ('' when it can): a large effect size, or two
-    levels whose intervals do not overlap."""
+    """Why a test that detected nothing cannot be read as "no effect" ('' when it can): a large effect size, or a
+    pair of levels whose 95 % interval of their difference excludes 0 (decided on the difference, never on whether
+    the levels' own intervals overlap: two intervals can overlap while their difference's excludes 0)."""
     if test["detected"]:
         return ""
     why = []
     if test["magnitude"] == "large":
         why.append(f"the effect size is large (ε² = {test['epsilon2']:.2f})")
-    apart = _apart(test["levels"])
-    if apart:
-        why.append("the 95 % intervals of " + ", ".join(f"{a} and {b}" for a, b in apart) + " do not overlap")
+    apart = [difference_text(d, bool(test.get("share", False))) for d in excluding_zero(test)]
+    if len(apart) == 1:
+        why.append(f"the 95 % interval of the difference {apart[0]} excludes 0")
+    elif apart:
+        why.append("the 95 % intervals of the differences " + ", ".join(apart[:-1]) + f" and {apart[-1]} exclude 0")
     return " and ".join(why)
 
 

@@ -15,30 +15,33 @@ from coevo.tasks.base import Term
 
 __all__ = ["MEASURES", "verdict"]
 
+PERCENT = (0.0, 100.0)  # a rate of episodes
+UNIT = (0.0, 1.0)  # a payoff
+
 #: The combined robot's measures (docs/spec.md §2 "Measures"), by field name.
 MEASURES: dict[str, Term] = {
     "quality_tracking": Term("Quality Tracking", " %", "% of episodes in which the robot was within the tracking "
-                             "range (40–60 in from the Target) for at least 80 % of the steps."),
+                             "range (40–60 in from the Target) for at least 80 % of the steps.", PERCENT),
     "successful_docking": Term("Successful Docking", " %", "% of all episodes in which the Executive picked Docking "
-                               "and the robot docked."),
+                               "and the robot docked.", PERCENT),
     "docking_success_rate": Term("docked of picked", " %", "% of the episodes in which the Executive picked Docking "
-                                 "that ended docked; Table 1's Good Docking is 20 % or more."),
+                                 "that ended docked; Table 1's Good Docking is 20 % or more.", PERCENT),
     "dock_choice": Term("Docking picked", " %", "% of episodes for which the Executive picked Docking; Table 1's No "
-                        "Docking is under 5 %."),
+                        "Docking is under 5 %.", PERCENT),
     "average_epoch_length": Term("Average Epoch Length", " episodes", "episodes per complete epoch: 4 for a robot "
                                  "that never docks, up to 10 for one that docks well."),
     "executive_payoff": Term("Executive payoff", "", "the Executive's payoff per epoch, t / (600 + p): t steps "
-                             "spent tracking, p the towing penalty; 0 to 1, the mean over the measured epochs."),
+                             "spent tracking, p the towing penalty; 0 to 1, the mean over the measured epochs.", UNIT),
     "collision_rate": Term("collisions", " %", "% of episodes that ended in a collision (with a wall, the Target or "
-                           "the dock), which also ends the epoch."),
-    "dry_rate": Term("ran dry", " %", "% of episodes that ended out of fuel."),
+                           "the dock), which also ends the epoch.", PERCENT),
+    "dry_rate": Term("ran dry", " %", "% of episodes that ended out of fuel.", PERCENT),
     "tracking_payoff": Term("Tracking payoff", "", "Tracking's mean payoff over its episodes: the share of the "
-                            "steps in range, 0 after a collision."),
+                            "steps in range, 0 after a collision.", UNIT),
     "docking_payoff": Term("Docking payoff", "", "Docking's mean payoff over its episodes: 0.5 + 0.5 m/t when it "
-                           "docked, else 0."),
+                           "docked, else 0.", UNIT),
     "docking_from_random_starts": Term("Docking alone", " %", "% of fresh single episodes, from random starts, in "
                                        "which a run's final Docking policy docks on its own (300 episodes); it tells "
-                                       "a starved Docking agent from one that never learned."),
+                                       "a starved Docking agent from one that never learned.", PERCENT),
 }
 
 NO_DOCKING_CHOICE = 5.0  # % of episodes the Executive picks Docking, below which Docking is starved
