@@ -121,6 +121,12 @@ def test_a_folder_of_runs_each_played_then_summarised_across_them(finished_mutua
     assert rows and {r["group"] for r in rows} == {"mutual, model best"}
     assert {int(r["generation"]): (int(r["runs"]), float(r["mean"])) for r in rows} == \
         {g: (2, pytest.approx(v, abs=1e-6)) for g, v in expected.items()}
+    rise = {(r["learner"], r["partner"]): r for r in json.loads((folder / "dynamics" / "rise.json").read_text())["rise"]}
+    d = expected[3] - expected[min(expected)]  # two copies of one run: each rises by as much
+    assert rise["executive", "docking"] == {"learner": "executive", "partner": "docking", "group": "mutual, model best",
+                                            "first": min(expected), "last": 3, "runs": 2, "mean": pytest.approx(d, abs=2e-6),
+                                            "low95": None, "high95": None, "rose": 2 * (d > 0), "fell": 2 * (d < 0),
+                                            "same": 2 * (d == 0)}
     r = coevo_main("dynamics", str(a), "--jobs", "2")
     assert r.returncode == 2 and "--jobs and --cluster are for a folder of runs" in r.stderr, r.stderr
 
@@ -146,3 +152,19 @@ def test_the_dashboard_shows_a_finished_runs_dynamics_once_they_are_played(run: 
     version, view = dash.current()
     html = render.dynamics_html(view)
     assert version != before and html.count("<img class=\"dynamics\"") == 12 and "Dynamics of small" in html
+
+
+def test_jobs_n_plays_n_runs_at_a_time(tmp_path: Path) -> None:
+    """--jobs 2 played four runs at once (each counted as half a slot, an offline learner's): its help says runs."""
+    from coevo.experiments.dynamics.across import replicates
+    from coevo.replicates.backends import LocalBackend
+
+    reps = replicates(tmp_path, [tmp_path / "a", tmp_path / "b", tmp_path / "c"],
+                      lambda r: {"episodes": 2, "seed": 1, "generations": [0, 3]})
+    jobs = LocalBackend(2)
+    busy = 0
+    for rep in reps:
+        if not jobs.room(busy, rep):
+            break
+        busy += rep.weight
+    assert busy == 2 * reps[0].weight  # two started, the third waits
