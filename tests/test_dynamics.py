@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import csv
 import json
+import os
+import time
 from pathlib import Path
 
 import pytest
@@ -168,3 +170,24 @@ def test_jobs_n_plays_n_runs_at_a_time(tmp_path: Path) -> None:
             break
         busy += rep.weight
     assert busy == 2 * reps[0].weight  # two started, the third waits
+
+
+def test_a_folders_damaged_summary_is_shown_as_far_as_it_reads_and_never_breaks_the_page(tmp_path: Path) -> None:
+    from coevo.dashboard import render
+    from coevo.dashboard.model import Dashboard
+
+    (tmp_path / "r1").mkdir()
+    (tmp_path / "r1" / "run.json").write_text(json.dumps({"run": "r1", "task": "fuel", "regime": "mutual"}))
+    (tmp_path / "dynamics").mkdir()
+    dash = Dashboard(target=tmp_path)
+    for runs, rise in [("{", "{"), ('{"runs": 3, "groups": []}', '{"rise": 5}'),
+                       ('{"runs": ["r1"], "groups": {"r1": "mutual, model hall"}}',
+                        '{"rise": [{"learner": "pursuer", "partner": "evader", "mean": "x", "low95": 0.1, '
+                        '"high95": 0.2, "rose": 1}, 7]}')]:
+        (tmp_path / "dynamics" / "runs.json").write_text(runs)
+        (tmp_path / "dynamics" / "rise.json").write_text(rise)
+        os.utime(tmp_path / "dynamics" / "runs.json", (time.time() + len(runs), time.time() + len(runs)))
+        dash.refresh()
+        html = render.dynamics_html(dash.current()[1])
+    assert "Dynamics across 1 runs (mutual, model hall)" in html and "pursuer against evader" in html
+    assert html.count("<tr>") == 2 and "[+0.100, +0.200]" in html and ">?<" in html

@@ -134,10 +134,12 @@ class AcrossDynamics:
                 pictures.append((png.name, base64.b64encode(png.read_bytes()).decode("ascii")))
             except OSError:
                 continue
-        rise = (_read_json(folder / "dynamics" / "rise.json") or {}).get("rise") or []
-        groups = sorted({str(g) for g in (said.get("groups") or {}).values()})
-        return AcrossDynamics(len(said.get("runs") or []), tuple(groups), tuple(pictures),
-                              tuple(r for r in rise if isinstance(r, dict)), mtime(done))
+        rise = (_read_json(folder / "dynamics" / "rise.json") or {}).get("rise")
+        runs, groups = said.get("runs"), said.get("groups")  # what a damaged file holds instead is shown as none
+        return AcrossDynamics(len(runs) if isinstance(runs, list) else 0,
+                              tuple(sorted({str(g) for g in groups.values()})) if isinstance(groups, dict) else (),
+                              tuple(pictures), tuple(r for r in rise if isinstance(r, dict))
+                              if isinstance(rise, list) else (), mtime(done))
 
 
 @dataclass

@@ -350,8 +350,8 @@ def dynamics_html(view: View) -> str:
 
 def _across_html(a: AcrossDynamics) -> str:
     """The master tournament across a folder's runs: its rise per pair and group in a table, then its pictures."""
-    def num(x: Any) -> str:
-        return "" if x is None else f"{float(x):+.3f}"
+    def num(x: Any) -> str:  # a damaged rise.json shows "?", as a damaged line elsewhere is skipped
+        return "" if x is None else f"{x:+.3f}" if isinstance(x, (int, float)) else "?"
 
     rows = "".join(
         f"<tr><td>{_e(r.get('learner'))} against {_e(r.get('partner'))}</td><td>{_e(r.get('group'))}</td>"
