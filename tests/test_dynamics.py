@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import csv
 import json
+import os
+import time
 from pathlib import Path
 
 import pytest
@@ -121,6 +123,12 @@ def test_a_folder_of_runs_each_played_then_summarised_across_them(finished_mutua
     assert rows and {r["group"] for r in rows} == {"mutual, model best"}
     assert {int(r["generation"]): (int(r["runs"]), float(r["mean"])) for r in rows} == \
         {g: (2, pytest.approx(v, abs=1e-6)) for g, v in expected.items()}
+    rise = {(r["learner"], r["partner"]): r for r in json.loads((folder / "dynamics" / "rise.json").read_text())["rise"]}
+    d = expected[3] - expected[min(expected)]  # two copies of one run: each rises by as much
+    assert rise["executive", "docking"] == {"learner": "executive", "partner": "docking", "group": "mutual, model best",
+                                            "first": min(expected), "last": 3, "runs": 2, "mean": pytest.approx(d, abs=2e-6),
+                                            "low95": None, "high95": None, "rose": 2 * (d > 0), "fell": 2 * (d < 0),
+                                            "same": 2 * (d == 0)}
     r = coevo_main("dynamics", str(a), "--jobs", "2")
     assert r.returncode == 2 and "--jobs and --cluster are for a folder of runs" in r.stderr, r.stderr
 
@@ -146,3 +154,40 @@ def test_the_dashboard_shows_a_finished_runs_dynamics_once_they_are_played(run: 
     version, view = dash.current()
     html = render.dynamics_html(view)
     assert version != before and html.count("<img class=\"dynamics\"") == 12 and "Dynamics of small" in html
+
+
+def test_jobs_n_plays_n_runs_at_a_time(tmp_path: Path) -> None:
+    """--jobs 2 played four runs at once (each counted as half a slot, an offline learner's): its help says runs."""
+    from coevo.experiments.dynamics.across import replicates
+    from coevo.replicates.backends import LocalBackend
+
+    reps = replicates(tmp_path, [tmp_path / "a", tmp_path / "b", tmp_path / "c"],
+                      lambda r: {"episodes": 2, "seed": 1, "generations": [0, 3]})
+    jobs = LocalBackend(2)
+    busy = 0
+    for rep in reps:
+        if not jobs.room(busy, rep):
+            break
+        busy += rep.weight
+    assert busy == 2 * reps[0].weight  # two started, the third waits
+
+
+def test_a_folders_damaged_summary_is_shown_as_far_as_it_reads_and_never_breaks_the_page(tmp_path: Path) -> None:
+    from coevo.dashboard import render
+    from coevo.dashboard.model import Dashboard
+
+    (tmp_path / "r1").mkdir()
+    (tmp_path / "r1" / "run.json").write_text(json.dumps({"run": "r1", "task": "fuel", "regime": "mutual"}))
+    (tmp_path / "dynamics").mkdir()
+    dash = Dashboard(target=tmp_path)
+    for runs, rise in [("{", "{"), ('{"runs": 3, "groups": []}', '{"rise": 5}'),
+                       ('{"runs": ["r1"], "groups": {"r1": "mutual, model hall"}}',
+                        '{"rise": [{"learner": "pursuer", "partner": "evader", "mean": "x", "low95": 0.1, '
+                        '"high95": 0.2, "rose": 1}, 7]}')]:
+        (tmp_path / "dynamics" / "runs.json").write_text(runs)
+        (tmp_path / "dynamics" / "rise.json").write_text(rise)
+        os.utime(tmp_path / "dynamics" / "runs.json", (time.time() + len(runs), time.time() + len(runs)))
+        dash.refresh()
+        html = render.dynamics_html(dash.current()[1])
+    assert "Dynamics across 1 runs (mutual, model hall)" in html and "pursuer against evader" in html
+    assert html.count("<tr>") == 2 and "[+0.100, +0.200]" in html and ">?<" in html

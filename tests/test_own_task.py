@@ -90,6 +90,9 @@ def _check_output(command: str, r: subprocess.CompletedProcess[str], cwd: Path, 
         assert "final policies together: captured" in r.stdout, r.stdout
     elif command.startswith(("coevo check", "coevo chaos")):
         assert "complete" in r.stdout and "replay exact" in r.stdout, r.stdout
+        if "--model hall" in command:  # recorded in the run as it is replayed
+            run = cwd / "runs" / shlex.split(command)[shlex.split(command).index("--run") + 1]
+            assert json.loads((run / "run.json").read_text())["model"] == "hall"
     elif command.startswith("coevo replay"):
         assert "pursuer: 4 generations reproduced exactly" in r.stdout, r.stdout
     elif command.startswith("coevo status"):

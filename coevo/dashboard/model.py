@@ -108,6 +108,40 @@ class Dynamics:
         return Dynamics(played, tuple(pictures), mtime(done))
 
 
+@dataclass(frozen=True)
+class AcrossDynamics:
+    """A folder of runs' ``coevo dynamics`` summary (DIR/dynamics): how many runs in which groups, each pair's
+    master tournament across runs (its PNG, base64, by name) and its rise (rise.json's rows: per pair and group, each
+    run's score at the last generation minus the first, mean with interval, runs that rose)."""
+
+    runs: int
+    groups: tuple[str, ...]
+    pictures: tuple[tuple[str, str], ...]
+    rise: tuple[dict[str, Any], ...]
+    stamp: float  # runs.json's time of change (written last): a new summary redraws the page
+
+    @staticmethod
+    def read(folder: Path) -> AcrossDynamics | None:
+        import base64
+
+        done = folder / "dynamics" / "runs.json"
+        said = _read_json(done)
+        if said is None:
+            return None
+        pictures = []
+        for png in sorted((folder / "dynamics").glob("summary-*.png")):
+            try:
+                pictures.append((png.name, base64.b64encode(png.read_bytes()).decode("ascii")))
+            except OSError:
+                continue
+        rise = (_read_json(folder / "dynamics" / "rise.json") or {}).get("rise")
+        runs, groups = said.get("runs"), said.get("groups")  # what a damaged file holds instead is shown as none
+        return AcrossDynamics(len(runs) if isinstance(runs, list) else 0,
+                              tuple(sorted({str(g) for g in groups.values()})) if isinstance(groups, dict) else (),
+                              tuple(pictures), tuple(r for r in rise if isinstance(r, dict))
+                              if isinstance(rise, list) else (), mtime(done))
+
+
 @dataclass
 class RunView:
     """One run as the page shows it."""
@@ -138,6 +172,7 @@ class View:
     problems: list[str] = field(default_factory=list)
     robot: RobotPicture | None = None  # of the run whose robot is drawn, if one is
     robot_note: str = ""  # else why none is, and how to have one (empty: none asked for, --no-robot)
+    across: AcrossDynamics | None = None  # a folder of runs' coevo dynamics summary, once played
 
     def fingerprint(self) -> str:
         """What the page shows, in short: equal fingerprints draw the same page (heartbeat ages left out)."""
@@ -158,6 +193,7 @@ class View:
             study = {k: v for k, v in self.study.items() if k != "shown"}
             study["shown"] = {cell: short(c) for cell, c in self.study["shown"].items()}
         return json.dumps({"runs": runs, "comparison": short(self.comparison), "study": study, "problems": self.problems,
+                           "across": self.across.stamp if self.across else None,
                            "robot": self.robot.key() if self.robot is not None else self.robot_note}, sort_keys=True,
                           default=str)
 
@@ -531,6 +567,7 @@ class Dashboard:
 
             self._study = StudyFiles(self.target, stale=stale)  # a study.json that cannot be read: said at once
         self._wanted: dict[str, float] = {}  # a study's cell -> when a page last asked for its comparison
+        self._across_held: AcrossDynamics | None = None
         self.view = View(title)
         self.version = 0
         self._print = ""
@@ -597,7 +634,7 @@ class Dashboard:
             robot = self.robot.picture
         view = View(self.title, runs=[runs[k] for k in sorted(runs)], comparison=comparison, study=study,
                     problems=problems,
-                    robot=robot, robot_note=self.robot_note)
+                    robot=robot, robot_note=self.robot_note, across=self._across())
         fp = view.fingerprint()
         with self._lock:
             self.view = view
@@ -606,6 +643,15 @@ class Dashboard:
             self._print = fp
             self.version += 1
             return True
+
+    def _across(self) -> AcrossDynamics | None:
+        """The target folder's dynamics summary (a comparison or a directory of runs), read again when it changes."""
+        if self.target is None or self.kind not in ("comparison", "runs"):
+            return None
+        stamp = mtime(self.target / "dynamics" / "runs.json")
+        if stamp != (self._across_held.stamp if self._across_held else 0.0):
+            self._across_held = AcrossDynamics.read(self.target) if stamp else None
+        return self._across_held
 
     def current(self) -> tuple[int, View]:
         with self._lock:

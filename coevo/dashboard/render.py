@@ -13,7 +13,7 @@ import re
 from collections.abc import Sequence
 from typing import Any
 
-from coevo.dashboard.model import View
+from coevo.dashboard.model import AcrossDynamics, View
 from coevo.experiments.compare import plots
 from coevo.experiments.glossary import TERMS, with_unit
 
@@ -336,7 +336,11 @@ ROBOT_RULES = 12  # rules listed per rule set: the strongest that fired
 
 
 def dynamics_html(view: View) -> str:
-    """Each finished run's ``coevo dynamics`` pictures (master tournament, CIAO matrix per pair), when it has them."""
+    """Each finished run's ``coevo dynamics`` pictures (master tournament, CIAO matrix per pair), when it has them;
+    for a folder of runs whose summary was played, that summary instead (its runs' own pictures stay in their
+    directories: thirty runs' matrices are no page)."""
+    if view.across is not None:
+        return _STYLE + _across_html(view.across)
     parts = []
     for r in view.runs:
         d = r.dynamics
@@ -351,6 +355,30 @@ def dynamics_html(view: View) -> str:
         parts += [f'<img class="dynamics" alt="{_e(name)}" title="{_e(name)}" style="max-width:49%" '
                   f'src="data:image/png;base64,{png}"/>' for name, png in d.pictures]
     return (_STYLE + "".join(parts)) if parts else ""
+
+
+def _across_html(a: AcrossDynamics) -> str:
+    """The master tournament across a folder's runs: its rise per pair and group in a table, then its pictures."""
+    def num(x: Any) -> str:  # a damaged rise.json shows "?", as a damaged line elsewhere is skipped
+        return "" if x is None else f"{x:+.3f}" if isinstance(x, (int, float)) else "?"
+
+    rows = "".join(
+        f"<tr><td>{_e(r.get('learner'))} against {_e(r.get('partner'))}</td><td>{_e(r.get('group'))}</td>"
+        f"<td class=\"num\">{_e(r.get('runs'))}</td><td class=\"num\">{_e(r.get('first'))} → {_e(r.get('last'))}</td>"
+        f"<td class=\"num\">{num(r.get('mean'))}</td><td class=\"num\">"
+        f"{'' if r.get('low95') is None else '[' + num(r['low95']) + ', ' + num(r['high95']) + ']'}</td>"
+        f"<td class=\"num\">{_e(r.get('rose'))} / {_e(r.get('fell'))} / {_e(r.get('same'))}</td></tr>"
+        for r in a.rise)
+    head = (f'<h3 class="coevo">Dynamics across {a.runs} runs ({_e(", ".join(a.groups))})</h3>'
+            '<p style="font:12px sans-serif;color:#555;margin:0">the master tournament of each generation\'s version '
+            "against every generation of its partner, per run, then across the runs (coevo dynamics DIR; how to read "
+            "it: docs/competition.md). Rise: each run's score at the last generation minus at the first, its mean "
+            "across the runs with a 95 % t interval; runs that rose / fell / stayed.</p>")
+    table = ('<table class="coevo dynamics-rise"><tr><th>pair</th><th>runs of</th><th>runs</th><th>generations</th>'
+             f"<th>rise</th><th>95 %</th><th>rose / fell / same</th></tr>{rows}</table>") if rows else ""
+    pics = "".join(f'<img class="dynamics" alt="{_e(name)}" title="{_e(name)}" style="max-width:49%" '
+                   f'src="data:image/png;base64,{png}"/>' for name, png in a.pictures)
+    return head + table + pics
 
 
 def robot_html(view: View) -> str:

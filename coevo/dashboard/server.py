@@ -81,6 +81,7 @@ class _Page:
         elif dash.kind == "comparison":
             self.regimes = _Regimes(dash)
             layout = column(self.title, self.banner, self.regimes.headline, self.regimes.controls, *self.regimes.rows,
+                            self.dynamics,  # its runs' dynamics across them, once coevo dynamics played them
                             *_folded("replicates and the curve's table", self.comparison),
                             *_folded("runs and workers", column(self.runs, self.workers, sizing_mode="stretch_width")),
                             self.robot, sizing_mode="stretch_width")

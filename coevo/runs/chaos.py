@@ -38,7 +38,7 @@ import numpy as np
 
 from coevo.bus.session import open_session, sigterm_as_exit
 from coevo.bus.status import StatusBoard
-from coevo.errors import ConfigError, RunDirError
+from coevo.errors import ConfigError, RunDirError, ServiceError
 from coevo.runs.check import check_run
 from coevo.runs.kinds import kind_of_settings
 from coevo.rundir.layout import write_json
@@ -189,7 +189,7 @@ def _inject(lr: LocalRun, board: StatusBoard, rng: np.random.Generator, plan: Ch
     try:
         wait_until(lambda: _view(board, b)["state"] == "dead", 10, "dead")
         seen = time.monotonic() - t_kill
-    except RunDirError:
+    except (RunDirError, ServiceError):  # wait_until says ServiceError: a loaded machine ended the run here
         seen = None  # the broker was restarting, or the board missed it: reported as not seen
     say(f"killed the {who} at generation {gen} (status showed it dead after "
         f"{'-' if seen is None else f'{seen * 1000:.0f} ms'}); down for {down:.1f} s")

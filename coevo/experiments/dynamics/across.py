@@ -8,7 +8,9 @@ partner version weighted by the generations it was in play (Floreano & Nolfi's t
 against every generation; the generations before a partner's first published version have none, and are left
 out), then the mean across the runs with a 95 % t interval (none below three runs).  ``summary-LEARNER-PARTNER.csv``
 and ``.png``; a rising line is an arms race (later generations beat more of the other side's history), a flat or
-falling one no progress or forgetting.
+falling one no progress or forgetting.  ``rise.json`` says it per pair and group in numbers: each run's score at
+its last generation minus its first, paired within the run, averaged across the runs with a 95 % t interval, and
+how many runs rose.
 """
 
 from __future__ import annotations
@@ -62,9 +64,11 @@ def replicates(root: Path, runs: Sequence[Path], wanted: Callable[[Path], dict[s
     for run in runs:
         rel = str(run.relative_to(root))
         w = wanted(run)
+        # weight 2, a live run's: one process, but busy on a whole core, so --jobs N plays N at a time, as its help
+        # says (weight 1, an offline learner's, played 2N)
         out.append(Replicate(name="dynamics-" + rel.replace("/", "-"), output=f"{rel}/dynamics",
                              finished=functools.partial(_played, rel, w), command=functools.partial(_argv, rel, w),
-                             inputs=(rel,), weight=1))
+                             inputs=(rel,), weight=2))
     return out
 
 
@@ -113,6 +117,7 @@ def summarise(root: Path, runs: Sequence[Path], groups: dict[Path, str], spans: 
     if not scores:
         raise ConfigError(f"{root}: no run under it has a matrix to summarise")
     written = []
+    rises = []
     for learner, partner in sorted({(s.learner, s.partner) for s in scores}):
         rows = []
         for group in sorted({s.group for s in scores}):
@@ -122,13 +127,30 @@ def summarise(root: Path, runs: Sequence[Path], groups: dict[Path, str], spans: 
                 lo, hi = interval(x)
                 rows.append({"group": group, "generation": g, "runs": len(x), "mean": round(float(x.mean()), 6),
                              "low95": lo, "high95": hi})
+            rises.append({"learner": learner, "partner": partner, "group": group, **_rise(mine)})
         name = f"summary-{learner}-{partner}"
         write_csv(out / f"{name}.csv", rows)
         _draw(out / f"{name}.png", learner, partner, rows)
         written += [f"{name}.csv", f"{name}.png"]
+    write_json(out / "rise.json", {"rise": rises})
     write_json(out / "runs.json", {"runs": [str(r.relative_to(root)) for r in runs],
                                    "groups": {str(r.relative_to(root)): groups[r] for r in runs}})
-    return written
+    return [*written, "rise.json"]
+
+
+def _rise(mine: Sequence[_Scores]) -> dict[str, Any]:
+    """Each run's master score at the last generation minus at the first it has one (the same two generations in
+    every run of the group: the latest first and the earliest last), then across the runs: their mean with a 95 % t
+    interval (none below three runs) and how many rose, fell or stayed.  Paired within each run, so the interval is
+    of the rise itself, not of two levels whose intervals overlap."""
+    first = max(min(s.by_generation) for s in mine if s.by_generation)
+    last = min(max(s.by_generation) for s in mine if s.by_generation)
+    d = np.array([s.by_generation[last] - s.by_generation[first] for s in mine
+                  if first in s.by_generation and last in s.by_generation])
+    lo, hi = interval(d)
+    return {"first": first, "last": last, "runs": len(d), "mean": round(float(d.mean()), 6) if len(d) else None,
+            "low95": lo, "high95": hi, "rose": int((d > 0).sum()), "fell": int((d < 0).sum()),
+            "same": int((d == 0).sum())}
 
 
 def _draw(path: Path, learner: str, partner: str, rows: list[dict[str, Any]]) -> None:
