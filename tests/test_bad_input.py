@@ -188,8 +188,10 @@ def _run(argv: list[str]) -> tuple[int | None, str, BaseException | None]:
     """``coevo ARGV`` in this process: (exit status, stderr, what escaped main)."""
     err = io.StringIO()
     old_term = signal.getsignal(signal.SIGTERM)
+    modules, fired = set(sys.modules), []
 
     def alarm(signum: int, frame: object) -> None:
+        fired.append(signum)
         raise KeyboardInterrupt("the sweep's alarm")
 
     old_alarm = signal.signal(signal.SIGALRM, alarm)
@@ -211,6 +213,14 @@ def _run(argv: list[str]) -> tuple[int | None, str, BaseException | None]:
         signal.signal(signal.SIGALRM, old_alarm)
         signal.signal(signal.SIGPROF, old_prof)
         signal.signal(signal.SIGTERM, old_term)
+        if fired:
+            # The alarm may have struck inside an import (matplotlib's, at a tiny learn's pictures, when a loaded
+            # machine stretched its CPU-seconds): Python drops the module that failed, but its submodules already
+            # imported stay and hold the half-made parent, so every later test of this process that imports it failed
+            # ("module 'matplotlib' has no attribute 'get_data_path'", seen at load 40).  What the interrupted command
+            # imported is forgotten, to be imported whole by whoever needs it next.
+            for name in set(sys.modules) - modules:
+                del sys.modules[name]
     return code, err.getvalue(), escaped
 
 

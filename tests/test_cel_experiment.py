@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from procs import coevo_main
 
 from coevo.cli import main
 from coevo.experiments.cel.report import key_points
@@ -92,9 +93,10 @@ def test_live_runs_write_the_report_and_resume_keeps_them(tmp_path: Path) -> Non
     _check(out, r.stdout)
     settings = sorted(p.name for p in (out / "settings").iterdir())
     assert settings == ["live-0.json", "live-1.json"]
-    again = coevo("cel-experiment", *TINY, "--out", str(out))
+    # The two refusals come before anything starts: in process (coevo_main, as python -m coevo runs it).
+    again = coevo_main("cel-experiment", *TINY, "--out", str(out))
     assert again.returncode == 2 and "--resume" in again.stderr and len(again.stderr.splitlines()) == 1
-    other = coevo("cel-experiment", *TINY[:-1], "--generations", "5", "--quiet", "--out", str(out), "--resume")
+    other = coevo_main("cel-experiment", *TINY[:-1], "--generations", "5", "--quiet", "--out", str(out), "--resume")
     assert other.returncode == 2 and "differs in: generations" in other.stderr
     resumed = coevo("cel-experiment", *TINY, "--out", str(out), "--resume")  # both finished: nothing runs again
     assert resumed.returncode == 0, resumed.stdout + resumed.stderr

@@ -57,9 +57,10 @@ FUEL = get_task("fuel")
 pytestmark = pytest.mark.service  # starts brokers, workers or whole runs as processes: run with --all
 
 T, D, E = Behaviour.TRACKING, Behaviour.DOCKING, Behaviour.EXECUTIVE
-# 12 generations: killed at its third, the worker stays dead while the others (paced: they led it by at most 2) go on
-# 2 more, and resumes with generations left; coevo check replays every generation of the three.
-MID = GAConfig(generations=12, population=8, episodes=20, best_episodes=20, initial_rules=8)
+# 8 generations: killed at its third, the worker stays dead while the others (paced: they led it by at most 2) go on
+# 2 more, and resumes with generations left; coevo check replays every generation of the three.  (12 checked the same
+# with half as much again of run and replay.)
+MID = GAConfig(generations=8, population=8, episodes=20, best_episodes=20, initial_rules=8)
 
 
 def _view(board: StatusBoard, behaviour: str) -> dict:
@@ -137,21 +138,17 @@ def test_a_damaged_or_removed_checkpoint_never_leads_to_a_fresh_start_that_reuse
     damaged = bytearray(good)
     damaged[-5] ^= 0xFF
 
-    def resume() -> subprocess.CompletedProcess:
-        return subprocess.run([sys.executable, "-m", "coevo", *args, "--resume"], capture_output=True, text=True,
-                              timeout=120)
-
     for harm, what in ((lambda: ckpt.write_bytes(bytes(damaged)), "damaged (CRC mismatch)"),
                        (lambda: ckpt.unlink(), "holds logs but no checkpoint")):
         harm()
-        r = resume()
+        r = coevo_main(*args, "--resume")  # refused before connecting (the worker reads its directory first): in process
         assert r.returncode == 2 and what in r.stderr and "Traceback" not in r.stderr, r.stderr
         err = r.stderr.strip()
         assert "\n" not in err and err.startswith("RunDirError: ")
         assert f"published versions 1..{n}" in err and "coevo run --settings" in err and "move it away" not in err
         assert {k: (out / k).read_bytes() for k in WorkerPaths.LOGS} == logs  # nothing cut, nothing republished
     ckpt.write_bytes(good)  # the advice: an intact checkpoint put back
-    r = resume()
+    r = subprocess.run([sys.executable, "-m", "coevo", *args, "--resume"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert (out / "published.jsonl").read_bytes() == logs["published.jsonl"]
 
@@ -204,9 +201,10 @@ def test_a_killed_worker_shows_dead_within_a_second_the_others_go_on_and_it_resu
 # ---------------------------------------------------------------------------- broker death
 @pytest.mark.slow
 def test_a_killed_broker_loses_nothing_once_restarted(tmp_path: Path) -> None:
-    # 24 generations: the slowest worker is at 3 when the broker dies and needs 3 more before it comes back, so every
-    # worker publishes versions the dead broker never hears (a fast one may finish meanwhile, allowed for below).
-    ga = GAConfig(generations=24, population=8, episodes=20, best_episodes=20, initial_rules=8)
+    # 16 generations: the slowest worker is at 3 when the broker dies and needs 3 more before it comes back, so every
+    # worker publishes versions the dead broker never hears (a fast one may finish meanwhile, allowed for below: its
+    # final sync waits for the store).  24 checked the same with half as much again of run and replay after the restart.
+    ga = GAConfig(generations=16, population=8, episodes=20, best_episodes=20, initial_rules=8)
     # Unpaced: with pacing, workers hold at --max-lead while the broker is down (the next test); here they must
     # publish versions the dead broker never hears.
     lr = _local_run(tmp_path, "nobroker", ga=ga, seed=8, max_lead=None)
@@ -334,8 +332,9 @@ def test_pacing_holds_while_the_broker_is_down(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_a_whole_run_killed_at_once_continues_with_run_resume(tmp_path: Path) -> None:
-    # 12 generations: killed when Docking (the fastest) has 4, so every worker has some left to resume.
-    args = ["--regime", "independent", "--run", "crash", "--root", str(tmp_path), "--generations", "12", *SMALL,
+    # 8 generations: killed when Docking (the fastest) has 4, so every worker has some left to resume (12 checked the
+    # same with half as much again of resume and replay).
+    args = ["--regime", "independent", "--run", "crash", "--root", str(tmp_path), "--generations", "8", *SMALL,
             "--measure-epochs", "2", "--quiet"]
     p = subprocess.Popen([sys.executable, "-m", "coevo", "run", *args], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                          start_new_session=True)
@@ -472,16 +471,17 @@ def test_a_broker_flooded_beyond_its_inbox_drops_and_counts_and_still_stores(tmp
 # ---------------------------------------------------------------------------- chaos
 @pytest.mark.slow
 def test_coevo_chaos_kills_and_restarts_and_the_run_comes_out_complete(tmp_path: Path) -> None:
-    # 20 generations: several seconds of run, time for some of the 4 faults (a gap of 0.5-1.5 s before each)
+    # 10 generations: several seconds of run, time for some of the 4 faults (a gap of 0.5-1.5 s before each); 20 checked
+    # the same with twice the run and twice coevo check's replay of it
     r = subprocess.run([sys.executable, "-m", "coevo", "chaos", "--run", "ch", "--root", str(tmp_path), "--seed", "2",
-                        "--generations", "20", "--population", "8", "--episodes", "20", "--ga", "best_episodes=20",
+                        "--generations", "10", "--population", "8", "--episodes", "20", "--ga", "best_episodes=20",
                         "--ga", "initial_rules=8", "--faults", "4", "--gap", "0.5", "1.5", "--down", "0.3", "1.5",
                         "--measure-epochs", "2"], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stdout + r.stderr
     report = json.loads((tmp_path / "ch" / "chaos.json").read_text())
     assert report["complete"] and sum(report["faults"].values()) >= 1
     for b in ("tracking", "docking", "executive"):
-        assert report["facts"][b]["generations"] == 20
+        assert report["facts"][b]["generations"] == 10
 
 
 def _children(pid: int) -> list[int]:
@@ -509,9 +509,9 @@ def test_coevo_run_restarts_its_killed_worker_and_its_twice_killed_broker_comple
     and the table says so; the broker, killed twice, is started again on the same endpoint and data directory.  The
     run ends 0, nothing is lost and the store's latest is each worker's newest (coevo check, replay exact); a finishing
     worker is never shown dead.  (The worker's kill had a 12-generation run of its own before: the same assertions.)"""
-    # 30 generations: the second broker kill comes when the slowest worker (Tracking) has 6, the fastest (Docking, set
-    # back by its restart) before its end
-    generations = 30
+    # 20 generations: the second broker kill comes when the slowest worker (Tracking) has 6, the fastest (Docking, set
+    # back by its restart) before its end (30 checked the same with half as much again of run and replay)
+    generations = 20
     p, out = _coevo_run(tmp_path, "sup", "--generations", str(generations), "--max-lead", "off")
     run_dir = tmp_path / "sup"
     try:
@@ -645,7 +645,7 @@ def test_ctrl_c_to_the_whole_process_group_stops_in_order_and_the_run_resumes_ex
     """A terminal's Ctrl-C reaches coevo run and every child: only coevo run takes it, so the workers stop at a
     generation's end and write their done.json, the broker stays up for the final measures, and the stop message
     quotes this run's generations; --resume then completes the run exactly."""
-    p, out, run_dir = _run_of_12(tmp_path, ctrl_c_heard)
+    p, out, run_dir = _run_of_8(tmp_path, ctrl_c_heard)
     try:
         poll(lambda: _lines(run_dir / "workers" / "tracking" / "curve.jsonl") >= 3, 120, "three tracking generations")
         os.killpg(p.pid, signal.SIGINT)
@@ -660,7 +660,7 @@ def test_sigterm_to_a_worker_restarts_it_and_to_the_whole_group_stops_in_order(t
     to the whole process group (a scheduler's or a shutdown's) is a stop like Ctrl-C: coevo run's children are in a
     group of their own, so only coevo run hears it and stops them in order (done.json, the final measures);
     --resume then completes the run exactly."""
-    p, out, run_dir = _run_of_12(tmp_path, None)
+    p, out, run_dir = _run_of_8(tmp_path, None)
     try:
         poll(lambda: _lines(run_dir / "workers" / "executive" / "curve.jsonl") >= 1, 120, "an executive generation")
         kids = {int(k) for k in Path(f"/proc/{p.pid}/task/{p.pid}/children").read_text().split()}
@@ -684,7 +684,7 @@ def test_sigterm_to_a_comparisons_process_group_stops_its_runs_in_order_and_it_r
     under it: the run stops in order (its workers' done.json, its summary), compare exits 130, --resume completes."""
     out = tmp_path / "cmp"
     p = subprocess.Popen([sys.executable, "-m", "coevo", "compare", "--regimes", "independent", "--runs", "1",
-                          "--generations", "12", "--population", "6", "--episodes", "10", "--measure-epochs", "1",
+                          "--generations", "8", "--population", "6", "--episodes", "10", "--measure-epochs", "1",
                           "--out", str(out), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                          start_new_session=True)
     run_dir = out / "runs" / "independent-00"
@@ -794,13 +794,19 @@ def test_sigterm_while_coevo_run_starts_leaves_nothing_half_made_and_it_resumes(
     check = check_run(run_dir)
     assert check.ok, check.problems
 
-def _run_of_12(tmp_path: Path, preexec: Any) -> tuple[subprocess.Popen, Path, Path]:
-    """A 12-generation coevo run in a session of its own (its group id is its pid), its output (the status lines,
+
+#: The stopped runs' generations: stopped when Tracking has 3, the others (paced, --max-lead 1) at most 2 ahead, so each
+#: has some left to resume (12 before checked the same with half as much again of run and replay).
+STOPPED_RUN = 8
+
+
+def _run_of_8(tmp_path: Path, preexec: Any) -> tuple[subprocess.Popen, Path, Path]:
+    """An 8-generation coevo run in a session of its own (its group id is its pid), its output (the status lines,
     plain into a file) in run.out."""
     out = tmp_path / "run.out"
     with open(out, "wb") as f:
         p = subprocess.Popen([sys.executable, "-m", "coevo", "run", "--run", "ci", "--root", str(tmp_path), *SMALL,
-                              "--generations", "12", "--measure-epochs", "2"], stdout=f, stderr=subprocess.STDOUT,
+                              "--generations", str(STOPPED_RUN), "--measure-epochs", "2"], stdout=f, stderr=subprocess.STDOUT,
                              start_new_session=True, preexec_fn=preexec)
     return p, out, tmp_path / "ci"
 
@@ -813,8 +819,8 @@ def _stopped_in_order_and_resumes_exact(run_dir: Path, out: Path, *, one_killed:
     counts = {b: _lines(run_dir / "workers" / b / "curve.jsonl") for b in ("tracking", "docking", "executive")}
     for b, n in counts.items():
         done = json.loads((run_dir / "workers" / b / "done.json").read_text())
-        assert done["finished"] == (n == 12) and done["generations"] == n
-    assert summary["stopped_early"] == {b: n for b, n in counts.items() if n < 12}
+        assert done["finished"] == (n == STOPPED_RUN) and done["generations"] == n
+    assert summary["stopped_early"] == {b: n for b, n in counts.items() if n < STOPPED_RUN}
     assert all(f"{b} after {n}" in out.read_text() for b, n in summary["stopped_early"].items())
     # The status lines (plain, into a file) read true: a worker that stopped is "stopped", never "dead".
     lines = out.read_text().splitlines()

@@ -507,8 +507,10 @@ def test_a_cel_runs_capability_lists_and_cases_replayed_from_outside_change_noth
     outsider listening before the robot and the learner start: it cannot miss the messages of the early failure
     (which it did, now and then, when it connected to a whole coevo cel run already under way)."""
     run_dir = tmp_path / "rc"
+    # 14 generations: every kind is put again from the failure's (3) and the change's (4) on, ten generations before the
+    # end (the test says so if the run ended first); 40 checked the same with three times the run and its replay.
     r = subprocess.run([sys.executable, "-m", "coevo", "cel", "--run", "rc", "--root", str(tmp_path), "--prepare",
-                        "--seed", "2", "--generations", "40", "--fail", "3:front,front_right,right", "--case-base",
+                        "--seed", "2", "--generations", "14", "--fail", "3:front,front_right,right", "--case-base",
                         "--population", "16", "--episodes", "20", "--ga", "best_episodes=20"],
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stdout + r.stderr
