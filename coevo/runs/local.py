@@ -49,7 +49,7 @@ import threading
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator, Mapping
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -450,10 +450,13 @@ def run_local(
     with sigterm_stops() as settle:  # a SIGTERM (to coevo run, or to its process group: its children have their own) as Ctrl-C
         try:
             lr.start(resume=resume)
-            with open_session(lr.client_config(), what="status session", gate=lr.gate()) as s:
+            with ExitStack() as stack:
+                s, stop_at_once = _status_session(lr, stack)
                 # the restarts shown beside each process's state; the run's generations until a worker's first heartbeat
                 board = StatusBoard(s, run, restarts=lr.restarts, generations=lr.settings.ga.generations)
                 try:
+                    if stop_at_once:
+                        raise KeyboardInterrupt  # asked while the session opened: stopped in order, as below
                     while True:
                         board.changed.wait(0.5)
                         board.changed.clear()
@@ -486,6 +489,22 @@ def run_local(
         return lr.finish(latest, seconds=time.time() - t0, interrupted=interrupted or bool(stopped_early),
                          measure_epochs=measure_epochs,
                          extra={"resumed": resume, "stopped_early": stopped_early, "stopped_here": interrupted})
+
+
+def _status_session(lr: LocalRun, stack: ExitStack) -> tuple[Session, bool]:
+    """The run's status session, entered on ``stack``, and whether a Ctrl-C or SIGTERM came while it opened (its
+    workers already run).  Their stop is a message on the bus, so such a stop waits for the session and is then made
+    in order, each worker's done.json written; a second one while it still opens ends the wait."""
+    asked = False
+    while True:
+        try:
+            return stack.enter_context(open_session(lr.client_config(), what="status session", gate=lr.gate())), asked
+        except KeyboardInterrupt:
+            if asked:
+                raise
+            asked = True
+            print("stopping: the run's workers are asked to stop once its status session is open", file=sys.stderr,
+                  flush=True)
 
 
 @contextmanager
