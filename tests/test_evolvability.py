@@ -228,6 +228,7 @@ def _coevo(*argv: str) -> subprocess.CompletedProcess[str]:
                           timeout=120, check=False)
 
 
+@pytest.mark.service  # a whole command as a process: the whole suite's, not the fast set's
 def test_tiny_grid_end_to_end(tmp_path: Path) -> None:
     out = tmp_path / "evo"
     r = _coevo("--out", str(out), "--landscapes", "2", "--runs", "2", "--generations", "45", "--rates", "0.3", "0.03",

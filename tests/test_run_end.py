@@ -12,6 +12,8 @@ import shlex
 import time
 from pathlib import Path
 
+import pytest
+
 from procs import coevo_main, copy_of, poll, tree_digest
 
 from coevo.bus import keys
@@ -147,6 +149,7 @@ def test_a_worker_whose_last_heartbeat_says_it_stops_reads_stopped_on_a_board_no
             board.close()
 
 
+@pytest.mark.service  # a whole command as a process: the whole suite's, not the fast set's
 def test_ctrl_c_to_a_run_reads_stopped_in_coevo_status_from_another_terminal(tmp_path: Path) -> None:
     """A real coevo run stopped by a terminal's Ctrl-C (SIGINT to its process group) while ``coevo status`` follows
     it from another terminal (its board, on its own session, not told of the stop): every worker that stopped short
