@@ -91,21 +91,13 @@ class Dynamics:
 
     @staticmethod
     def read(run: Path) -> Dynamics | None:
-        import base64
-
         done = run / "dynamics" / "dynamics.json"
         played = _read_json(done)
         if played is None:
             return None
-        pictures = []
-        for pair in played.get("pairs") or []:
-            for kind in ("master", "ciao"):
-                png = run / "dynamics" / f"{kind}-{'-'.join(map(str, pair))}.png"
-                try:
-                    pictures.append((png.name, base64.b64encode(png.read_bytes()).decode("ascii")))
-                except OSError:
-                    continue
-        return Dynamics(played, tuple(pictures), mtime(done))
+        pngs = [run / "dynamics" / f"{kind}-{'-'.join(map(str, pair))}.png"
+                for pair in played.get("pairs") or [] for kind in ("master", "ciao")]
+        return Dynamics(played, _pictures(pngs), mtime(done))
 
 
 @dataclass(frozen=True)
@@ -122,23 +114,16 @@ class AcrossDynamics:
 
     @staticmethod
     def read(folder: Path) -> AcrossDynamics | None:
-        import base64
-
         done = folder / "dynamics" / "runs.json"
         said = _read_json(done)
         if said is None:
             return None
-        pictures = []
-        for png in sorted((folder / "dynamics").glob("summary-*.png")):
-            try:
-                pictures.append((png.name, base64.b64encode(png.read_bytes()).decode("ascii")))
-            except OSError:
-                continue
+        pictures = _pictures(sorted((folder / "dynamics").glob("summary-*.png")))
         rise = (_read_json(folder / "dynamics" / "rise.json") or {}).get("rise")
         runs, groups = said.get("runs"), said.get("groups")  # what a damaged file holds instead is shown as none
         return AcrossDynamics(len(runs) if isinstance(runs, list) else 0,
                               tuple(sorted({str(g) for g in groups.values()})) if isinstance(groups, dict) else (),
-                              tuple(pictures), tuple(r for r in rise if isinstance(r, dict))
+                              pictures, tuple(r for r in rise if isinstance(r, dict))
                               if isinstance(rise, list) else (), mtime(done))
 
 
@@ -199,6 +184,19 @@ class View:
 
 
 # ---------------------------------------------------------------- files
+def _pictures(pngs: list[Path]) -> tuple[tuple[str, str], ...]:
+    """Each PNG that can be read, by name, as base64 (one missing or unreadable is left out: the page shows the rest)."""
+    import base64
+
+    out = []
+    for png in pngs:
+        try:
+            out.append((png.name, base64.b64encode(png.read_bytes()).decode("ascii")))
+        except OSError:
+            continue
+    return tuple(out)
+
+
 def _read_json(path: Path) -> dict[str, Any] | None:
     try:
         data = json.loads(Path(path).read_text(encoding="utf-8"))
