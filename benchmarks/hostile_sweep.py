@@ -42,7 +42,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -302,10 +302,23 @@ def shown(argv: list[str]) -> str:
     return "coevo " + " ".join(repr(a) if a == "" or " " in a else a for a in argv)
 
 
+def _at_least(low: float, kind: type) -> Callable[[str], float]:
+    """An argparse type: a ``kind`` number not below ``low`` (nan and -1 are one line from argparse, not a traceback)."""
+    def parse(text: str) -> float:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not value >= low:
+            raise argparse.ArgumentTypeError(f"{text!r}: give a number from {low}")
+        return value
+    return parse
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--jobs", type=int, default=2, help="lines run at once (default 2)")
-    ap.add_argument("--timeout", type=float, default=60.0, help="seconds before a line is killed (default 60)")
+    ap.add_argument("--jobs", type=_at_least(1, int), default=2, help="lines run at once (default 2)")
+    ap.add_argument("--timeout", type=_at_least(0.1, float), default=60.0, help="seconds before a line is killed (default 60)")
     ap.add_argument("--only", default="", help="comma-separated commands (default: every command)")
     ap.add_argument("--show-all", action="store_true", help="list every line, not only those with a problem")
     ap.add_argument("--stream", action="store_true", help="print each line's result (JSON) as it ends")
